@@ -1,0 +1,61 @@
+"""Argument checks shared by every public function.
+
+Each check raises ``ValueError`` whose message names the argument and what is wrong, so that bad
+input never turns into a NaN or a traceback from deep inside numpy, shapely or gtsam.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def as_float_array(name: str, value, *, last_dim: int | None = None, ndim: int | None = None,
+                   min_ndim: int = 0) -> np.ndarray:
+    """Return ``value`` as a finite float64 array, checking its shape.
+
+    ``last_dim``: required size of the last axis; ``ndim``: required number of axes;
+    ``min_ndim``: least number of axes.
+    """
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name}: expected numbers, got {type(value).__name__} ({exc})") from None
+    if ndim is not None and arr.ndim != ndim:
+        raise ValueError(f"{name}: expected {ndim} axes, got shape {arr.shape}")
+    if arr.ndim < min_ndim:
+        raise ValueError(f"{name}: expected at least {min_ndim} axes, got shape {arr.shape}")
+    if last_dim is not None and (arr.ndim == 0 or arr.shape[-1] != last_dim):
+        raise ValueError(f"{name}: expected last axis of size {last_dim}, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        bad = int(np.size(arr) - np.count_nonzero(np.isfinite(arr)))
+        raise ValueError(f"{name}: {bad} non-finite value(s) (NaN or inf)")
+    return arr
+
+
+def non_negative(name: str, value) -> float:
+    """Return ``value`` as a finite float that is >= 0."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected a number, got {value!r}") from None
+    if not np.isfinite(v) or v < 0:
+        raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
+    return v
+
+
+def positive_int(name: str, value, *, minimum: int = 1) -> int:
+    """Return ``value`` as an int that is >= ``minimum``."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise ValueError(f"{name}: expected an integer, got {value!r}")
+    if value < minimum:
+        raise ValueError(f"{name}: expected an integer >= {minimum}, got {value}")
+    return int(value)
+
+
+def as_rng(seed) -> np.random.Generator:
+    """A ``numpy.random.Generator`` from a Generator, an int seed, a SeedSequence or None."""
+    if isinstance(seed, np.random.Generator):
+        return seed
+    if seed is None or isinstance(seed, (int, np.integer, np.random.SeedSequence)):
+        return np.random.default_rng(seed)
+    raise ValueError(f"seed: expected None, an int, a SeedSequence or a numpy Generator, got {seed!r}")
