@@ -1,0 +1,230 @@
+"""Composition tensor files: where they live, how they are written, loaded and checked.
+
+A tensor file ``tensors/<partition>.npz`` holds (all plain arrays, loadable without pickle):
+
+* ``T`` (m, m, m) float64, sums to 1; ``support`` (m, m, m) bool, ``T > 0``;
+* ``partition`` (name), ``window`` (xmin, xmax, ymin, ymax), ``samples_per_state``, ``seed``,
+  ``quad_segs`` (polygon resolution: segments per quarter circle), ``version`` (qfg's),
+  ``sha256`` (hex digest of ``T`` as C-ordered little-endian float64 bytes);
+* build details: ``method``, ``support_samples_per_state``, ``build_seconds``, ``workers``.
+
+The directory is ``tensors/`` at the repository root (next to the ``qfg`` package), or the
+directory named by the environment variable ``QFG_TENSORS``.
+
+>>> from qfg.composition import tensor
+>>> T = tensor("fdc")                                   # doctest: +SKIP
+>>> T.T.shape, round(float(T.T.sum()), 12)              # doctest: +SKIP
+((6, 6, 6), 1.0)
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .. import partitions as _partitions
+
+__all__ = ["CompositionTensor", "TensorFileError", "tensors_dir", "tensor_path", "tensor", "load",
+           "save", "checksum", "rebuild_command", "ENV_VAR"]
+
+#: Environment variable that overrides the tensor directory.
+ENV_VAR = "QFG_TENSORS"
+
+_REQUIRED = ("T", "support", "partition", "window", "samples_per_state", "seed", "quad_segs",
+             "version", "sha256")
+
+
+class TensorFileError(ValueError):
+    """A composition tensor file is missing, unreadable or does not match its partition.
+
+    The message names the file and the command that rebuilds it.
+    """
+
+
+@dataclass(frozen=True, eq=False)
+class CompositionTensor:
+    """A composition tensor and how it was made.
+
+    ``T[i, j, k]`` with i = state of AB:C, j = state of BC:D, k = state of AB:D (0-based).
+
+    Attributes:
+        partition: partition name (``"edc"``).
+        T: (m, m, m) float64, non-negative, sums to 1.
+        support: (m, m, m) bool, ``T > 0`` (the deterministic composition).
+        window: (xmin, xmax, ymin, ymax) integration window, units of |AB|.
+        samples_per_state: C samples per AB:C state that carry the weights.
+        seed: seed of the build.
+        quad_segs: segments per quarter circle of the polygons used.
+        version: qfg version that built it.
+        sha256: checksum of T (see :func:`checksum`).
+        meta: other build details (method, support samples, build time, ...).
+        path: file it was loaded from (None if built in memory).
+    """
+
+    partition: str
+    T: np.ndarray
+    support: np.ndarray
+    window: tuple[float, float, float, float]
+    samples_per_state: int
+    seed: int
+    quad_segs: int
+    version: str
+    sha256: str
+    meta: dict
+    path: Path | None = None
+
+    @property
+    def n_states(self) -> int:
+        """m, the number of states of the partition."""
+        return int(self.T.shape[0])
+
+    @property
+    def nnz(self) -> int:
+        """Number of non-zero entries (feasible (i, j, k) combinations)."""
+        return int(np.count_nonzero(self.support))
+
+    def __repr__(self) -> str:
+        return (f"CompositionTensor({self.partition!r}, m={self.n_states}, nnz={self.nnz}, "
+                f"window={self.window}, samples_per_state={self.samples_per_state}, "
+                f"seed={self.seed})")
+
+
+def checksum(T: np.ndarray) -> str:
+    """sha256 hex digest of T as C-ordered little-endian float64 bytes."""
+    return hashlib.sha256(np.ascontiguousarray(T, dtype="<f8").tobytes()).hexdigest()
+
+
+def tensors_dir() -> Path:
+    """The tensor directory: ``$QFG_TENSORS`` if set, else ``tensors/`` at the repository root."""
+    env = os.environ.get(ENV_VAR)
+    if env:
+        return Path(env)
+    return Path(__file__).resolve().parents[2] / "tensors"
+
+
+def tensor_path(name: str) -> Path:
+    """Path of the tensor file of partition ``name``: ``<tensors_dir>/<name>.npz``."""
+    return tensors_dir() / f"{str(name).lower()}.npz"
+
+
+def rebuild_command(name: str) -> str:
+    """The shell command that rebuilds the tensor of partition ``name``."""
+    return f"qfg tensors build --partition {str(name).lower()}"
+
+
+def _fail(path, name, what) -> TensorFileError:
+    return TensorFileError(f"composition tensor file {path}: {what}. Rebuild it with "
+                           f"`{rebuild_command(name)}` (see docs/composition.md).")
+
+
+def save(path, tensor: CompositionTensor) -> Path:
+    """Write ``tensor`` to ``path`` (.npz, compressed, no pickled objects). Returns the path."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    meta = {f"meta_{k}": np.asarray(v) for k, v in tensor.meta.items()}
+    tmp = path.with_name(path.name + ".tmp.npz")
+    np.savez_compressed(
+        tmp, T=np.ascontiguousarray(tensor.T, dtype="<f8"), support=tensor.support.astype(bool),
+        partition=np.asarray(tensor.partition), window=np.asarray(tensor.window, dtype=float),
+        samples_per_state=np.asarray(tensor.samples_per_state), seed=np.asarray(tensor.seed),
+        quad_segs=np.asarray(tensor.quad_segs), version=np.asarray(tensor.version),
+        sha256=np.asarray(tensor.sha256), **meta)
+    os.replace(tmp, path)  # atomic: a reader never sees half a file
+    return path
+
+
+def load(path, partition=None) -> CompositionTensor:
+    """Load and check a tensor file.
+
+    Checks: the file exists and is a readable .npz with every field; T is (m, m, m) with m the
+    partition's number of states, finite, non-negative, sums to 1; its sha256 matches; ``support``
+    equals ``T > 0``; the window equals the partition's window. ``partition`` (name or Partition)
+    defaults to the one recorded in the file (or the file's stem if that is unreadable).
+
+    Raises:
+        TensorFileError (a ValueError) naming the file and the rebuild command.
+    """
+    path = Path(path)
+    name = (_partitions.get(partition).name if partition is not None else path.stem)
+    if not path.is_file():
+        raise _fail(path, name, "not found")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as exc:
+        raise _fail(path, name, f"cannot be read ({type(exc).__name__}: {exc})") from None
+    missing = [k for k in _REQUIRED if k not in data]
+    if missing:
+        raise _fail(path, name, f"missing fields {missing}")
+    try:
+        recorded = str(data["partition"])
+        window = tuple(float(v) for v in np.asarray(data["window"], dtype=float).ravel())
+        samples = int(data["samples_per_state"])
+        seed = int(data["seed"])
+        quad_segs = int(data["quad_segs"])
+        version = str(data["version"])
+        sha = str(data["sha256"])
+        T = np.asarray(data["T"], dtype=float)
+        support = np.asarray(data["support"])
+    except (TypeError, ValueError) as exc:
+        raise _fail(path, name, f"malformed metadata ({exc})") from None
+    if partition is None:
+        name = recorded
+    try:
+        part = _partitions.get(name)
+    except ValueError:
+        raise _fail(path, name, f"unknown partition {name!r}") from None
+    if recorded != part.name:
+        raise _fail(path, part.name, f"built for partition {recorded!r}, expected {part.name!r}")
+    m = part.n_states
+    if T.shape != (m, m, m):
+        raise _fail(path, part.name, f"T has shape {T.shape}, expected {(m, m, m)} for "
+                                     f"{part.name} ({m} states)")
+    if checksum(T) != sha:
+        raise _fail(path, part.name, "T does not match its sha256 checksum (corrupt or edited)")
+    if not np.all(np.isfinite(T)) or np.any(T < 0) or not np.isclose(T.sum(), 1.0, atol=1e-9):
+        raise _fail(path, part.name, "T must be finite, non-negative and sum to 1")
+    if support.shape != T.shape or support.dtype != bool or not np.array_equal(support, T > 0):
+        raise _fail(path, part.name, "support is not T > 0")
+    if len(window) != 4 or not np.allclose(window, part.window, rtol=0, atol=1e-12):
+        raise _fail(path, part.name, f"window {window} disagrees with the partition's window "
+                                     f"{part.window}")
+    meta = {k[5:]: (v.item() if v.ndim == 0 else v) for k, v in data.items()
+            if k.startswith("meta_")}
+    T.setflags(write=False)
+    support.setflags(write=False)
+    return CompositionTensor(partition=part.name, T=T, support=support, window=window,
+                             samples_per_state=samples, seed=seed, quad_segs=quad_segs,
+                             version=version, sha256=sha, meta=meta, path=path)
+
+
+_CACHE: dict[tuple, CompositionTensor] = {}
+
+
+def tensor(name) -> CompositionTensor:
+    """The shipped composition tensor of partition ``name`` (``"edc"``, ``"fdc"``, ...), checked.
+
+    Loads ``<tensors_dir>/<name>.npz`` (see :func:`tensors_dir`) once per file version (cached by
+    path, size and modification time). Raises :class:`TensorFileError` if the file is missing,
+    corrupt or does not match the partition.
+
+    >>> tensor("edc").T.shape                               # doctest: +SKIP
+    (20, 20, 20)
+    """
+    part = _partitions.get(name)
+    path = tensor_path(part.name)
+    try:
+        st = path.stat()
+        key = (str(path.resolve()), st.st_size, st.st_mtime_ns)
+    except OSError:
+        raise _fail(path, part.name, "not found") from None
+    hit = _CACHE.get(key)
+    if hit is None:
+        hit = load(path, part)
+        _CACHE[key] = hit
+    return hit
