@@ -1,0 +1,93 @@
+"""Run benchmarks and rebuild docs/benchmarks.md."""
+
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import importlib
+import json
+import os
+import pkgutil
+import platform
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+RESULTS = HERE / "results"
+DOC = HERE.parent / "docs" / "benchmarks.md"
+
+
+def machine() -> dict:
+    cpu = platform.processor() or ""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    import numpy
+
+    return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(),
+            "numpy": numpy.__version__, "platform": platform.platform(),
+            "date": _dt.datetime.now().strftime("%Y-%m-%d %H:%M")}
+
+
+def topics() -> list[str]:
+    return sorted(m.name[len("bench_"):] for m in pkgutil.iter_modules([str(HERE)])
+                  if m.name.startswith("bench_"))
+
+
+def run_topic(topic: str) -> dict:
+    mod = importlib.import_module(f"benchmarks.bench_{topic}")
+    print(f"== {topic}", flush=True)
+    rows = mod.run()
+    for r in rows:
+        print(f"   {r['name']}: {r['value']:.4g} {r['unit']}  {r.get('note', '')}", flush=True)
+    res = {"topic": topic, "machine": machine(), "rows": rows,
+           "command": f"python -m benchmarks {topic}", "doc": (mod.__doc__ or "").strip()}
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / f"{topic}.json").write_text(json.dumps(res, indent=2) + "\n")
+    return res
+
+
+def render() -> str:
+    out = ["# Benchmarks", "",
+           "Measured by `python -m benchmarks [topic ...]` (`make bench` runs all). Each section names "
+           "the machine and date it was measured on and the command that made it. The machine is "
+           "shared and noisy (2 cores): compare ratios within one section rather than absolute "
+           "times across sections.", ""]
+    for f in sorted(RESULTS.glob("*.json")):
+        res = json.loads(f.read_text())
+        m = res["machine"]
+        out += [f"## {res['topic']}", ""]
+        if res.get("doc"):
+            out += [res["doc"], ""]
+        out += [f"Command: `{res['command']}`; measured {m['date']} on {m['cpu']} "
+                f"({m['cores']} cores), Python {m['python']}, numpy {m['numpy']}.", "",
+                "| benchmark | value | unit | target | note |", "|---|---|---|---|---|"]
+        for r in res["rows"]:
+            out.append(f"| {r['name']} | {r['value']:.4g} | {r['unit']} | {r.get('target', '')} | "
+                       f"{r.get('note', '')} |")
+        out.append("")
+    return "\n".join(out)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__)
+    ap.add_argument("topics", nargs="*", help=f"topics (default all): {', '.join(topics())}")
+    args = ap.parse_args(argv)
+    chosen = args.topics or topics()
+    unknown = set(chosen) - set(topics())
+    if unknown:
+        ap.error(f"unknown topic(s) {sorted(unknown)}; known: {topics()}")
+    sys.path.insert(0, str(HERE.parent))
+    for t in chosen:
+        run_topic(t)
+    DOC.write_text(render())
+    print(f"wrote {DOC}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

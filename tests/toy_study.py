@@ -1,0 +1,25 @@
+"""A tiny study used by the runner tests (importable by worker and killed subprocesses)."""
+
+import time
+
+from qfg.runner import Study
+
+
+def tasks(params):
+    return [{"i": i, "fail": i in params.get("fail", [])} for i in range(params["n"])]
+
+
+def run_task(task, rng):
+    if task["fail"]:
+        raise RuntimeError(f"scenario {task['i']} fails on purpose")
+    time.sleep(task.get("sleep", 0.0))
+    x = rng.normal(size=3)
+    return [{"i": task["i"], "k": k, "x": float(x[k]), "time_s": time.perf_counter()} for k in range(3)]
+
+
+def slow_tasks(params):
+    return [{"i": i, "fail": False, "sleep": params["sleep"]} for i in range(params["n"])]
+
+
+STUDY = Study("toy", tasks, run_task, None, "toy study for tests")
+SLOW = Study("toy-slow", slow_tasks, run_task, None, "slow toy study for tests")
