@@ -1,0 +1,411 @@
+"""The qualitative factor graph (paper section 5b; conventions.md, "Qualitative factor graph").
+
+Variables are ordered landmark triplets ``(i, j, k)`` = ``S^{ij:k}``, each with m states (m from
+the composition tensor). Factors:
+
+* unary: for a seen triplet, its single-triplet estimate ``P(S | H)`` (an (m,) vector);
+* composition: for landmarks ``(i, j, k, s)`` with ``(i, j, k)``, ``(j, k, s)``, ``(i, j, s)`` all in
+  the map, the tensor ``T[a, b, c]`` over the states of those three triplets, in that order
+  (t1 = AB:C, t2 = BC:D, t3 = AB:D with A, B, C, D = i, j, k, s).
+
+The joint is the normalized product of all factors; :func:`qfg.propagation.exact_marginals` computes
+its marginals (GTSAM elimination or einsum contraction), :func:`qfg.propagation.propagate` the
+paper's label-correcting Algorithm 2, :func:`qfg.propagation.loopy_bp` sum-product.
+
+Key scheme. Triplet ``(i, j, k)`` is the GTSAM DiscreteKey ``(triplet_key(i, j, k), m)`` with
+``triplet_key(i, j, k) = (i << 40) | (j << 20) | k`` (:data:`KEY_BITS` = 20 bits per landmark id,
+ids in ``[0, 2**20)``): injective, and independent of which other triplets are in the map, so a
+triplet keeps its key as the map grows. Inside the graph, variables are numbered in insertion
+order (``g.triplets[v]``), factors in the order they were added (``g.factors[f]`` = ``(i, j, k, s)``,
+``g.factor_vars[f]`` = the three variable indices); :meth:`discover_compositions` adds new factors
+in lexicographic ``(i, j, k, s)`` order, so the same calls give the same graph.
+
+>>> import numpy as np
+>>> rng = np.random.default_rng(0)
+>>> T = rng.random((3, 3, 3))
+>>> g = full_map(4, tensor=T)
+>>> g.n_triplets, g.n_factors
+(24, 24)
+>>> g.to_gtsam().size()
+24
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+
+import numpy as np
+
+from .composition import as_table
+
+__all__ = ["QualitativeFactorGraph", "triplet_key", "full_map", "map_from_triplets", "KEY_BITS",
+           "brute_force_compositions"]
+
+#: Bits per landmark id in :func:`triplet_key`.
+KEY_BITS = 20
+_MAX_ID = 1 << KEY_BITS
+
+
+def triplet_key(i: int, j: int, k: int) -> int:
+    """GTSAM key of triplet ``(i, j, k)``: ``(i << 40) | (j << 20) | k`` (ids in [0, 2**20)).
+
+    >>> triplet_key(0, 1, 2) == (1 << 20) + 2
+    True
+    """
+    return (int(i) << (2 * KEY_BITS)) | (int(j) << KEY_BITS) | int(k)
+
+
+def _as_triplet(triplet) -> tuple[int, int, int]:
+    try:
+        t = tuple(triplet)
+    except TypeError:
+        raise ValueError(f"triplet: expected three landmark ids (i, j, k), got {triplet!r}") from None
+    if len(t) != 3:
+        raise ValueError(f"triplet: expected three landmark ids (i, j, k), got {triplet!r}")
+    out = []
+    for x in t:
+        if isinstance(x, (bool, np.bool_)) or not isinstance(x, (int, np.integer)):
+            raise ValueError(f"triplet: landmark ids must be integers, got {triplet!r}")
+        if not 0 <= int(x) < _MAX_ID:
+            raise ValueError(f"triplet: landmark ids must be in [0, {_MAX_ID}), got {triplet!r}")
+        out.append(int(x))
+    if len(set(out)) != 3:
+        raise ValueError(f"triplet: landmark ids must be distinct, got {triplet!r}")
+    return out[0], out[1], out[2]
+
+
+def _as_prior(prior, m: int) -> np.ndarray | None:
+    """(m,) normalized prior from a vector or a TripletEstimate-like object (``.landmark``)."""
+    if prior is None:
+        return None
+    if hasattr(prior, "landmark") and not isinstance(prior, np.ndarray):
+        prior = prior.landmark
+    try:
+        p = np.asarray(prior, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"prior: expected an ({m},) vector or a TripletEstimate, "
+                         f"got {type(prior).__name__}") from None
+    if p.shape != (m,):
+        raise ValueError(f"prior: expected shape ({m},), got {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ValueError("prior: non-finite values (NaN or inf)")
+    if np.any(p < 0):
+        raise ValueError("prior: expected non-negative values")
+    total = p.sum()
+    if not total > 0:
+        raise ValueError("prior: all zero, cannot be normalized")
+    return p / total
+
+
+class QualitativeFactorGraph:
+    """A qualitative map as a discrete factor graph.
+
+    Args:
+        partition: partition name (``"edc"``, ``"fdc"``, ``"lr"``, ``"tpcc"``); labels the states
+            and names the shipped tensor.
+        tensor: (m, m, m) composition tensor or a :class:`~qfg.composition.CompositionTensor`;
+            None loads ``qfg.composition.tensor(partition)`` on first use.
+
+    Attributes (read-only views):
+        triplets: list of ``(i, j, k)`` in insertion order (variable index v).
+        priors: list of (m,) normalized priors or None (unseen), per variable.
+        factors: list of ``(i, j, k, s)`` composition factors; ``factor_vars`` (F, 3) int array
+            of variable indices (t1, t2, t3) = ((i,j,k), (j,k,s), (i,j,s)).
+
+    >>> import numpy as np
+    >>> g = QualitativeFactorGraph("lr", tensor=np.ones((2, 2, 2)) / 8)
+    >>> for t in [(0, 1, 2), (1, 2, 3), (0, 1, 3)]:
+    ...     _ = g.add_triplet(t, prior=[0.9, 0.1] if t != (0, 1, 3) else None)
+    >>> g.discover_compositions()
+    1
+    >>> g.factors, g.seen.tolist()
+    ([(0, 1, 2, 3)], [True, True, False])
+    """
+
+    def __init__(self, partition: str = "edc", tensor=None):
+        if not isinstance(partition, str) or not partition:
+            raise ValueError(f"partition: expected a partition name, got {partition!r}")
+        self.partition = partition.lower()
+        self._table = None if tensor is None else as_table(tensor)
+        self._triplets: list[tuple[int, int, int]] = []
+        self._index: dict[tuple[int, int, int], int] = {}
+        self._priors: list[np.ndarray | None] = []
+        self._factors: list[tuple[int, int, int, int]] = []
+        self._factor_set: set[tuple[int, int, int, int]] = set()
+        self._factor_vars: list[tuple[int, int, int]] = []
+        # pair (a, b) -> third ids c of triplets (a, b, c): the index behind discovery.
+        self._pair: dict[tuple[int, int], list[int]] = {}
+
+    # ----------------------------------------------------------------- tensor
+    @property
+    def table(self) -> np.ndarray:
+        """The (m, m, m) composition tensor (loaded lazily from the partition name)."""
+        if self._table is None:
+            from .composition import tensor as load_tensor
+            self._table = as_table(load_tensor(self.partition))
+        return self._table
+
+    @property
+    def m(self) -> int:
+        """Number of states per triplet."""
+        return int(self.table.shape[0])
+
+    # -------------------------------------------------------------- building
+    def add_triplet(self, triplet, prior=None) -> int:
+        """Add triplet ``(i, j, k)`` (ordered, distinct landmark ids); returns its variable index.
+
+        ``prior``: (m,) non-negative vector (normalized here), an object with a ``.landmark`` (m,)
+        attribute (:class:`~qfg.solvers.TripletEstimate`), or None for an unseen triplet. Adding an
+        existing triplet replaces its prior.
+        """
+        t = _as_triplet(triplet)
+        p = None if prior is None else _as_prior(prior, self.m)
+        v = self._index.get(t)
+        if v is not None:
+            self._priors[v] = p
+            return v
+        v = len(self._triplets)
+        self._triplets.append(t)
+        self._index[t] = v
+        self._priors.append(p)
+        self._pair.setdefault((t[0], t[1]), []).append(t[2])
+        return v
+
+    def add_composition(self, ijks) -> int:
+        """Add the composition factor of landmarks ``(i, j, k, s)``; its three triplets must exist.
+
+        Returns the factor index (an existing factor is not added twice).
+        """
+        try:
+            i, j, k, s = (int(x) for x in ijks)
+        except (TypeError, ValueError):
+            raise ValueError(f"ijks: expected four landmark ids (i, j, k, s), got {ijks!r}") from None
+        key = (i, j, k, s)
+        if key in self._factor_set:
+            return self._factors.index(key)
+        vs = []
+        for t in ((i, j, k), (j, k, s), (i, j, s)):
+            if t not in self._index:
+                raise ValueError(f"ijks: triplet {t} of factor {key} is not in the map")
+            vs.append(self._index[t])
+        self._factors.append(key)
+        self._factor_set.add(key)
+        self._factor_vars.append(tuple(vs))
+        return len(self._factors) - 1
+
+    def discover_compositions(self) -> int:
+        """Add every composition factor ``(i j:k, j k:s, i j:s)`` whose triplets are all in the map.
+
+        Indexed by landmark pairs: for each triplet (i, j, k), the candidates s are the third ids
+        of the triplets (j, k, s), kept when (i, j, s) is in the map -- cost O(sum over triplets of
+        the triplets sharing their last pair), not a scan of all triples of triplets.
+        Returns the number of factors added.
+        """
+        found = []
+        index = self._index
+        for (i, j, k) in self._triplets:
+            for s in self._pair.get((j, k), ()):
+                if s != i and (i, j, s) in index:
+                    key = (i, j, k, s)
+                    if key not in self._factor_set:
+                        found.append(key)
+        found.sort()
+        for key in found:
+            i, j, k, s = key
+            self._factors.append(key)
+            self._factor_set.add(key)
+            self._factor_vars.append((index[(i, j, k)], index[(j, k, s)], index[(i, j, s)]))
+        return len(found)
+
+    # ------------------------------------------------------------ accessors
+    @property
+    def triplets(self) -> list[tuple[int, int, int]]:
+        return list(self._triplets)
+
+    @property
+    def priors(self) -> list[np.ndarray | None]:
+        return [None if p is None else p.copy() for p in self._priors]
+
+    @property
+    def factors(self) -> list[tuple[int, int, int, int]]:
+        return list(self._factors)
+
+    @property
+    def factor_vars(self) -> np.ndarray:
+        """(F, 3) int variable indices of each composition factor (t1, t2, t3)."""
+        return np.asarray(self._factor_vars, dtype=np.intp).reshape(-1, 3)
+
+    @property
+    def n_triplets(self) -> int:
+        return len(self._triplets)
+
+    @property
+    def n_factors(self) -> int:
+        return len(self._factors)
+
+    @property
+    def seen(self) -> np.ndarray:
+        """(n,) bool: True for triplets with a prior (unary factor)."""
+        return np.array([p is not None for p in self._priors], dtype=bool)
+
+    def index(self, triplet) -> int:
+        """Variable index of ``triplet``."""
+        t = _as_triplet(triplet)
+        if t not in self._index:
+            raise ValueError(f"triplet: {t} is not in the map")
+        return self._index[t]
+
+    def key(self, triplet) -> int:
+        """GTSAM key of ``triplet`` (see :func:`triplet_key`)."""
+        return triplet_key(*self._triplets[self.index(triplet)])
+
+    def prior_matrix(self) -> np.ndarray:
+        """(n, m) priors, uniform rows for unseen triplets."""
+        m = self.m
+        out = np.full((self.n_triplets, m), 1.0 / m)
+        for v, p in enumerate(self._priors):
+            if p is not None:
+                out[v] = p
+        return out
+
+    def incidence(self) -> list[list[int]]:
+        """For each variable, the factor indices that touch it (ascending)."""
+        inc: list[list[int]] = [[] for _ in range(self.n_triplets)]
+        for f, vs in enumerate(self._factor_vars):
+            for v in set(vs):
+                inc[v].append(f)
+        return inc
+
+    # ------------------------------------------------------------ exports
+    def to_gtsam(self):
+        """The ``gtsam.DiscreteFactorGraph``: one DecisionTreeFactor per prior and per composition.
+
+        Composition factors have keys in the order (t1, t2, t3) and table ``T.ravel()`` (C order:
+        GTSAM's first key varies slowest -- checked against a numpy product in the tests).
+        """
+        import gtsam
+
+        m = self.m
+        graph = gtsam.DiscreteFactorGraph()
+        dkeys = [(triplet_key(*t), m) for t in self._triplets]
+        for v, p in enumerate(self._priors):
+            if p is not None:
+                graph.push_back(gtsam.DecisionTreeFactor([dkeys[v]], p.tolist()))
+        flat = self.table.ravel().tolist()
+        for (a, b, c) in self._factor_vars:
+            graph.push_back(gtsam.DecisionTreeFactor([dkeys[a], dkeys[b], dkeys[c]], flat))
+        return graph
+
+    def to_networkx(self, isc=None):
+        """Bipartite ``networkx.Graph``: variable nodes ``("v", i, j, k)``, factor nodes
+        ``("u", i, j, k)`` (unary) and ``("c", i, j, k, s)`` (composition).
+
+        Node attributes: ``bipartite`` (0 variables, 1 factors), ``kind`` ("variable", "unary",
+        "composition"); variables also ``seen``, ``prior`` ((m,) or None), ``isc`` (the prior's
+        information score, 0 for unseen; or ``isc[v]`` if an (n,) array is given, e.g. from a
+        propagation result), ``index`` (variable index). Composition edges carry ``role`` 1..3.
+        """
+        import networkx as nx
+
+        from .metrics import information_score
+
+        P = self.prior_matrix()
+        scores = (information_score(P) if isc is None
+                  else np.asarray(isc, dtype=float).reshape(self.n_triplets))
+        G = nx.Graph()
+        for v, t in enumerate(self._triplets):
+            p = self._priors[v]
+            G.add_node(("v",) + t, bipartite=0, kind="variable", index=v, seen=p is not None,
+                       prior=None if p is None else p.copy(), isc=float(scores[v]))
+            if p is not None:
+                G.add_node(("u",) + t, bipartite=1, kind="unary")
+                G.add_edge(("u",) + t, ("v",) + t)
+        for key, vs in zip(self._factors, self._factor_vars, strict=True):
+            G.add_node(("c",) + key, bipartite=1, kind="composition")
+            for role, v in enumerate(vs, start=1):
+                G.add_edge(("c",) + key, ("v",) + self._triplets[v], role=role)
+        return G
+
+    # ------------------------------------------------------------ inference
+    def exact_marginals(self, engine: str = "contract", **kwargs) -> np.ndarray:
+        """(n, m) exact marginals; see :func:`qfg.propagation.exact_marginals`."""
+        from .propagation import exact_marginals
+        return exact_marginals(self, engine=engine, **kwargs)
+
+    def propagate(self, **kwargs):
+        """Algorithm 2; see :func:`qfg.propagation.propagate`."""
+        from .propagation import propagate
+        return propagate(self, **kwargs)
+
+    def topology_scores(self, alpha: float = 0.5, seen_score=None):
+        """Algorithm 3; see :func:`qfg.propagation.topology_scores`."""
+        from .propagation import topology_scores
+        return topology_scores(self, alpha=alpha, seen_score=seen_score)
+
+    def composition_levels(self):
+        """Composition levels; see :func:`qfg.propagation.composition_levels`."""
+        from .propagation import composition_levels
+        return composition_levels(self)
+
+    def loopy_bp(self, **kwargs):
+        """Sum-product; see :func:`qfg.propagation.loopy_bp`."""
+        from .propagation import loopy_bp
+        return loopy_bp(self, **kwargs)
+
+    def __repr__(self) -> str:
+        return (f"QualitativeFactorGraph(partition={self.partition!r}, triplets={self.n_triplets}, "
+                f"seen={int(self.seen.sum())}, factors={self.n_factors})")
+
+
+def full_map(n_landmarks: int, partition: str = "edc", tensor=None, priors: Mapping | None = None
+             ) -> QualitativeFactorGraph:
+    """Every ordered triplet of landmarks ``0..n_landmarks-1`` and every composition factor.
+
+    ``n (n-1) (n-2)`` triplets and ``n (n-1) (n-2) (n-3)`` factors (15 landmarks: 2730, 32760).
+    ``priors``: optional mapping triplet -> prior for the seen ones.
+    """
+    from ._validate import positive_int
+
+    n = positive_int("n_landmarks", n_landmarks, minimum=3)
+    g = QualitativeFactorGraph(partition, tensor)
+    priors = dict(priors or {})
+    for i in range(n):
+        for j in range(n):
+            for k in range(n):
+                if i != j and j != k and i != k:
+                    g.add_triplet((i, j, k), priors.pop((i, j, k), None))
+    if priors:
+        raise ValueError(f"priors: triplets not in the map: {sorted(priors)[:5]}")
+    g.discover_compositions()
+    return g
+
+
+def map_from_triplets(seen: Mapping, unseen: Iterable = (), partition: str = "edc", tensor=None,
+                      discover: bool = True) -> QualitativeFactorGraph:
+    """The map of the triplets some views saw (``seen``: triplet -> prior vector or
+    TripletEstimate) plus chosen unseen ones, with every composition factor among them.
+
+    Seen triplets are added first (sorted), then the unseen ones (sorted, skipping seen ones).
+    """
+    g = QualitativeFactorGraph(partition, tensor)
+    for t in sorted(seen, key=lambda x: tuple(x)):
+        g.add_triplet(t, seen[t])
+    for t in sorted({_as_triplet(t) for t in unseen}):
+        if t not in g._index:
+            g.add_triplet(t, None)
+    if discover:
+        g.discover_compositions()
+    return g
+
+
+def brute_force_compositions(triplets: Iterable) -> list[tuple[int, int, int, int]]:
+    """Every ``(i, j, k, s)`` with ``(i,j,k), (j,k,s), (i,j,s)`` among ``triplets``, by scanning all
+    ordered triples of triplets (cubic; for tests on small maps)."""
+    ts = [tuple(t) for t in triplets]
+    out = set()
+    for a in ts:
+        for b in ts:
+            for c in ts:
+                if a[1:] == b[:2] and c[:2] == a[:2] and c[2] == b[2]:
+                    out.add((a[0], a[1], a[2], b[2]))
+    return sorted(out)

@@ -1,0 +1,542 @@
+"""Inference on a :class:`~qfg.graph.QualitativeFactorGraph` (paper section 5c, 06f).
+
+Plain functions over the graph object (networkx style):
+
+* :func:`exact_marginals`: marginals of the normalized product of all factors, by GTSAM elimination
+  (``engine="gtsam"``) or einsum contraction with an opt_einsum order (``engine="contract"``).
+* :func:`propagate`: the paper's label-correcting Algorithm 2.
+* :func:`topology_scores`: Algorithm 3 with the information decay model (eqs. decay1, decay2).
+* :func:`composition_levels`: eqs. cl1, cl2 and the normalized cl3.
+* :func:`loopy_bp`: damped synchronous sum-product on the same factors.
+
+Algorithms 2 and 3 and the composition levels share one label-correcting engine: seen triplets are
+sources (updated); a composition factor is *open* while it touches both updated and non-updated
+triplets; each open factor proposes a value for each of its non-updated triplets from its updated
+ones (one updated: both others get the proposal from that one, the other unknown treated as
+uniform; two updated: the third from both); the best proposal over all open factors is kept, its
+triplet marked updated (never updated again). A factor's proposals change only when one of its
+triplets is updated, so proposals live in a priority queue and after an update only the factors
+touching the updated triplet are recomputed: the cost grows with the number of factors, not with
+steps x factors. Ties are broken by the smaller triplet index, then the smaller factor index.
+
+Factor closing. The paper defines open/closed by membership (open: at least one updated and one
+non-updated triplet) and also says the factor used is "marked closed". We follow the membership
+definition: a factor that updated one of its two non-updated triplets stays open for the third
+(now with two updated triplets, eq. decay2 / the two-known marginal); it closes when all three are
+updated. Triplets never reached end uniform (ISC 0, TSC 0, CL infinite).
+"""
+
+from __future__ import annotations
+
+import heapq
+from dataclasses import dataclass
+
+import numpy as np
+
+from .composition import marginal as compose_marginal
+from .metrics import information_score
+
+__all__ = [
+    "GraphTooLargeError", "PropagationResult", "ScoreResult", "LevelResult", "BPResult",
+    "exact_marginals", "elimination_estimate", "propagate", "topology_scores",
+    "composition_levels", "loopy_bp",
+]
+
+#: Default limit on the largest table (entries) an exact engine may build.
+MAX_TABLE = 2 ** 26
+
+
+class GraphTooLargeError(ValueError):
+    """Raised when exact inference would build a table above the limit."""
+
+
+# ----------------------------------------------------------------------------- results
+@dataclass(frozen=True)
+class PropagationResult:
+    """Result of :func:`propagate` (Algorithm 2).
+
+    Attributes:
+        marginals: (n, m) per triplet: the prior for seen triplets, the kept composition marginal
+            for reached ones, uniform for unreachable ones.
+        isc: (n,) information score of each row of ``marginals``.
+        order: (u,) variable indices of the non-seen triplets in the order they were updated.
+        updated_by: (n,) factor index that updated each triplet (-1: seen or unreachable).
+        reached: (n,) bool, True for seen triplets and those updated by propagation.
+        seen: (n,) bool.
+    """
+
+    marginals: np.ndarray
+    isc: np.ndarray
+    order: np.ndarray
+    updated_by: np.ndarray
+    reached: np.ndarray
+    seen: np.ndarray
+
+
+@dataclass(frozen=True)
+class ScoreResult:
+    """Result of :func:`topology_scores` (Algorithm 3): ``scores`` (n,) TSC in [0, 1] (0 where
+    unreachable); ``order``, ``updated_by``, ``reached``, ``seen`` as in :class:`PropagationResult`."""
+
+    scores: np.ndarray
+    order: np.ndarray
+    updated_by: np.ndarray
+    reached: np.ndarray
+    seen: np.ndarray
+
+
+@dataclass(frozen=True)
+class LevelResult:
+    """Result of :func:`composition_levels`: ``levels`` (n,) CL (0 for seen, inf unreachable);
+    ``normalized`` (n,) eq. cl3 ``1 - CL / CL_max`` (CL_max the largest finite level; 0 where
+    unreachable; all reached ones 1 when CL_max = 0); ``order``, ``updated_by``, ``reached``."""
+
+    levels: np.ndarray
+    normalized: np.ndarray
+    order: np.ndarray
+    updated_by: np.ndarray
+    reached: np.ndarray
+
+
+@dataclass(frozen=True)
+class BPResult:
+    """Result of :func:`loopy_bp`: ``marginals`` (n, m), ``converged`` bool, ``iterations`` run,
+    ``max_change`` last largest absolute change of a factor-to-variable message."""
+
+    marginals: np.ndarray
+    converged: bool
+    iterations: int
+    max_change: float
+
+
+# ----------------------------------------------------------------------------- helpers
+def _components(n: int, fvars: np.ndarray) -> list[np.ndarray]:
+    """Connected components of variables linked by composition factors (arrays of indices)."""
+    parent = np.arange(n)
+
+    def find(a):
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    for a, b, c in fvars:
+        ra, rb, rc = find(a), find(b), find(c)
+        parent[rb] = ra
+        parent[find(rc)] = ra
+    roots = np.array([find(a) for a in range(n)])
+    return [np.flatnonzero(roots == r) for r in np.unique(roots)]
+
+
+def elimination_estimate(g) -> tuple[int, int]:
+    """(clique size w, table entries m**w) of the largest table variable elimination would build,
+    with a min-fill elimination order on the triplet interaction graph (an upper-bound heuristic).
+
+    >>> import numpy as np
+    >>> from qfg.graph import full_map
+    >>> elimination_estimate(full_map(3, tensor=np.ones((2, 2, 2))))
+    (1, 2)
+    """
+    import networkx as nx
+    from networkx.algorithms.approximation import treewidth_min_fill_in
+
+    G = nx.Graph()
+    G.add_nodes_from(range(g.n_triplets))
+    for a, b, c in g.factor_vars:
+        G.add_edges_from([(a, b), (b, c), (a, c)])
+    width = 0
+    for comp in nx.connected_components(G):
+        if len(comp) == 1:
+            width = max(width, 1)
+            continue
+        tw, _ = treewidth_min_fill_in(G.subgraph(comp))
+        width = max(width, tw + 1)
+    return width, int(g.m) ** width
+
+
+def _normalize_rows(a: np.ndarray) -> np.ndarray:
+    s = a.sum(axis=-1, keepdims=True)
+    m = a.shape[-1]
+    ok = s > np.finfo(float).tiny
+    return np.where(ok, a / np.where(ok, s, 1.0), 1.0 / m)
+
+
+# ----------------------------------------------------------------------------- exact
+def exact_marginals(g, engine: str = "contract", max_table: int = MAX_TABLE) -> np.ndarray:
+    """(n, m) exact marginals ``P(S_v) = sum over the other variables of prod(factors) / Z``.
+
+    The product runs over the unary priors and the composition factors ``T[s_t1, s_t2, s_t3]``.
+    Triplets without any factor are uniform.
+
+    Args:
+        g: a :class:`~qfg.graph.QualitativeFactorGraph`.
+        engine: ``"gtsam"``: ``gtsam.DiscreteMarginals`` (elimination to a Bayes tree), or
+            ``"contract"``: one einsum contraction per variable on its connected component, with
+            the contraction order of ``opt_einsum`` (factors rescaled to max 1 against underflow).
+        max_table: largest table (entries) allowed; above it a :class:`GraphTooLargeError` tells
+            the estimated size (min-fill elimination width for gtsam, opt_einsum's largest
+            intermediate for contract).
+
+    >>> import numpy as np
+    >>> from qfg.graph import QualitativeFactorGraph
+    >>> g = QualitativeFactorGraph("lr", tensor=np.eye(2)[:, :, None] * np.eye(2)[None])  # all equal
+    >>> for t, p in [((0, 1, 2), [0.8, 0.2]), ((1, 2, 3), None), ((0, 1, 3), None)]:
+    ...     _ = g.add_triplet(t, p)
+    >>> _ = g.discover_compositions()
+    >>> exact_marginals(g).round(3).tolist()
+    [[0.8, 0.2], [0.8, 0.2], [0.8, 0.2]]
+    """
+    if engine not in ("gtsam", "contract"):
+        raise ValueError(f"engine: expected 'gtsam' or 'contract', got {engine!r}")
+    n, m = g.n_triplets, g.m
+    out = np.full((n, m), 1.0 / m)
+    if n == 0:
+        return out
+    if engine == "gtsam":
+        return _exact_gtsam(g, out, max_table)
+    return _exact_contract(g, out, max_table)
+
+
+def _exact_gtsam(g, out, max_table):
+    import gtsam
+
+    from .graph import triplet_key
+
+    width, size = elimination_estimate(g)
+    if size > max_table:
+        raise GraphTooLargeError(
+            f"g: exact elimination would build a table over {width} triplets of {g.m} states "
+            f"(about {size:.3g} entries, min-fill estimate) > max_table={max_table}; use "
+            f"propagate() or loopy_bp(), or a smaller graph")
+    graph = g.to_gtsam()
+    if graph.size() == 0:
+        return out
+    marg = gtsam.DiscreteMarginals(graph)
+    seen = g.seen
+    touched = np.zeros(g.n_triplets, dtype=bool)
+    fv = g.factor_vars
+    touched[fv.ravel()] = True
+    touched |= seen
+    for v in np.flatnonzero(touched):
+        key = (triplet_key(*g.triplets[v]), g.m)
+        out[v] = np.asarray(marg.marginalProbabilities(key), dtype=float)
+    return out
+
+
+def _exact_contract(g, out, max_table):
+    import opt_einsum as oe
+
+    T = g.table
+    T = T / T.max()
+    P = g.prior_matrix()
+    seen = g.seen
+    fvars = g.factor_vars
+    for comp in _components(g.n_triplets, fvars):
+        in_comp = np.zeros(g.n_triplets, dtype=bool)
+        in_comp[comp] = True
+        fs = np.flatnonzero(in_comp[fvars[:, 0]]) if len(fvars) else np.array([], dtype=int)
+        if len(fs) == 0:
+            v = comp[0]
+            out[v] = P[v]  # prior, or uniform for an unseen triplet without factors
+            continue
+        sym = {int(v): oe.get_symbol(i) for i, v in enumerate(comp)}
+        terms, ops = [], []
+        for v in comp:
+            if seen[v]:
+                terms.append(sym[int(v)])
+                ops.append(P[v] / P[v].max())
+        for f in fs:
+            terms.append("".join(sym[int(v)] for v in fvars[f]))
+            ops.append(T)
+        lhs = ",".join(terms)
+        for v in comp:
+            eq = f"{lhs}->{sym[int(v)]}"
+            path, info = oe.contract_path(eq, *ops, optimize="auto")
+            if info.largest_intermediate > max_table:
+                raise GraphTooLargeError(
+                    f"g: contraction would build an intermediate of about "
+                    f"{float(info.largest_intermediate):.3g} entries > max_table={max_table}")
+            r = oe.contract(eq, *ops, optimize=path)
+            s = r.sum()
+            if not s > 0:
+                raise ValueError("g: the product of the factors has no mass (inconsistent priors "
+                                 "and tensor, or underflow)")
+            out[v] = r / s
+    return out
+
+
+# ----------------------------------------------------------------------------- label correcting
+def _label_correcting(g, sources_value, propose):
+    """Shared engine of Algorithms 2/3 and composition levels.
+
+    ``sources_value``: per-variable payload list (None for non-sources). ``propose(fs, upd, vals)``
+    gets factor indices (B,), their (B, 3) updated mask and the payload list; returns
+    (factor idx (P,), role (P,), score (P,), payloads list of length P) for the non-updated roles.
+    Returns (values list, order, updated_by, reached).
+    """
+    n = g.n_triplets
+    fvars = g.factor_vars
+    F = len(fvars)
+    values = list(sources_value)
+    updated = np.array([v is not None for v in values], dtype=bool)
+    order: list[int] = []
+    updated_by = np.full(n, -1, dtype=np.intp)
+    if F == 0:
+        return values, np.array(order, dtype=np.intp), updated_by, updated
+    inc = g.incidence()
+    count = updated[fvars].sum(axis=1)
+    heap: list = []
+    payloads: list = []
+
+    def push(fs):
+        fs = np.asarray(fs, dtype=np.intp)
+        fs = fs[(count[fs] > 0) & (count[fs] < 3)]
+        if len(fs) == 0:
+            return
+        pf, prole, pscore, pay = propose(fs, updated[fvars[fs]], values)
+        base = len(payloads)
+        payloads.extend(pay)
+        for q in range(len(pf)):
+            f = int(pf[q])
+            v = int(fvars[f, prole[q]])
+            heapq.heappush(heap, (-float(pscore[q]), v, f, int(count[f]), base + q))
+
+    push(np.arange(F))
+    while heap:
+        _, v, f, version, q = heapq.heappop(heap)
+        if updated[v] or count[f] != version:
+            continue  # stale: the triplet was updated, or the factor's proposal changed since
+        updated[v] = True
+        values[v] = payloads[q]
+        payloads[q] = None
+        order.append(v)
+        updated_by[v] = f
+        touch = inc[v]
+        count[touch] += 1
+        push(touch)
+    return values, np.array(order, dtype=np.intp), updated_by, updated
+
+
+def propagate(g) -> PropagationResult:
+    """Algorithm 2 (label-correcting propagation by composition).
+
+    Sources: the seen triplets (their priors, ISC = information score). Proposal of an open factor
+    for a non-updated triplet: the marginal composition (eq. marginalComposition,
+    :func:`qfg.composition.marginal`) ``P(s_r) propto sum_{a,b} V_a V_b T`` with ``V`` of the
+    updated triplets and uniform for the other non-updated one; the target's own vector is uniform
+    (unseen). The best ISC proposal is kept each step (see the module docstring).
+
+    >>> import numpy as np
+    >>> from qfg.graph import QualitativeFactorGraph
+    >>> T = np.zeros((2, 2, 2)); T[0, 0, 0] = T[1, 1, 1] = 1       # all three equal
+    >>> g = QualitativeFactorGraph("lr", tensor=T)
+    >>> for t, p in [((0, 1, 2), [0.9, 0.1]), ((1, 2, 3), None), ((0, 1, 3), None)]:
+    ...     _ = g.add_triplet(t, p)
+    >>> _ = g.discover_compositions()
+    >>> r = propagate(g)
+    >>> r.marginals.round(2).tolist(), r.order.tolist(), r.updated_by.tolist()
+    ([[0.9, 0.1], [0.9, 0.1], [0.99, 0.01]], [1, 2], [-1, 0, 0])
+
+    Triplet 2 is composed from triplet 0 and from triplet 1, itself a copy of triplet 0: the
+    evidence is counted twice (0.99), where the exact marginal is 0.9 -- an approximation.
+    """
+    T = g.table
+    m = g.m
+    fvars = g.factor_vars
+    priors = g.priors
+    ones = np.ones(m)
+
+    def propose(fs, upd, values):
+        rows_f, rows_r, rows_s, pay = [], [], [], []
+        for role in range(3):
+            sel = np.flatnonzero(~upd[:, role])
+            if len(sel) == 0:
+                continue
+            V = []
+            for other in range(3):
+                if other == role:
+                    V.append(None)
+                    continue
+                vs = fvars[fs[sel], other]
+                V.append(np.stack([values[v] if u else ones
+                                   for v, u in zip(vs, upd[sel, other], strict=True)]))
+            p = compose_marginal(T, V[0], V[1], V[2], role=role + 1).p
+            p = np.atleast_2d(p)
+            rows_f.append(fs[sel])
+            rows_r.append(np.full(len(sel), role))
+            rows_s.append(information_score(p))
+            pay.extend(p)
+        return (np.concatenate(rows_f), np.concatenate(rows_r), np.concatenate(rows_s), pay)
+
+    values, order, updated_by, reached = _label_correcting(g, priors, propose)
+    marg = np.array([np.full(m, 1.0 / m) if v is None else v for v in values]).reshape(-1, m)
+    return PropagationResult(marginals=marg, isc=information_score(marg), order=order,
+                             updated_by=updated_by, reached=reached, seen=g.seen)
+
+
+def _scalar_engine(g, init, one_known, two_known, maximize=True):
+    """Label-correcting on scalars: ``one_known(x)`` for both others, ``two_known(x, y)``."""
+    fvars = g.factor_vars
+    sign = 1.0 if maximize else -1.0
+
+    def propose(fs, upd, values):
+        vals = np.array([[values[v] if u else np.nan for v, u in zip(fvars[f], uu, strict=True)]
+                         for f, uu in zip(fs, upd, strict=True)]).reshape(-1, 3)
+        k = upd.sum(axis=1)
+        rf, rr, rs = [], [], []
+        for role in range(3):
+            tgt = ~upd[:, role]
+            one = tgt & (k == 1)
+            two = tgt & (k == 2)
+            known = np.where(upd, vals, np.nan)
+            if one.any():
+                x = np.nanmax(known[one], axis=1)
+                rf.append(fs[one])
+                rr.append(np.full(one.sum(), role))
+                rs.append(one_known(x))
+            if two.any():
+                kk = known[two][upd[two]].reshape(-1, 2)
+                rf.append(fs[two])
+                rr.append(np.full(two.sum(), role))
+                rs.append(two_known(kk[:, 0], kk[:, 1]))
+        scores = np.concatenate(rs)
+        return np.concatenate(rf), np.concatenate(rr), sign * scores, list(scores)
+
+    values, order, updated_by, reached = _label_correcting(g, init, propose)
+    return values, order, updated_by, reached
+
+
+def topology_scores(g, alpha: float = 0.5, seen_score=None) -> ScoreResult:
+    """Algorithm 3: topology score TSC by the information decay model.
+
+    Seen triplets start at the information score of their prior (``seen_score=None``) or at
+    ``seen_score`` (e.g. 1.0, as the paper does when comparing with composition levels). Through an
+    open factor: one updated triplet a -> ``TSC = (1 - alpha) TSC_a`` for both others (eq. decay1);
+    two updated a, b -> ``TSC = (1 - alpha^2) (TSC_a + TSC_b) / 2`` for the third (eq. decay2).
+    The best proposal is kept each step; unreachable triplets score 0.
+
+    >>> import numpy as np
+    >>> from qfg.graph import QualitativeFactorGraph
+    >>> g = QualitativeFactorGraph("lr", tensor=np.ones((2, 2, 2)))
+    >>> for t, p in [((0, 1, 2), [1, 0]), ((1, 2, 3), None), ((0, 1, 3), None)]:
+    ...     _ = g.add_triplet(t, p)
+    >>> _ = g.discover_compositions()
+    >>> topology_scores(g, alpha=0.5).scores.tolist()     # 0.5 * 1, then 0.75 * (1 + 0.5) / 2
+    [1.0, 0.5, 0.5625]
+    """
+    alpha = float(alpha)
+    if not 0.0 < alpha < 1.0:
+        raise ValueError(f"alpha: expected 0 < alpha < 1, got {alpha!r}")
+    seen = g.seen
+    if seen_score is None:
+        base = information_score(g.prior_matrix())
+    else:
+        s = float(seen_score)
+        if not 0.0 <= s <= 1.0:
+            raise ValueError(f"seen_score: expected a number in [0, 1] or None, got {seen_score!r}")
+        base = np.full(g.n_triplets, s)
+    init = [float(base[v]) if seen[v] else None for v in range(g.n_triplets)]
+    values, order, updated_by, reached = _scalar_engine(
+        g, init, lambda x: (1 - alpha) * x, lambda x, y: (1 - alpha ** 2) * (x + y) / 2)
+    scores = np.array([0.0 if v is None else float(v) for v in values])
+    return ScoreResult(scores=scores, order=order, updated_by=updated_by, reached=reached,
+                       seen=seen)
+
+
+def composition_levels(g) -> LevelResult:
+    """Composition levels (eqs. cl1, cl2, cl3), propagated like Algorithm 3 (lowest level first).
+
+    Seen: CL = 0. One updated triplet a -> ``CL_a + 1`` for both others (cl1); two updated a, b ->
+    ``min(CL_a, CL_b) + 1`` for the third (cl2). Normalized (cl3): ``1 - CL / CL_max``.
+
+    >>> import numpy as np
+    >>> from qfg.graph import QualitativeFactorGraph
+    >>> g = QualitativeFactorGraph("lr", tensor=np.ones((2, 2, 2)))
+    >>> for t, p in [((0, 1, 2), [1, 0]), ((1, 2, 3), None), ((0, 1, 3), None), ((5, 6, 7), None)]:
+    ...     _ = g.add_triplet(t, p)
+    >>> _ = g.discover_compositions()
+    >>> r = composition_levels(g)
+    >>> r.levels.tolist(), r.normalized.tolist()
+    ([0.0, 1.0, 1.0, inf], [1.0, 0.0, 0.0, 0.0])
+    """
+    seen = g.seen
+    init = [0.0 if seen[v] else None for v in range(g.n_triplets)]
+    values, order, updated_by, reached = _scalar_engine(
+        g, init, lambda x: x + 1, lambda x, y: np.minimum(x, y) + 1, maximize=False)
+    levels = np.array([np.inf if v is None else float(v) for v in values])
+    finite = np.isfinite(levels)
+    cmax = levels[finite].max() if finite.any() else 0.0
+    norm = np.zeros_like(levels)
+    norm[finite] = 1.0 - levels[finite] / cmax if cmax > 0 else 1.0
+    return LevelResult(levels=levels, normalized=norm, order=order, updated_by=updated_by,
+                       reached=reached)
+
+
+# ----------------------------------------------------------------------------- loopy BP
+_EINSUM_TO = ("abc,fb,fc->fa", "abc,fa,fc->fb", "abc,fa,fb->fc")
+
+
+def loopy_bp(g, damping: float = 0.0, max_iters: int = 100, tol: float = 1e-9) -> BPResult:
+    """Damped synchronous sum-product on the priors and composition factors.
+
+    Messages (all normalized): variable -> factor ``q_{v->f} propto prior_v prod_{f' != f}
+    r_{f'->v}``; factor -> variable ``r_{f->v}(s) propto sum over the other two states of
+    T(...) q q``, then ``r <- (1 - damping) r_new + damping r_old``. Stops when the largest change of
+    an ``r`` is below ``tol`` (converged) or after ``max_iters``. Beliefs: ``prior prod r``.
+    Exact on trees (once the iterations exceed the tree's diameter).
+
+    >>> import numpy as np
+    >>> from qfg.graph import QualitativeFactorGraph
+    >>> T = np.zeros((2, 2, 2)); T[0, 0, 0] = T[1, 1, 1] = 1
+    >>> g = QualitativeFactorGraph("lr", tensor=T)
+    >>> for t, p in [((0, 1, 2), [0.9, 0.1]), ((1, 2, 3), None), ((0, 1, 3), None)]:
+    ...     _ = g.add_triplet(t, p)
+    >>> _ = g.discover_compositions()
+    >>> r = loopy_bp(g)
+    >>> r.marginals.round(2).tolist(), r.converged
+    ([[0.9, 0.1], [0.9, 0.1], [0.9, 0.1]], True)
+    """
+    damping = float(damping)
+    if not 0.0 <= damping < 1.0:
+        raise ValueError(f"damping: expected 0 <= damping < 1, got {damping!r}")
+    if isinstance(max_iters, bool) or not isinstance(max_iters, (int, np.integer)) or max_iters < 1:
+        raise ValueError(f"max_iters: expected a positive integer, got {max_iters!r}")
+    tol = float(tol)
+    if not tol > 0:
+        raise ValueError(f"tol: expected a positive number, got {tol!r}")
+    T = g.table
+    T = T / T.max()
+    m = g.m
+    fv = g.factor_vars
+    F = len(fv)
+    logp = np.log(np.maximum(g.prior_matrix(), 1e-300))
+    r = np.full((F, 3, m), 1.0 / m)
+    tiny = 1e-300
+    converged, it, change = F == 0, 0, 0.0
+    flat_v = fv.ravel()
+
+    def beliefs(r):
+        lb = logp.copy()
+        np.add.at(lb, flat_v, np.log(np.maximum(r, tiny)).reshape(-1, m))
+        return lb
+
+    while not converged and it < max_iters:
+        it += 1
+        lb = beliefs(r)
+        lq = lb[fv] - np.log(np.maximum(r, tiny))        # (F, 3, m): exclude own message
+        q = np.exp(lq - lq.max(axis=-1, keepdims=True))
+        q = _normalize_rows(q)
+        new = np.empty_like(r)
+        for role, eq in enumerate(_EINSUM_TO):
+            others = [q[:, o] for o in range(3) if o != role]
+            new[:, role] = np.einsum(eq, T, *others)
+        new = _normalize_rows(new)
+        if damping:
+            new = (1 - damping) * new + damping * r
+        change = float(np.abs(new - r).max())
+        r = new
+        converged = change < tol
+    lb = beliefs(r)
+    b = np.exp(lb - lb.max(axis=-1, keepdims=True))
+    return BPResult(marginals=_normalize_rows(b), converged=bool(converged), iterations=it,
+                    max_change=change)
