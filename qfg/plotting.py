@@ -111,7 +111,8 @@ def draw_triplet(history, ax=None, *, partition="edc", probabilities=None):
         c = history.truth.C_ab
         ax.plot(c[0], c[1], "r*", ms=12, label="C (truth)")
         cams = history.truth.poses_ab
-        ax.plot(cams[:, 0], cams[:, 1], "^", color="tab:purple", label="cameras (truth)")
+        if cams is not None:  # None for real data without camera ground truth
+            ax.plot(cams[:, 0], cams[:, 1], "^", color="tab:purple", label="cameras (truth)")
         ax.legend(loc="lower right", fontsize=7)
     a, b, c = history.landmarks
     ax.set_title(f"triplet {a},{b}:{c} in its AB frame")

@@ -83,12 +83,14 @@ class TripletTruth:
 
     Attributes:
         landmarks_world: (3, 2) A, B, C in the world.
-        poses_world: (n, 3) camera poses in the world.
+        poses_world: (n, 3) camera poses in the world, or None when they are unknown (real data
+            without robot ground truth, e.g. ``qfg.datasets.mrclam``).
         C_ab: (2,) C in the AB frame.
-        poses_ab: (n, 3) camera poses in the AB frame.
+        poses_ab: (n, 3) camera poses in the AB frame, or None with ``poses_world``.
         partition: name of the partition the states refer to.
         state: 0-based state of C in the AB frame.
-        camera_states: (n,) 0-based states of the camera positions in the AB frame.
+        camera_states: (n,) 0-based states of the camera positions in the AB frame, or None with
+            ``poses_world``.
     """
 
     landmarks_world: np.ndarray

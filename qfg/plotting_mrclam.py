@@ -1,0 +1,97 @@
+"""Figures of MRCLAM data: the landmarks and one robot's path in the world frame.
+
+Plotting is the end of the data flow: this module imports ``qfg.datasets.mrclam``; nothing in the
+data path imports it.
+"""
+
+from __future__ import annotations
+
+import matplotlib
+
+matplotlib.use("Agg")  # figures are written to files; no display is assumed
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from .datasets import mrclam as _mrclam  # noqa: E402
+
+__all__ = ["draw_dataset", "dataset_figure"]
+
+
+def draw_dataset(dataset, robot, ax=None, *, history=None, time_range=None,
+                 max_residual: float = 0.15):
+    """Landmarks (numbered by subject) and robot ``robot``'s path in the world frame.
+
+    Robot ground truth is absent from the data, so the path is the odometry dead-reckoned from
+    the first good landmark fix in ``time_range`` (:func:`qfg.datasets.mrclam.anchored_dead_reckoning`),
+    drawn with the landmark fixes (poses from range and bearing to known landmarks, rms residual
+    at most ``max_residual`` m) so that its drift shows; the figure says so. A robot without
+    odometry gets the fixes alone. ``time_range``: (start, end) seconds from the robot's first
+    measurement (default: all). ``history``: a :class:`qfg.simulation.TripletHistory` of this
+    robot whose views are marked (dead-reckoned from the fix nearest its first view, or at the
+    nearest fixes without odometry), with lines of sight to its landmarks.
+    """
+    rd = dataset.robot(robot)
+    if ax is None:
+        _, ax = plt.subplots(figsize=(7, 7))
+    t0 = float(rd.time[0]) if rd.time.size else 0.0
+    lo, hi = (-np.inf, np.inf) if time_range is None else (t0 + time_range[0], t0 + time_range[1])
+    fixes = _mrclam.landmark_fixes(dataset, robot, min_landmarks=3)
+    good = (fixes.residual <= max_residual) & (fixes.times >= lo) & (fixes.times <= hi)
+    span = "" if time_range is None else f", t in [{time_range[0]:g}, {time_range[1]:g}] s"
+    if rd.odometry is not None:
+        o = rd.odometry
+        keep = (o.time >= lo) & (o.time <= hi)
+        anchor = fixes.times[good][0] if good.any() else None
+        path, t_anchor = _mrclam.anchored_dead_reckoning(dataset, robot, o.time[keep],
+                                                         anchor_time=anchor,
+                                                         max_residual=max_residual)
+        ax.plot(path[:, 0], path[:, 1], "-", color="tab:red", lw=0.7, alpha=0.8,
+                label="path: dead-reckoned odometry")
+        note = (f"robot path dead-reckoned from odometry (no robot ground truth in the data), "
+                f"placed at a landmark fix (t = {t_anchor - t0:.1f} s)")
+    else:
+        path = None
+        note = "robot without odometry: landmark fixes only (no robot ground truth in the data)"
+    ax.plot(fixes.poses[good, 0], fixes.poses[good, 1], ".", color="tab:orange", ms=3,
+            label=f"landmark fixes ({int(good.sum())}, range+bearing)")
+    L = dataset.landmark_xy
+    ax.plot(L[:, 0], L[:, 1], "o", color="tab:blue", ms=8, label="landmarks (ground truth)")
+    for lid, (x, y) in zip(dataset.landmark_ids, L, strict=True):
+        ax.annotate(str(int(lid)), (x, y), xytext=(5, 5), textcoords="offset points",
+                    color="tab:blue", fontsize=8)
+    if history is not None:
+        times = np.asarray(history.views, dtype=float)
+        if path is not None:
+            P, _ = _mrclam.anchored_dead_reckoning(dataset, robot, times, anchor_time=times[0],
+                                                   max_residual=max_residual)
+        else:
+            P = _nearest_fixes(fixes, times)
+        A = dataset.landmark_position(list(history.landmarks))
+        for p in P:
+            for a in A:
+                ax.plot([p[0], a[0]], [p[1], a[1]], ":", color="0.4", lw=0.7)
+        ax.plot(P[:, 0], P[:, 1], "k^", ms=6,
+                label=f"views of triplet {history.landmarks[0]},{history.landmarks[1]}:"
+                      f"{history.landmarks[2]}")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
+    ax.set_title(f"{dataset.name}, robot {rd.robot}{span}", fontsize=10)
+    ax.text(0.0, -0.08, note, transform=ax.transAxes, fontsize=7, va="top", ha="left")
+    return ax
+
+
+def _nearest_fixes(fixes, times):
+    k = np.clip(np.searchsorted(fixes.times, times), 0, fixes.times.size - 1)
+    return fixes.poses[k]
+
+
+def dataset_figure(dataset, robot, path, **kw):
+    """Write :func:`draw_dataset` as a PNG to ``path``; returns ``path``."""
+    fig, ax = plt.subplots(figsize=(9.5, 7))
+    draw_dataset(dataset, robot, ax, **kw)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+    return path
