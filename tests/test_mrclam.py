@@ -240,6 +240,16 @@ def test_landmark_fixes_recover_true_poses(synth):
     assert np.isclose(t_anchor, T0) and np.allclose(P, pose1([10.0, 33.3, 50.0]), atol=1e-6)
 
 
+def test_bearing_residuals_and_odometry_check_are_zero_on_exact_data(synth, tmp_path):
+    res = mrclam.bearing_residuals(synth, 1)
+    assert res.size == 4 * 21 and np.all(np.abs(res) < 1e-6)   # views tau 30..50 see 4 landmarks
+    rows = mrclam.odometry_check(synth, 1, bins=((0.5, 3.0), (3.0, 10.0)))
+    assert [r["n"] > 0 for r in rows] == [True, True]
+    assert all(r["p90_abs_deg"] < 1e-4 for r in rows)
+    no_odo = mrclam.load(write_dataset(tmp_path / "NoOdo", robot2_odometry=False))
+    assert mrclam.odometry_check(no_odo, 2) == []
+
+
 # ----------------------------------------------------------------------------------------------
 # triplet histories: expected views, headings and states
 

@@ -46,7 +46,7 @@ import numpy as np
 
 from .. import partitions as _partitions
 from .._validate import as_float_array, non_negative, positive_int
-from ..geometry import motion_heading, poses_to_frame, to_frame, wrap_angle
+from ..geometry import bearing, motion_heading, poses_to_frame, to_frame, wrap_angle
 from ..simulation import TripletHistory, TripletTruth
 
 __all__ = [
@@ -63,6 +63,8 @@ __all__ = [
     "check_landmarks",
     "swap_landmarks",
     "anchored_dead_reckoning",
+    "bearing_residuals",
+    "odometry_check",
     "TripletSegment",
     "triplet_segments",
     "triplet_histories",
@@ -656,6 +658,52 @@ def swap_landmarks(dataset: MRCLAMDataset, pairs) -> MRCLAMDataset:
     return replace(dataset, landmark_xy=xy, landmark_std=sd)
 
 
+def bearing_residuals(dataset: MRCLAMDataset, robot, *, min_landmarks: int = 4,
+                      max_residual: float = 0.3) -> np.ndarray:
+    """Measured minus predicted bearings (radians) at the landmark fixes of views with at least
+    ``min_landmarks`` landmarks (rms residual at most ``max_residual`` m).
+
+    The fit uses the same measurements (3 pose parameters from 2n numbers), so the spread of
+    these residuals underestimates the bearing noise by about ``sqrt((2n - 3) / 2n)``.
+    """
+    rd = dataset.robot(robot)
+    f = landmark_fixes(dataset, robot, min_landmarks=min_landmarks)
+    ok = f.residual <= max_residual
+    v = f.view_index[ok]
+    pred = bearing(f.poses[ok][:, None, :], dataset.landmark_xy[None, :, :])
+    return wrap_angle(rd.view_bearings[v] - pred)[rd.visible[v]]
+
+
+def odometry_check(dataset: MRCLAMDataset, robot, *, bins=((0.5, 3.0), (3.0, 10.0), (10.0, 30.0),
+                                                           (30.0, 100.0)),
+                   max_residual: float = 0.1, min_landmarks: int = 3) -> list[dict]:
+    """How far the odometry's turn drifts from the landmark fixes' turn, by time between fixes.
+
+    For every pair of good fixes (rms residual at most ``max_residual`` m) whose time difference
+    falls in a bin ``(lo, hi]`` seconds, the error is ``wrap((theta_j - theta_i)_fixes -
+    (theta_j - theta_i)_odometry)``. Returns one row per bin: ``lo, hi, n`` and the median and
+    90th percentile of the absolute error in degrees (NaN-free: bins without pairs have n = 0 and
+    zeros). Empty for a robot without odometry.
+    """
+    rd = dataset.robot(robot)
+    if rd.odometry is None:
+        return []
+    f = landmark_fixes(dataset, robot, min_landmarks=min_landmarks)
+    o = rd.odometry
+    good = (f.residual <= max_residual) & (f.times >= o.time[0]) & (f.times <= o.time[-1])
+    ft, fth = f.times[good], f.poses[good, 2]
+    oth = o.poses(ft)[:, 2]
+    dt = ft[None, :] - ft[:, None]
+    rows = []
+    for lo, hi in bins:
+        i, j = np.nonzero((dt > lo) & (dt <= hi))
+        err = np.degrees(np.abs(wrap_angle((fth[j] - fth[i]) - (oth[j] - oth[i]))))
+        rows.append({"lo": float(lo), "hi": float(hi), "n": int(i.size),
+                     "median_abs_deg": float(np.median(err)) if i.size else 0.0,
+                     "p90_abs_deg": float(np.percentile(err, 90)) if i.size else 0.0})
+    return rows
+
+
 def anchored_dead_reckoning(dataset: MRCLAMDataset, robot, times=None, *, anchor_time=None,
                             max_residual: float = 0.15, min_landmarks: int = 3):
     """Dead-reckoned world poses (n, 3) of a robot at ``times`` (default: its odometry records).
@@ -703,6 +751,18 @@ class TripletSegment:
     n_seen: int
 
 
+def _view_poses(rd: RobotData):
+    """Dead-reckoned poses (V, 3) at every view (zeros where not covered) and the (V,) mask of
+    views inside the odometry's time span; ``(None, all True)`` without odometry."""
+    if rd.odometry is None:
+        return None, np.ones(rd.n_views, dtype=bool)
+    t = rd.odometry.time
+    covered = (rd.view_times >= t[0]) & (rd.view_times <= t[-1])
+    poses = np.zeros((rd.n_views, 3))
+    poses[covered] = rd.odometry.poses(rd.view_times[covered])
+    return poses, covered
+
+
 def triplet_segments(dataset: MRCLAMDataset, robot, *, min_views: int = 3,
                      max_gap: float = DEFAULT_MAX_GAP, min_travel: float = DEFAULT_MIN_TRAVEL,
                      min_interval: float = DEFAULT_MIN_INTERVAL, max_views: int | None = None
@@ -713,6 +773,8 @@ def triplet_segments(dataset: MRCLAMDataset, robot, *, min_views: int = 3,
     2. Split where consecutive views of the triplet are more than ``max_gap`` seconds apart: the
        odometry between the pieces is long and unconstrained, so its heading would be unreliable,
        and the views no longer form one pass of the robot.
+    (Views outside the odometry's time span, which has no motion for them, are left out for
+    robots with odometry.)
     3. Thin each piece greedily: keep its first view, then each view whose dead-reckoned position
        is at least ``min_travel`` metres from the last kept one (robots without odometry: at
        least ``min_interval`` seconds after it). Near-identical consecutive views (the logger
@@ -732,17 +794,15 @@ def triplet_segments(dataset: MRCLAMDataset, robot, *, min_views: int = 3,
     if max_views is not None:
         max_views = positive_int("max_views", max_views, minimum=min_views)
     L = dataset.landmark_ids.size
-    rich = np.flatnonzero(rd.visible.sum(axis=1) >= 3)
+    poses, covered = _view_poses(rd)
+    rich = np.flatnonzero((rd.visible.sum(axis=1) >= 3) & covered)
     if rich.size == 0 or L < 3:
         return []
     combos = np.array(list(itertools.combinations(range(L), 3)))
     vis = rd.visible[rich]
     together = vis[:, combos[:, 0]] & vis[:, combos[:, 1]] & vis[:, combos[:, 2]]  # (V3, C)
     counts = together.sum(axis=0)
-    if rd.odometry is not None:
-        xy = dead_reckon(rd, rd.view_times[rich])[:, :2]
-    else:
-        xy = None
+    xy = None if poses is None else poses[rich, :2]
     times = rd.view_times[rich]
     out = []
     for ci in np.flatnonzero(counts >= min_views):
@@ -813,28 +873,37 @@ def triplet_histories(dataset: MRCLAMDataset, robot, *, min_views: int = 3,
     part = _partitions.get(partition)
     segs = triplet_segments(dataset, robot, min_views=min_views, max_gap=max_gap,
                             min_travel=min_travel, min_interval=min_interval, max_views=max_views)
+    if not segs:
+        return []
+    poses, _ = _view_poses(rd)
+    # C in the AB frame and its state, for every ordered triplet of landmarks at once
+    L = dataset.landmark_ids.size
+    perms = np.array(list(itertools.permutations(range(L), 3)))
+    P = dataset.landmark_xy[perms]  # (K, 3, 2)
+    c_ab_all = to_frame(P[:, 2], P[:, 0], P[:, 1])
+    state_all = part.state_of(c_ab_all)
+    perm_row = {tuple(p): k for k, p in enumerate(perms.tolist())}
     out = []
     for seg in segs:
         vi = seg.view_index
         times = rd.view_times[vi]
-        if rd.odometry is not None:
-            poses = dead_reckon(rd, times)
-            psi = motion_heading(poses[:-1], poses[1:, :2])
+        if poses is not None:
+            psi = motion_heading(poses[vi[:-1]], poses[vi[1:], :2])
         else:
             psi = np.zeros(vi.size - 1)
         gt_poses = None if rd.groundtruth is None else _interp_poses(rd.groundtruth, times)
         for perm in itertools.permutations(seg.landmarks):
             cols = dataset.landmark_index(perm)
+            k = perm_row[tuple(cols.tolist())]
             phi = rd.view_bearings[np.ix_(vi, cols)]
-            Lw = dataset.landmark_xy[cols]
-            c_ab = to_frame(Lw[2], Lw[0], Lw[1])
+            Lw = P[k]
             if gt_poses is not None:
                 p_ab = poses_to_frame(gt_poses, Lw[0], Lw[1])
                 cam_states = part.state_of(p_ab[:, :2])
             else:
                 p_ab = cam_states = None
-            truth = TripletTruth(landmarks_world=Lw, poses_world=gt_poses, C_ab=c_ab, poses_ab=p_ab,
-                                 partition=part.name, state=int(part.state_of(c_ab)),
+            truth = TripletTruth(landmarks_world=Lw, poses_world=gt_poses, C_ab=c_ab_all[k],
+                                 poses_ab=p_ab, partition=part.name, state=int(state_all[k]),
                                  camera_states=cam_states)
             out.append(TripletHistory(landmarks=perm, bearings=phi, headings=psi, sigma_bearing=sb,
                                       sigma_heading=sh, views=times, truth=truth,
@@ -896,6 +965,8 @@ def _main(argv=None) -> int:
     ap.add_argument("--min-travel", type=float, default=DEFAULT_MIN_TRAVEL)
     ap.add_argument("--min-interval", type=float, default=DEFAULT_MIN_INTERVAL)
     ap.add_argument("--max-views", type=int, default=None)
+    ap.add_argument("--check", action="store_true",
+                    help="also check the data: landmark identities, bearing residuals, odometry drift")
     a = ap.parse_args(argv)
     opts = dict(min_views=a.min_views, max_gap=a.max_gap, min_travel=a.min_travel,
                 min_interval=a.min_interval, max_views=a.max_views)
@@ -913,7 +984,35 @@ def _main(argv=None) -> int:
         print(f"| {ds.name} | all | | | | | | | {tot['views']} | {tot['views_3plus']} | "
               f"{tot['triplets_raw']} | {tot['triplets']} (distinct {tot['distinct_triplets']}) | "
               f"{tot['segments']} | {tot['histories']} |")
+    if a.check:
+        for p in a.paths:
+            _print_check(load(p))
     return 0
+
+
+def _print_check(ds: MRCLAMDataset) -> None:
+    chk = check_landmarks(ds)
+    print(f"\n{ds.name}: landmark check: swaps {list(chk.swaps)}; distance of each landmark's "
+          f"measured position to its ground truth (m): median {np.median(chk.error):.2f}, "
+          f"max {chk.error.max():.2f} (subject {int(chk.landmark_ids[np.argmax(chk.error)])})")
+    fixed = swap_landmarks(ds, chk.swaps)
+    res = np.degrees(np.concatenate([bearing_residuals(fixed, n) for n in ds.robots]))
+    if res.size:
+        mad = 1.4826 * np.median(np.abs(res - np.median(res)))
+        print(f"  bearing residuals at fixes with >= 4 landmarks (after swaps): n {res.size}, "
+              f"std {res.std():.2f} deg, robust std {mad:.2f} deg, mean {res.mean():.2f} deg")
+    pooled: dict = {}
+    for n in ds.robots:
+        for row in odometry_check(fixed, n):
+            pooled.setdefault((row["lo"], row["hi"]), []).append(row)
+    for (lo, hi), rows in pooled.items():
+        tot = sum(r["n"] for r in rows)
+        meds = [r["median_abs_deg"] for r in rows if r["n"]]
+        p90s = [r["p90_abs_deg"] for r in rows if r["n"]]
+        if tot:
+            print(f"  odometry turn error vs fixes, pairs {lo:g}-{hi:g} s apart: n {tot}, median |err| "
+                  f"per robot {min(meds):.1f}-{max(meds):.1f} deg, 90th pct {min(p90s):.1f}-"
+                  f"{max(p90s):.1f} deg")
 
 
 if __name__ == "__main__":  # pragma: no cover
