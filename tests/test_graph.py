@@ -155,3 +155,22 @@ def test_bad_constructor_and_composition():
         g.index((5, 6, 7))
     with pytest.raises(ValueError, match="n_landmarks"):
         full_map(2, tensor=np.ones((2, 2, 2)))
+
+
+def test_tensor_none_loads_the_shipped_tensor_lazily(tmp_path, monkeypatch):
+    from qfg import composition, partitions
+
+    rng = np.random.default_rng(4)
+    T = rng.random((2, 2, 2))
+    T /= T.sum()
+    ct = composition.CompositionTensor(
+        partition="lr", T=T, support=T > 0, window=tuple(partitions.get("lr").window), samples_per_state=1,
+        seed=0, quad_segs=8, version="test", sha256=composition.checksum(T), meta={})
+    monkeypatch.setenv(composition.ENV_VAR, str(tmp_path))
+    g = QualitativeFactorGraph("lr")
+    g.add_triplet((0, 1, 2))          # unseen: no tensor needed yet
+    assert g._table is None
+    composition.save(composition.tensor_path("lr"), ct)
+    g.add_triplet((0, 1, 3), [0.3, 0.7])
+    np.testing.assert_allclose(g.table, T)
+    assert g.m == 2
