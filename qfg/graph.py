@@ -38,8 +38,8 @@ import numpy as np
 
 from .composition import as_table
 
-__all__ = ["QualitativeFactorGraph", "triplet_key", "full_map", "map_from_triplets", "KEY_BITS",
-           "brute_force_compositions"]
+__all__ = ["QualitativeFactorGraph", "triplet_key", "full_map", "map_from_triplets",
+           "map_from_histories", "KEY_BITS", "brute_force_compositions"]
 
 #: Bits per landmark id in :func:`triplet_key`.
 KEY_BITS = 20
@@ -396,6 +396,24 @@ def map_from_triplets(seen: Mapping, unseen: Iterable = (), partition: str = "ed
     if discover:
         g.discover_compositions()
     return g
+
+
+def map_from_histories(histories, unseen: Iterable = (), partition: str = "edc", tensor=None, *,
+                       method: str = "fast", seed=None, **solver_options) -> QualitativeFactorGraph:
+    """The map of the triplets a set of views saw, with solver priors, plus chosen unseen ones.
+
+    ``histories``: :class:`~qfg.simulation.TripletHistory` objects (e.g. from
+    :func:`qfg.simulation.triplet_histories`), solved with :func:`qfg.solvers.solve_triplets`
+    (``method``, ``seed``, options passed on); each becomes a seen triplet keyed by its
+    ``landmarks``. Every composition factor among all the triplets is added.
+    """
+    from .solvers import solve_triplets
+
+    histories = list(histories)
+    ests = solve_triplets(histories, method=method, partition=partition, seed=seed,
+                          **solver_options) if histories else []
+    seen = {tuple(h.landmarks): e for h, e in zip(histories, ests, strict=True)}
+    return map_from_triplets(seen, unseen, partition=partition, tensor=tensor)
 
 
 def brute_force_compositions(triplets: Iterable) -> list[tuple[int, int, int, int]]:

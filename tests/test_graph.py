@@ -174,3 +174,22 @@ def test_tensor_none_loads_the_shipped_tensor_lazily(tmp_path, monkeypatch):
     g.add_triplet((0, 1, 3), [0.3, 0.7])
     np.testing.assert_allclose(g.table, T)
     assert g.m == 2
+
+
+def test_map_from_histories_uses_solver_estimates():
+    from qfg.graph import map_from_histories
+    from qfg.simulation import random_scenario, triplet_histories
+    from qfg.solvers import solve_triplets
+
+    sc = random_scenario(np.random.default_rng(3), n_landmarks=5, n_poses=3, landmarks_per_view=4,
+                         sigma_bearing=0.02, sigma_heading=0.05)
+    hs = triplet_histories(sc)
+    T = np.random.default_rng(0).random((20, 20, 20))
+    seen_ts = {h.landmarks for h in hs}
+    unseen = [t for t in itertools.permutations(range(5), 3) if t not in seen_ts][:4]
+    g = map_from_histories(hs, unseen=unseen, tensor=T, seed=7)
+    assert g.seen.sum() == len(hs) and g.n_triplets == len(hs) + len(unseen)
+    ests = solve_triplets(hs, method="fast", seed=7)
+    for h, e in zip(hs, ests, strict=True):
+        np.testing.assert_allclose(g.priors[g.index(h.landmarks)], e.landmark / e.landmark.sum())
+    assert g.factors == brute_force_compositions(g.triplets)
