@@ -321,3 +321,18 @@ def test_exact_vs_approx_study_runs_and_exact_rows_are_zero(tmp_path):
     assert all(r["tv"] == 0.0 and r["kl"] == 0.0 for r in rows if r["method"] == "exact")
     assert all(0.0 <= r["tv"] <= 1.0 + 1e-12 for r in rows)
     assert (tmp_path / "table.md").exists() and (tmp_path / "exact_vs_approx.png").exists()
+
+
+def test_isc_hand_worked_on_copy_tensor():
+    """T[a, b, c] = 1 iff a = b = c: composition copies the state. Prior (0.9, 0.1) on (0,1,2):
+    (1,2,3) gets (0.9, 0.1) from one known (ISC = 1 - H(0.9)/ln 2 = 0.531004...), then (0,1,3)
+    from two known: (0.81, 0.01) / 0.82."""
+    T = np.zeros((2, 2, 2))
+    T[0, 0, 0] = T[1, 1, 1] = 1.0
+    g = one_factor_graph(T, [0.9, 0.1], None)
+    r = propagate(g)
+    h = -(0.9 * np.log(0.9) + 0.1 * np.log(0.1))
+    assert r.isc[1] == pytest.approx(1 - h / np.log(2), abs=1e-12)
+    assert r.isc[1] == pytest.approx(0.5310044064107189, abs=1e-12)
+    np.testing.assert_allclose(r.marginals[2], [0.81 / 0.82, 0.01 / 0.82], atol=1e-12)
+    np.testing.assert_allclose(exact_marginals(g, engine="gtsam")[2], [0.9, 0.1], atol=1e-12)
