@@ -52,11 +52,20 @@ from .._version import __version__
 from ..geometry import from_frame, to_frame
 from .store import CompositionTensor, checksum
 
-__all__ = ["build", "sample_state", "corner_points", "intersection_areas", "witnessed",
-           "support_sample_points", "DEFAULT_SUPPORT_WEIGHT"]
+__all__ = ["build", "compare", "SHIPPED_SAMPLES", "sample_state", "corner_points",
+           "mirror_permutation",
+           "intersection_areas", "witnessed", "support_sample_points", "DEFAULT_SUPPORT_WEIGHT"]
 
 #: Share of a state's mass given to its support samples (see module docstring).
 DEFAULT_SUPPORT_WEIGHT = 1e-9
+
+#: Weight samples per state of the shipped tensors (``qfg tensors build`` defaults to these, so
+#: that the rebuild command in an error message reproduces the shipped file). docs/composition.md
+#: shows that doubling them changes no support entry and moves T by well under 1%.
+SHIPPED_SAMPLES = {"edc": 16384, "fdc": 16384, "lr": 4096, "tpcc": 16384}
+
+#: Threshold above which an entry counts as non-negligible in :func:`compare`.
+COMPARE_THRESHOLD = 1e-4
 
 #: Batch of C samples per task sent to a worker.
 _BATCH = 64
@@ -161,6 +170,34 @@ def support_sample_points(partition, state: int, n: int, rng: np.random.Generato
                      f"{part.name}")  # pragma: no cover
 
 
+def mirror_permutation(partition, tol: float = 1e-9):
+    """The state permutation of the reflection x -> -x of the AB frame, or None.
+
+    Returns sigma (m,) int with polygon ``sigma[i]`` the mirror image of polygon i (symmetric
+    difference below ``tol`` of its area) when the window is symmetric about x = 0 and every state
+    has such a partner; None otherwise. Reflecting a whole configuration A, B, C, D about line AB
+    reflects the BC frame too, so then ``T[sigma i, sigma j, sigma k] = T[i, j, k]`` exactly (the
+    ties on x = 0 have measure zero). EDC, FDC, LR and TPCC are all mirror-symmetric.
+
+    >>> mirror_permutation("fdc").tolist()
+    [1, 0, 3, 2, 5, 4]
+    """
+    part = _partitions.get(partition)
+    xmin, xmax, _, _ = part.window
+    if not np.isclose(xmin, -xmax, rtol=0, atol=1e-12):
+        return None
+    polys = np.asarray(part.polygons, dtype=object)
+    mirrored = shapely.transform(polys, lambda xy: xy * np.array([-1.0, 1.0]))
+    overlap = shapely.area(shapely.intersection(mirrored[:, None], polys[None, :]))
+    sigma = np.argmax(overlap, axis=1)
+    n = len(polys)
+    rest = part.areas + part.areas[sigma] - 2 * overlap[np.arange(n), sigma]
+    if (np.any(rest > tol * part.areas) or not np.array_equal(np.sort(sigma), np.arange(n))
+            or not np.array_equal(sigma[sigma], np.arange(n))):
+        return None
+    return sigma
+
+
 def _moved_polygons(polys: np.ndarray, C: np.ndarray) -> np.ndarray:
     """BC-frame polygons (m,) carried to the AB frame for each C (S, 2): (S, m) geometries."""
     S, m = C.shape[0], polys.shape[0]
@@ -251,16 +288,19 @@ def _work(C: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndar
 
 
 def build(partition, samples: int = 4096, *, seed: int = 0, support_samples: int | None = None,
-          support_weight: float = DEFAULT_SUPPORT_WEIGHT, workers: int = 1,
-          progress: bool = True) -> CompositionTensor:
+          support_weight: float = DEFAULT_SUPPORT_WEIGHT, symmetric: bool = True,
+          workers: int = 1, progress: bool = True) -> CompositionTensor:
     """Compute the composition tensor of a partition (module docstring gives the method).
 
     Args:
         partition: name or :class:`~qfg.partitions.Partition`; its window and polygons are used.
         samples: weight samples of C per state (low-discrepancy, uniform in the state).
         seed: seeds every random stream (same seed, same tensor, whatever ``workers``).
-        support_samples: corner samples per state (default ``samples // 4``); 0 for none.
+        support_samples: corner samples per state (default ``min(samples // 4, 1024)``); 0 for
+            none.
         support_weight: share of each state's mass carried by its support samples.
+        symmetric: use the partition's mirror symmetry (:func:`mirror_permutation`) if it has one:
+            sample half the states, mirror the rest.
         workers: processes (1: in this process).
         progress: show a tqdm progress bar.
 
@@ -272,7 +312,7 @@ def build(partition, samples: int = 4096, *, seed: int = 0, support_samples: int
     """
     part = _partitions.get(partition)
     samples = positive_int("samples", samples)
-    support_samples = (samples // 4 if support_samples is None
+    support_samples = (min(samples // 4, 1024) if support_samples is None
                        else positive_int("support_samples", support_samples, minimum=0))
     support_weight = non_negative("support_weight", support_weight)
     if support_weight >= 1:
@@ -282,10 +322,15 @@ def build(partition, samples: int = 4096, *, seed: int = 0, support_samples: int
     m = part.n_states
     streams = np.random.SeedSequence(seed).spawn(2 * m)
 
+    # With a mirror symmetry sigma, only one state of each pair {i, sigma i} is sampled and the
+    # other's slice is its mirror image: half the work, an exactly symmetric T.
+    sigma = mirror_permutation(part) if symmetric else None
+    todo = [i for i in range(m) if sigma is None or i <= sigma[i]]
+
     # Jobs: (state, kind 0 weight / 1 support, C batch, weights). Weight samples share
     # 1 - support_weight of the state's unit mass, support samples the rest.
     jobs = []
-    for i in range(m):
+    for i in todo:
         Cw = sample_state(part, i, samples, np.random.default_rng(streams[i]))
         Cs = support_sample_points(part, i, support_samples, np.random.default_rng(streams[m + i]))
         share = support_weight if Cs.shape[0] else 0.0
@@ -316,6 +361,13 @@ def build(partition, samples: int = 4096, *, seed: int = 0, support_samples: int
                            chunksize=4))
     bar.close()
     seconds = time.perf_counter() - t0
+    if sigma is not None:
+        ix = np.ix_(sigma, sigma)
+        for i in todo:
+            if sigma[i] != i:
+                acc[:, sigma[i]] = acc[:, i][(slice(None),) + ix]
+                positive[:, sigma[i]] = positive[:, i][(slice(None),) + ix]
+                confirmed[sigma[i]] = confirmed[i][ix]
     # Entries whose only positive areas are slivers between the polygons' straight-segment
     # circles and the exact boundaries (no witness point) are not feasible: drop them.
     total = np.where(confirmed, acc.sum(axis=0), 0.0)
@@ -328,10 +380,36 @@ def build(partition, samples: int = 4096, *, seed: int = 0, support_samples: int
             "nnz_weight_samples": int(np.count_nonzero(from_weights)),
             "nnz_support_only": int(np.count_nonzero(support & ~from_weights)),
             "dropped_unwitnessed": int(np.count_nonzero(positive.any(axis=0) & ~confirmed)),
-            "workers": workers, "build_seconds": round(seconds, 3)}
+            "mirror_symmetry": sigma is not None, "workers": workers,
+            "build_seconds": round(seconds, 3)}
     return CompositionTensor(partition=part.name, T=T, support=support, window=part.window,
                              samples_per_state=samples, seed=seed, quad_segs=part.quad_segs,
                              version=__version__, sha256=checksum(T), meta=meta)
+
+
+def compare(a, b, threshold: float = COMPARE_THRESHOLD) -> dict:
+    """How far two tensors of the same partition are apart (e.g. a build and its double).
+
+    Returns a dict:
+        l1: sum |T_a - T_b| (twice the total-variation distance; both sum to 1).
+        max_rel: max |T_a - T_b| / T_a over the non-negligible entries, those with
+            T_a >= ``threshold``; ``mass_above``: the share of T_a's mass they hold;
+            ``n_above``: how many there are.
+        support_only_a, support_only_b: entries in one support and not the other; ``support_equal``.
+    """
+    from .online import as_table
+    Ta, Tb = as_table(a), as_table(b)
+    if Ta.shape != Tb.shape:
+        raise ValueError(f"b: shape {Tb.shape} differs from a's {Ta.shape}")
+    threshold = non_negative("threshold", threshold)
+    big = Ta >= threshold
+    rel = np.abs(Tb - Ta)[big] / Ta[big]
+    sa, sb = Ta > 0, Tb > 0
+    return {"l1": float(np.abs(Ta - Tb).sum()), "max_rel": float(rel.max()) if rel.size else 0.0,
+            "threshold": threshold, "n_above": int(big.sum()), "mass_above": float(Ta[big].sum()),
+            "support_only_a": int(np.count_nonzero(sa & ~sb)),
+            "support_only_b": int(np.count_nonzero(sb & ~sa)),
+            "support_equal": bool(np.array_equal(sa, sb))}
 
 
 class _NoBar:
