@@ -990,12 +990,41 @@ def _main(argv=None) -> int:
     return 0
 
 
+def _rng_str(vals, fmt="{:.2f}") -> str:
+    vals = [v for v in vals if v is not None]
+    return (fmt + ".." + fmt).format(min(vals), max(vals)) if vals else "-"
+
+
 def _print_check(ds: MRCLAMDataset) -> None:
+    rds = list(ds.robots.values())
+    odo = [rd.odometry for rd in rds if rd.odometry is not None]
+    span = _rng_str([np.ptp(rd.time) for rd in rds], "{:.0f}")
+    gap = _rng_str([np.median(np.diff(rd.view_times)) for rd in rds])
+    rich = _rng_str([100 * np.mean(rd.visible.sum(axis=1) >= 3) for rd in rds], "{:.1f}")
+    lo, hi = _rng_str([rd.bearing.min() for rd in rds]), _rng_str([rd.bearing.max() for rd in rds])
+    print(f"\n{ds.name}: measurement span per robot {span} s; median time between views {gap} s; "
+          f"views with >= 3 landmarks {rich}%; bearings min {lo}, max {hi} rad")
+    if odo:
+        firsts = [rd.time[0] - rd.odometry.time[0] for rd in rds if rd.odometry is not None]
+        lasts = [rd.odometry.time[-1] - rd.time[-1] for rd in rds if rd.odometry is not None]
+        print(f"  odometry: median record interval "
+              f"{_rng_str([np.median(np.diff(o.time)) for o in odo], '{:.3f}')} s, max gap "
+              f"{_rng_str([o.max_gap for o in odo])} s, v min {_rng_str([o.v.min() for o in odo])} "
+              f"max {_rng_str([o.v.max() for o in odo])} m/s, omega min "
+              f"{_rng_str([o.omega.min() for o in odo])} max {_rng_str([o.omega.max() for o in odo])}"
+              f" rad/s; starts {_rng_str(firsts)} s before the first measurement, ends "
+              f"{_rng_str(lasts, '{:.3f}')} s after the last")
     chk = check_landmarks(ds)
-    print(f"\n{ds.name}: landmark check: swaps {list(chk.swaps)}; distance of each landmark's "
+    print(f"  landmark check: swaps {list(chk.swaps)}; distance of each landmark's "
           f"measured position to its ground truth (m): median {np.median(chk.error):.2f}, "
           f"max {chk.error.max():.2f} (subject {int(chk.landmark_ids[np.argmax(chk.error)])})")
     fixed = swap_landmarks(ds, chk.swaps)
+    if chk.swaps:
+        chk2 = check_landmarks(fixed)
+        print(f"  after swapping {list(chk.swaps)}: swaps {list(chk2.swaps)}; median "
+              f"{np.median(chk2.error):.2f} m, max {chk2.error.max():.2f} m")
+    res_m = np.concatenate([landmark_fixes(fixed, n, min_landmarks=4).residual for n in ds.robots])
+    print(f"  fix residual (>= 4 landmarks) median {np.median(res_m):.3f} m")
     res = np.degrees(np.concatenate([bearing_residuals(fixed, n) for n in ds.robots]))
     if res.size:
         mad = 1.4826 * np.median(np.abs(res - np.median(res)))
