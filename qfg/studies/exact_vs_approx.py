@@ -3,7 +3,8 @@
 Each scenario: a random trajectory among ``n_landmarks`` landmarks (:func:`qfg.simulation.
 random_scenario`), the triplets it saw solved by a single-triplet solver (priors), and a random
 connected set of composition factors over the map of those landmarks grown until it holds at most
-``max_triplets`` triplets (with loops or without, as it happens; the ``has_loop`` column says which).
+``max_triplets`` triplets; with probability ``loop_probability`` the growth prefers factors that
+close a loop (the ``has_loop`` column says whether the graph has one).
 The seen triplets of the graph keep their solver priors with probability ``coverage``; the rest are
 unseen. For each graph: exact marginals (einsum contraction), label-correcting propagation
 (Algorithm 2) and loopy BP; per non-seen triplet and method: total variation and KL(exact || method)
@@ -36,7 +37,7 @@ DEFAULTS = {
     "n_scenarios": 20, "n_landmarks": 5, "n_poses": 6, "landmarks_per_view": 4,
     "max_triplets": 8, "max_factors": 5, "coverage": 0.5, "sigma_bearing": 0.02,
     "sigma_heading": 0.05, "solver": "fast", "partition": "edc", "bp_damping": 0.0,
-    "bp_max_iters": 200, "bp_tol": 1e-9,
+    "bp_max_iters": 200, "bp_tol": 1e-9, "loop_probability": 0.5,
     # Tests only: a seeded random tensor of this many states instead of the shipped tensor.
     "random_tensor_states": 0,
 }
@@ -60,8 +61,11 @@ def _tensor(task):
     return tensor(task["partition"])
 
 
-def _grow_factors(rng, seen_set, n_land, max_triplets, max_factors):
-    """Random connected factor set, starting at a factor touching a seen triplet."""
+def _grow_factors(rng, seen_set, n_land, max_triplets, max_factors, prefer_loops=False):
+    """Random connected factor set, starting at a factor touching a seen triplet.
+
+    ``prefer_loops``: when some candidate factor shares two or more triplets with the set (adding
+    it closes a loop), draw among those only."""
     factors = [(i, j, k, s) for i, j, k, s in itertools.permutations(range(n_land), 4)]
     trip = {f: {(f[0], f[1], f[2]), (f[1], f[2], f[3]), (f[0], f[1], f[3])} for f in factors}
     starts = [f for f in factors if trip[f] & seen_set]
@@ -75,6 +79,9 @@ def _grow_factors(rng, seen_set, n_land, max_triplets, max_factors):
                  and len(ts | trip[f]) <= max_triplets]
         if not cands:
             break
+        if prefer_loops:
+            loops = [f for f in cands if len(trip[f] & ts) >= 2]
+            cands = loops or cands
         f = cands[rng.integers(len(cands))]
         chosen.append(f)
         ts |= trip[f]
@@ -100,7 +107,8 @@ def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
                              sigma_heading=task["sigma_heading"])
         hists = {h.landmarks: h for h in triplet_histories(sc, partition=task["partition"])}
         chosen, ts = _grow_factors(rng, set(hists), task["n_landmarks"], task["max_triplets"],
-                                   task["max_factors"])
+                                   task["max_factors"],
+                                   prefer_loops=bool(rng.random() < task["loop_probability"]))
         cands = sorted(t for t in ts if t in hists)
         seen = [t for t in cands if rng.random() < task["coverage"]]
         if chosen and seen and len(seen) < len(ts):
