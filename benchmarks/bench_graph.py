@@ -18,7 +18,8 @@ def edc_tensor():
     """(tensor, label): the shipped EDC tensor, or a random one of its size and density."""
     try:
         from qfg.composition import tensor
-        return tensor("edc"), "shipped EDC tensor"
+        t = tensor("edc")
+        return t, f"EDC tensor {t.path} ({t.samples_per_state} samples/state)"
     except Exception:  # noqa: BLE001 - any missing/invalid file: fall back, and say so
         rng = np.random.default_rng(0)
         T = rng.random((20, 20, 20)) * (rng.random((20, 20, 20)) < 2257 / 8000)
