@@ -37,7 +37,7 @@ from .composition import marginal as compose_marginal
 from .metrics import information_score
 
 __all__ = [
-    "GraphTooLargeError", "PropagationResult", "ScoreResult", "LevelResult", "BPResult",
+    "GraphTooLargeError", "ZeroMassError", "PropagationResult", "ScoreResult", "LevelResult", "BPResult",
     "exact_marginals", "elimination_estimate", "propagate", "topology_scores",
     "composition_levels", "loopy_bp",
 ]
@@ -48,6 +48,11 @@ MAX_TABLE = 2 ** 26
 
 class GraphTooLargeError(ValueError):
     """Raised when exact inference would build a table above the limit."""
+
+
+class ZeroMassError(ValueError):
+    """Raised when the product of a graph's factors is zero everywhere (the priors contradict the
+    tensor's support): the exact marginals are undefined."""
 
 
 # ----------------------------------------------------------------------------- results
@@ -177,6 +182,9 @@ def exact_marginals(g, engine: str = "contract", max_table: int = MAX_TABLE) -> 
             the estimated size (min-fill elimination width for gtsam, opt_einsum's largest
             intermediate for contract).
 
+    Raises :class:`ZeroMassError` (contract engine) when the product of the factors is zero
+    everywhere on a component.
+
     >>> import numpy as np
     >>> from qfg.graph import QualitativeFactorGraph
     >>> g = QualitativeFactorGraph("lr", tensor=np.eye(2)[:, :, None] * np.eye(2)[None])  # all equal
@@ -259,8 +267,8 @@ def _exact_contract(g, out, max_table):
             r = oe.contract(eq, *ops, optimize=path)
             s = r.sum()
             if not s > 0:
-                raise ValueError("g: the product of the factors has no mass (inconsistent priors "
-                                 "and tensor, or underflow)")
+                raise ZeroMassError("g: the product of the factors has no mass (priors "
+                                    "inconsistent with the tensor's support, or underflow)")
             out[v] = r / s
     return out
 

@@ -6,10 +6,11 @@ connected set of composition factors over the map of those landmarks grown until
 ``max_triplets`` triplets; with probability ``loop_probability`` the growth prefers factors that
 close a loop (the ``has_loop`` column says whether the graph has one).
 The seen triplets of the graph keep their solver priors with probability ``coverage``; the rest are
-unseen. For each graph: exact marginals (einsum contraction), label-correcting propagation
-(Algorithm 2) and loopy BP; per non-seen triplet and method: total variation and KL(exact || method)
-to the exact marginals, DMSE to the ground-truth state, information score, time of the method on
-the whole graph.
+unseen. A graph whose priors contradict the tensor's support (zero total mass: no exact answer)
+is drawn again (``zero_mass_redraws`` counts them). For each graph: exact marginals (einsum
+contraction), label-correcting propagation (Algorithm 2) and loopy BP; per non-seen triplet and
+method: total variation and KL(exact || method) to the exact marginals, DMSE to the ground-truth
+state, information score, time of the method on the whole graph.
 
 Run: ``qfg experiment exact-vs-approx --preset quick --output out/exact_vs_approx``.
 """
@@ -27,7 +28,7 @@ from ..geometry import to_frame
 from ..graph import QualitativeFactorGraph
 from ..metrics import dmse, information_score
 from ..partitions import get as get_partition
-from ..propagation import exact_marginals, loopy_bp, propagate
+from ..propagation import ZeroMassError, exact_marginals, loopy_bp, propagate
 from ..runner import Study
 from ..simulation import random_scenario, triplet_histories
 
@@ -101,6 +102,7 @@ def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
 
     T = _tensor(task)
     part = get_partition(task["partition"])
+    zero_mass_redraws = 0
     for _ in range(100):
         sc = random_scenario(rng, task["n_landmarks"], task["n_poses"], task["landmarks_per_view"],
                              sigma_bearing=task["sigma_bearing"],
@@ -111,29 +113,35 @@ def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
                                    prefer_loops=bool(rng.random() < task["loop_probability"]))
         cands = sorted(t for t in ts if t in hists)
         seen = [t for t in cands if rng.random() < task["coverage"]]
-        if chosen and seen and len(seen) < len(ts):
-            break
+        if not (chosen and seen and len(seen) < len(ts)):
+            continue
+        g = QualitativeFactorGraph(task["partition"], tensor=T)
+        for t in sorted(ts):
+            prior = None
+            if t in seen:
+                prior = solve_triplet(hists[t], method=task["solver"],
+                                      partition=task["partition"], seed=rng)
+            g.add_triplet(t, prior)
+        for f in chosen:
+            g.add_composition(f)
+        t0 = time.perf_counter()
+        try:
+            ex = exact_marginals(g, engine="contract")
+            t1 = time.perf_counter()
+        except ZeroMassError:
+            # the solver priors contradict the tensor's support: no exact answer; draw again
+            zero_mass_redraws += 1
+            continue
+        break
     else:
-        raise RuntimeError("no graph with seen and unseen triplets in 100 draws")
-    g = QualitativeFactorGraph(task["partition"], tensor=T)
-    for t in sorted(ts):
-        prior = None
-        if t in seen:
-            prior = solve_triplet(hists[t], method=task["solver"], partition=task["partition"],
-                                  seed=rng)
-        g.add_triplet(t, prior)
-    for f in chosen:
-        g.add_composition(f)
+        raise RuntimeError("no usable graph (seen and unseen triplets, non-zero mass) in 100 draws")
     has_loop = len(nx.cycle_basis(g.to_networkx())) > 0
-
-    t0 = time.perf_counter()
-    ex = exact_marginals(g, engine="contract")
-    t1 = time.perf_counter()
+    t2s = time.perf_counter()
     lc = propagate(g)
     t2 = time.perf_counter()
     bp = loopy_bp(g, damping=task["bp_damping"], max_iters=task["bp_max_iters"], tol=task["bp_tol"])
     t3 = time.perf_counter()
-    results = {"exact": (ex, t1 - t0), "label_correcting": (lc.marginals, t2 - t1),
+    results = {"exact": (ex, t1 - t0), "label_correcting": (lc.marginals, t2 - t2s),
                "loopy_bp": (bp.marginals, t3 - t2)}
     truth = np.array([_truth_state(part, sc.landmarks, t) for t in g.triplets])
     rows = []
@@ -153,7 +161,8 @@ def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
                 "reached": bool(lc.reached[v]),
                 "has_loop": has_loop, "n_triplets": g.n_triplets, "n_factors": g.n_factors,
                 "n_seen": int(g.seen.sum()), "bp_converged": bp.converged,
-                "bp_iterations": bp.iterations, "time_s": dt,
+                "bp_iterations": bp.iterations, "zero_mass_redraws": zero_mass_redraws,
+                "time_s": dt,
             })
     return rows
 
