@@ -216,7 +216,9 @@ def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
                 vals = [r[key] for r in rows if r["method"] == method and r["has_loop"] == loop]
                 if vals:
                     data.append(vals)
-                    labels.append(f"{method}\n{'loopy' if loop else 'tree'}")
+                    short = {"exact": "exact", "label_correcting": "Alg. 2",
+                             "loopy_bp": "loopy BP"}[method]
+                    labels.append(f"{short}\n{'loopy' if loop else 'tree'}")
         if data:
             ax.boxplot(data)
             ax.set_xticks(range(1, len(labels) + 1), labels, fontsize=7)
