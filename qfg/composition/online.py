@@ -42,6 +42,9 @@ __all__ = ["Marginal", "Joint", "Feasible", "marginal", "joint", "feasible", "as
 
 _ROLES = (1, 2, 3)
 
+#: Size (elements) of the per-chunk intermediate in :func:`marginal` (8 MB of float64).
+_CHUNK_ELEMENTS = 1 << 20
+
 
 @dataclass(frozen=True)
 class Marginal:
@@ -150,13 +153,15 @@ def _rows(a: np.ndarray | None, F: int, m: int) -> np.ndarray:
 
 def _normalize(unnorm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Normalize over all but the first axis; zero-mass rows become uniform and are flagged."""
-    axes = tuple(range(1, unnorm.ndim))
-    total = unnorm.sum(axis=axes, keepdims=True)
+    F = unnorm.shape[0]
+    total = unnorm.reshape(F, -1).sum(axis=1)
     # Mass below the smallest normal double cannot be normalized without overflow: treat as zero.
     zero = total <= np.finfo(float).tiny
-    size = np.prod(unnorm.shape[1:])
-    p = np.where(zero, 1.0 / size, unnorm / np.where(zero, 1.0, total))
-    return p, zero.reshape(unnorm.shape[0])
+    shape = (F,) + (1,) * (unnorm.ndim - 1)
+    p = unnorm / np.where(zero, 1.0, total).reshape(shape)
+    if zero.any():
+        p[zero] = 1.0 / np.prod(unnorm.shape[1:])
+    return p, zero
 
 
 def marginal(T, V1=None, V2=None, V3=None, *, role: int = 3, deterministic: bool = False
@@ -200,9 +205,14 @@ def marginal(T, V1=None, V2=None, V3=None, *, role: int = 3, deterministic: bool
     Tr = np.moveaxis(table, role - 1, -1)
     Va = _rows(vecs[names[others[0] - 1]], F, m)
     Vb = _rows(vecs[names[others[1] - 1]], F, m)
-    # (F, a) @ (a, b*target) is one BLAS call; then contract b per row.
-    partial = (Va @ Tr.reshape(m, m * m)).reshape(F, m, m)
-    unnorm = np.einsum("fb,fbk->fk", Vb, partial)
+    # (F, a) @ (a, b*target) is one BLAS call; then contract b per row. In row chunks so that
+    # the (rows, m, m) intermediate stays small for large batches.
+    flat = Tr.reshape(m, m * m)
+    unnorm = np.empty((F, m))
+    step = max(1, _CHUNK_ELEMENTS // (m * m))
+    for a in range(0, F, step):
+        partial = (Va[a:a + step] @ flat).reshape(-1, m, m)
+        unnorm[a:a + step] = np.einsum("fb,fbk->fk", Vb[a:a + step], partial)
     own = vecs[names[role - 1]]
     if own is not None:
         unnorm = unnorm * _rows(own, F, m)
