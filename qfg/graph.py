@@ -39,7 +39,7 @@ import numpy as np
 from .composition import as_table
 
 __all__ = ["QualitativeFactorGraph", "triplet_key", "full_map", "map_from_triplets",
-           "map_from_histories", "KEY_BITS", "brute_force_compositions"]
+           "map_from_histories", "truth_states", "KEY_BITS", "brute_force_compositions"]
 
 #: Bits per landmark id in :func:`triplet_key`.
 KEY_BITS = 20
@@ -414,6 +414,29 @@ def map_from_histories(histories, unseen: Iterable = (), partition: str = "edc",
                           **solver_options) if histories else []
     seen = {tuple(h.landmarks): e for h, e in zip(histories, ests, strict=True)}
     return map_from_triplets(seen, unseen, partition=partition, tensor=tensor)
+
+
+def truth_states(triplets: Iterable, landmarks, partition: str = "edc") -> np.ndarray:
+    """(n,) ground-truth state of each triplet ``(i, j, k)``: the state of landmark k in the frame
+    of (i, j) (:func:`qfg.geometry.to_frame`, :meth:`qfg.partitions.Partition.state_of`).
+
+    ``landmarks``: (L, 2) world positions, row = landmark id.
+
+    >>> truth_states([(0, 1, 2)], [[0.0, 0.0], [0.0, 1.0], [0.0, 3.0]], "lr").shape
+    (1,)
+    """
+    from ._validate import as_float_array
+    from .geometry import to_frame
+    from .partitions import get
+
+    L = as_float_array("landmarks", landmarks, ndim=2, last_dim=2)
+    ts = np.array([_as_triplet(t) for t in triplets], dtype=np.intp).reshape(-1, 3)
+    if ts.size and ts.max() >= len(L):
+        raise ValueError(f"landmarks: {len(L)} rows, but a triplet uses landmark {int(ts.max())}")
+    if len(ts) == 0:
+        return np.zeros(0, dtype=np.intp)
+    c = to_frame(L[ts[:, 2]], L[ts[:, 0]], L[ts[:, 1]])
+    return np.asarray(get(partition).state_of(c), dtype=np.intp)
 
 
 def brute_force_compositions(triplets: Iterable) -> list[tuple[int, int, int, int]]:

@@ -39,7 +39,7 @@ from .metrics import information_score
 __all__ = [
     "GraphTooLargeError", "ZeroMassError", "PropagationResult", "ScoreResult", "LevelResult", "BPResult",
     "exact_marginals", "elimination_estimate", "propagate", "topology_scores",
-    "composition_levels", "loopy_bp",
+    "composition_levels", "loopy_bp", "compare_unseen",
 ]
 
 #: Default limit on the largest table (entries) an exact engine may build.
@@ -548,3 +548,43 @@ def loopy_bp(g, damping: float = 0.0, max_iters: int = 100, tol: float = 1e-9) -
     b = np.exp(lb - lb.max(axis=-1, keepdims=True))
     return BPResult(marginals=_normalize_rows(b), converged=bool(converged), iterations=it,
                     max_change=change)
+
+
+# ----------------------------------------------------------------------------- reporting
+def compare_unseen(g, truth=None, engine: str = "contract", max_table: int = MAX_TABLE
+                   ) -> list[dict]:
+    """For each unseen triplet: the Algorithm 2 estimate, the exact marginal and the truth.
+
+    Returns one dict per unseen triplet (in ``g.triplets`` order) with ``triplet``, ``propagated``
+    ((m,) from :func:`propagate`), ``reached``, ``isc``, ``exact`` ((m,) or None when the graph is
+    too big or has no mass; ``exact_error`` then says why), and ``truth`` (``truth[v]`` if an (n,)
+    array of states is given, e.g. from :func:`qfg.graph.truth_states`; else None).
+
+    >>> import numpy as np
+    >>> from qfg.graph import QualitativeFactorGraph
+    >>> T = np.zeros((2, 2, 2)); T[0, 0, 0] = T[1, 1, 1] = 1
+    >>> g = QualitativeFactorGraph("lr", tensor=T)
+    >>> for t, p in [((0, 1, 2), [0.9, 0.1]), ((1, 2, 3), None)]:
+    ...     _ = g.add_triplet(t, p)
+    >>> [(r["triplet"], r["exact"].tolist(), r["truth"]) for r in compare_unseen(g, truth=[0, 1])]
+    [((1, 2, 3), [0.5, 0.5], 1)]
+    """
+    n = g.n_triplets
+    if truth is not None:
+        truth = np.asarray(truth)
+        if truth.shape != (n,) or not np.issubdtype(truth.dtype, np.integer):
+            raise ValueError(f"truth: expected ({n},) integer states, got {truth.shape} "
+                             f"{truth.dtype}")
+    res = propagate(g)
+    exact, why = None, ""
+    try:
+        exact = exact_marginals(g, engine=engine, max_table=max_table)
+    except (GraphTooLargeError, ZeroMassError) as exc:
+        why = str(exc)
+    rows = []
+    for v in np.flatnonzero(~g.seen):
+        rows.append({"triplet": g.triplets[v], "propagated": res.marginals[v],
+                     "reached": bool(res.reached[v]), "isc": float(res.isc[v]),
+                     "exact": None if exact is None else exact[v], "exact_error": why,
+                     "truth": None if truth is None else int(truth[v])})
+    return rows

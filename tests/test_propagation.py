@@ -336,3 +336,36 @@ def test_isc_hand_worked_on_copy_tensor():
     assert r.isc[1] == pytest.approx(0.5310044064107189, abs=1e-12)
     np.testing.assert_allclose(r.marginals[2], [0.81 / 0.82, 0.01 / 0.82], atol=1e-12)
     np.testing.assert_allclose(exact_marginals(g, engine="gtsam")[2], [0.9, 0.1], atol=1e-12)
+
+
+def test_compare_unseen_and_truth_states():
+    from qfg.graph import truth_states
+    from qfg.propagation import compare_unseen
+
+    L = np.array([[0.0, 0.0], [0.0, 1.0], [-1.0, 0.5], [1.0, 0.5]])
+    g = QualitativeFactorGraph("lr", tensor=rand_T(np.random.default_rng(0), 2))
+    for t, p in [((0, 1, 2), [0.9, 0.1]), ((1, 2, 3), None), ((0, 1, 3), None)]:
+        g.add_triplet(t, p)
+    g.discover_compositions()
+    truth = truth_states(g.triplets, L, "lr")
+    # independent check: C left of the directed line A->B iff cross(B - A, C - A) > 0
+    from qfg import partitions
+    lr = partitions.get("lr")
+    for (i, j, k), s in zip(g.triplets, truth, strict=True):
+        d, e = L[j] - L[i], L[k] - L[i]
+        cross = d[0] * e[1] - d[1] * e[0]
+        left_state = int(lr.state_of(np.array([[-0.5, 0.5]]))[0])  # x < 0 in the AB frame
+        assert (s == left_state) == (cross > 0)
+    rows = compare_unseen(g, truth=truth)
+    assert [r["triplet"] for r in rows] == [(1, 2, 3), (0, 1, 3)]
+    ex = exact_marginals(g)
+    r = propagate(g)
+    for row, v in zip(rows, (1, 2), strict=True):
+        np.testing.assert_allclose(row["exact"], ex[v])
+        np.testing.assert_allclose(row["propagated"], r.marginals[v])
+        assert row["truth"] == truth[v]
+    big = full_map(6, tensor=np.ones((20, 20, 20)))
+    rows = compare_unseen(big, engine="gtsam")
+    assert rows[0]["exact"] is None and "entries" in rows[0]["exact_error"]
+    with pytest.raises(ValueError, match="truth"):
+        compare_unseen(g, truth=[0, 1])

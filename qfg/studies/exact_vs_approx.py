@@ -24,10 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..geometry import to_frame
-from ..graph import QualitativeFactorGraph
+from ..graph import QualitativeFactorGraph, truth_states
 from ..metrics import dmse, information_score
-from ..partitions import get as get_partition
 from ..propagation import ZeroMassError, exact_marginals, loopy_bp, propagate
 from ..runner import Study
 from ..simulation import random_scenario, triplet_histories
@@ -89,19 +87,12 @@ def _grow_factors(rng, seen_set, n_land, max_triplets, max_factors, prefer_loops
     return chosen, ts
 
 
-def _truth_state(part, landmarks, t):
-    i, j, k = t
-    c = to_frame(landmarks[k], landmarks[i], landmarks[j])
-    return int(part.state_of(c[None])[0])
-
-
 def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
     import networkx as nx
 
     from ..solvers import solve_triplet
 
     T = _tensor(task)
-    part = get_partition(task["partition"])
     zero_mass_redraws = 0
     for _ in range(100):
         sc = random_scenario(rng, task["n_landmarks"], task["n_poses"], task["landmarks_per_view"],
@@ -143,7 +134,7 @@ def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
     t3 = time.perf_counter()
     results = {"exact": (ex, t1 - t0), "label_correcting": (lc.marginals, t2 - t2s),
                "loopy_bp": (bp.marginals, t3 - t2)}
-    truth = np.array([_truth_state(part, sc.landmarks, t) for t in g.triplets])
+    truth = truth_states(g.triplets, sc.landmarks, task["partition"])
     rows = []
     eps = 1e-300
     for v, t in enumerate(g.triplets):
