@@ -369,3 +369,24 @@ def test_compare_unseen_and_truth_states():
     assert rows[0]["exact"] is None and "entries" in rows[0]["exact_error"]
     with pytest.raises(ValueError, match="truth"):
         compare_unseen(g, truth=[0, 1])
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(2, 4), st.floats(0.2, 0.6))
+def test_outputs_are_distributions_and_scores_bounded(seed, m, frac):
+    rng = np.random.default_rng(seed)
+    g = random_graph(rng, rand_T(rng, m), n_land=5, frac=frac)
+    r = propagate(g)
+    b = loopy_bp(g, max_iters=30)
+    for M in (r.marginals, b.marginals):
+        assert np.all(np.isfinite(M)) and np.all(M >= 0)
+        np.testing.assert_allclose(M.sum(axis=1), 1.0, atol=1e-12)
+    assert np.all((r.isc >= 0) & (r.isc <= 1))
+    t = topology_scores(g)
+    assert np.all((t.scores >= 0) & (t.scores <= 1))
+    # a triplet is reached by Alg. 2 iff Alg. 3 and the composition levels reach it
+    np.testing.assert_array_equal(r.reached, t.reached)
+    np.testing.assert_array_equal(r.reached, np.isfinite(composition_levels(g).levels))
+    # topology score never exceeds the best seen start (decay only loses information)
+    if g.seen.any():
+        assert t.scores.max() <= information_score(g.prior_matrix()[g.seen]).max() + 1e-12
