@@ -390,3 +390,18 @@ def test_outputs_are_distributions_and_scores_bounded(seed, m, frac):
     # topology score never exceeds the best seen start (decay only loses information)
     if g.seen.any():
         assert t.scores.max() <= information_score(g.prior_matrix()[g.seen]).max() + 1e-12
+
+
+def test_contradictory_priors_zero_mass():
+    from qfg.propagation import ZeroMassError
+
+    T = np.zeros((2, 2, 2))
+    T[0, 0, 0] = T[1, 1, 1] = 1.0
+    g = one_factor_graph(T, [1.0, 0.0], [0.0, 1.0])
+    with pytest.raises(ZeroMassError):
+        exact_marginals(g)
+    r = propagate(g)
+    np.testing.assert_allclose(r.marginals[2], [0.5, 0.5])
+    b = loopy_bp(g)
+    assert np.all(np.isfinite(b.marginals))
+    np.testing.assert_allclose(b.marginals.sum(axis=1), 1.0)
