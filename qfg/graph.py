@@ -337,15 +337,15 @@ class QualitativeFactorGraph:
         from .propagation import propagate
         return propagate(self, **kwargs)
 
-    def topology_scores(self, alpha: float = 0.5, seen_score=None):
+    def topology_scores(self, alpha: float = 0.5, seen_score=None, **kwargs):
         """Algorithm 3; see :func:`qfg.propagation.topology_scores`."""
         from .propagation import topology_scores
-        return topology_scores(self, alpha=alpha, seen_score=seen_score)
+        return topology_scores(self, alpha=alpha, seen_score=seen_score, **kwargs)
 
-    def composition_levels(self):
+    def composition_levels(self, **kwargs):
         """Composition levels; see :func:`qfg.propagation.composition_levels`."""
         from .propagation import composition_levels
-        return composition_levels(self)
+        return composition_levels(self, **kwargs)
 
     def loopy_bp(self, **kwargs):
         """Sum-product; see :func:`qfg.propagation.loopy_bp`."""

@@ -23,7 +23,9 @@ Factor closing. The paper defines open/closed by membership (open: at least one 
 non-updated triplet) and also says the factor used is "marked closed". We follow the membership
 definition: a factor that updated one of its two non-updated triplets stays open for the third
 (now with two updated triplets, eq. decay2 / the two-known marginal); it closes when all three are
-updated. Triplets never reached end uniform (ISC 0, TSC 0, CL infinite).
+updated. ``close_used=True`` (in :func:`propagate`, :func:`topology_scores`,
+:func:`composition_levels`) takes the other reading: a factor closes for good once it has updated a
+triplet. Triplets never reached end uniform (ISC 0, TSC 0, CL infinite).
 """
 
 from __future__ import annotations
@@ -274,7 +276,7 @@ def _exact_contract(g, out, max_table):
 
 
 # ----------------------------------------------------------------------------- label correcting
-def _label_correcting(g, sources_value, propose):
+def _label_correcting(g, sources_value, propose, close_used=False):
     """Shared engine of Algorithms 2/3 and composition levels.
 
     ``sources_value``: per-variable payload list (None for non-sources). ``propose(fs, upd, vals)``
@@ -293,12 +295,13 @@ def _label_correcting(g, sources_value, propose):
         return values, np.array(order, dtype=np.intp), updated_by, updated
     inc = g.incidence()
     count = updated[fvars].sum(axis=1)
+    closed = np.zeros(F, dtype=bool)
     heap: list = []
     payloads: list = []
 
     def push(fs):
         fs = np.asarray(fs, dtype=np.intp)
-        fs = fs[(count[fs] > 0) & (count[fs] < 3)]
+        fs = fs[(count[fs] > 0) & (count[fs] < 3) & ~closed[fs]]
         if len(fs) == 0:
             return
         pf, prole, pscore, pay = propose(fs, updated[fvars[fs]], values)
@@ -312,20 +315,22 @@ def _label_correcting(g, sources_value, propose):
     push(np.arange(F))
     while heap:
         _, v, f, version, q = heapq.heappop(heap)
-        if updated[v] or count[f] != version:
+        if updated[v] or count[f] != version or closed[f]:
             continue  # stale: the triplet was updated, or the factor's proposal changed since
         updated[v] = True
         values[v] = payloads[q]
         payloads[q] = None
         order.append(v)
         updated_by[v] = f
+        if close_used:
+            closed[f] = True
         touch = inc[v]
         count[touch] += 1
         push(touch)
     return values, np.array(order, dtype=np.intp), updated_by, updated
 
 
-def propagate(g) -> PropagationResult:
+def propagate(g, close_used: bool = False) -> PropagationResult:
     """Algorithm 2 (label-correcting propagation by composition).
 
     Sources: the seen triplets (their priors, ISC = information score). Proposal of an open factor
@@ -376,13 +381,13 @@ def propagate(g) -> PropagationResult:
             pay.extend(p)
         return (np.concatenate(rows_f), np.concatenate(rows_r), np.concatenate(rows_s), pay)
 
-    values, order, updated_by, reached = _label_correcting(g, priors, propose)
+    values, order, updated_by, reached = _label_correcting(g, priors, propose, close_used)
     marg = np.array([np.full(m, 1.0 / m) if v is None else v for v in values]).reshape(-1, m)
     return PropagationResult(marginals=marg, isc=information_score(marg), order=order,
                              updated_by=updated_by, reached=reached, seen=g.seen)
 
 
-def _scalar_engine(g, init, one_known, two_known, maximize=True):
+def _scalar_engine(g, init, one_known, two_known, maximize=True, close_used=False):
     """Label-correcting on scalars: ``one_known(x)`` for both others, ``two_known(x, y)``."""
     fvars = g.factor_vars
     sign = 1.0 if maximize else -1.0
@@ -410,11 +415,12 @@ def _scalar_engine(g, init, one_known, two_known, maximize=True):
         scores = np.concatenate(rs)
         return np.concatenate(rf), np.concatenate(rr), sign * scores, list(scores)
 
-    values, order, updated_by, reached = _label_correcting(g, init, propose)
+    values, order, updated_by, reached = _label_correcting(g, init, propose, close_used)
     return values, order, updated_by, reached
 
 
-def topology_scores(g, alpha: float = 0.5, seen_score=None) -> ScoreResult:
+def topology_scores(g, alpha: float = 0.5, seen_score=None, close_used: bool = False
+                    ) -> ScoreResult:
     """Algorithm 3: topology score TSC by the information decay model.
 
     Seen triplets start at the information score of their prior (``seen_score=None``) or at
@@ -445,13 +451,14 @@ def topology_scores(g, alpha: float = 0.5, seen_score=None) -> ScoreResult:
         base = np.full(g.n_triplets, s)
     init = [float(base[v]) if seen[v] else None for v in range(g.n_triplets)]
     values, order, updated_by, reached = _scalar_engine(
-        g, init, lambda x: (1 - alpha) * x, lambda x, y: (1 - alpha ** 2) * (x + y) / 2)
+        g, init, lambda x: (1 - alpha) * x, lambda x, y: (1 - alpha ** 2) * (x + y) / 2,
+        close_used=close_used)
     scores = np.array([0.0 if v is None else float(v) for v in values])
     return ScoreResult(scores=scores, order=order, updated_by=updated_by, reached=reached,
                        seen=seen)
 
 
-def composition_levels(g) -> LevelResult:
+def composition_levels(g, close_used: bool = False) -> LevelResult:
     """Composition levels (eqs. cl1, cl2, cl3), propagated like Algorithm 3 (lowest level first).
 
     Seen: CL = 0. One updated triplet a -> ``CL_a + 1`` for both others (cl1); two updated a, b ->
@@ -470,7 +477,8 @@ def composition_levels(g) -> LevelResult:
     seen = g.seen
     init = [0.0 if seen[v] else None for v in range(g.n_triplets)]
     values, order, updated_by, reached = _scalar_engine(
-        g, init, lambda x: x + 1, lambda x, y: np.minimum(x, y) + 1, maximize=False)
+        g, init, lambda x: x + 1, lambda x, y: np.minimum(x, y) + 1, maximize=False,
+        close_used=close_used)
     levels = np.array([np.inf if v is None else float(v) for v in values])
     finite = np.isfinite(levels)
     cmax = levels[finite].max() if finite.any() else 0.0

@@ -405,3 +405,16 @@ def test_contradictory_priors_zero_mass():
     b = loopy_bp(g)
     assert np.all(np.isfinite(b.marginals))
     np.testing.assert_allclose(b.marginals.sum(axis=1), 1.0)
+
+
+def test_close_used_reading_closes_the_factor_after_one_update():
+    g = chain_graph()
+    r = propagate(g, close_used=True)
+    # f0 updates (1,2,3) and closes, so (0,1,3) is unreachable; f1 then updates (2,3,4) and closes
+    assert r.order.tolist() == [1, 3]
+    assert r.reached.tolist() == [True, True, False, True, False]
+    np.testing.assert_allclose(r.marginals[[2, 4]], 0.5)
+    t = topology_scores(g, seen_score=1.0, close_used=True)
+    np.testing.assert_allclose(t.scores, [1.0, 0.5, 0.0, 0.25, 0.0])
+    c = composition_levels(g, close_used=True)
+    np.testing.assert_array_equal(c.levels, [0, 1, np.inf, 2, np.inf])
