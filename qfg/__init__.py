@@ -5,11 +5,62 @@ Mapping": qualitative space partitions, a scenario simulator, single-triplet sol
 tensors and the qualitative factor graph on GTSAM.
 
 Modules, in the order data flows through them:
-``partitions``, ``geometry`` -> ``simulation`` -> ``solvers`` -> ``composition`` -> ``graph`` ->
-``propagation`` -> ``metrics`` -> ``plotting``.
+``partitions``, ``geometry`` -> ``simulation``, ``datasets`` -> ``solvers`` -> ``composition`` ->
+``graph`` -> ``propagation`` -> ``metrics`` -> ``plotting``.
+
+The main entry points are importable from the top level; modules load on first use, so
+``import qfg`` stays fast:
+
+>>> import qfg
+>>> qfg.QualitativeFactorGraph.__module__
+'qfg.graph'
 """
 
-from . import geometry, metrics, partitions, simulation
+from __future__ import annotations
+
+import importlib
+
 from ._version import __version__
 
-__all__ = ["__version__", "geometry", "metrics", "partitions", "simulation"]
+_MODULES = ("geometry", "partitions", "simulation", "datasets", "solvers", "composition", "graph",
+            "propagation", "metrics", "runner", "plotting")
+
+#: top-level name -> module that defines it
+_NAMES = {
+    "solve_triplet": "solvers",
+    "solve_triplets": "solvers",
+    "TripletEstimate": "solvers",
+    "QualitativeFactorGraph": "graph",
+    "full_map": "graph",
+    "map_from_triplets": "graph",
+    "map_from_histories": "graph",
+    "truth_states": "graph",
+    "triplet_key": "graph",
+    "exact_marginals": "propagation",
+    "propagate": "propagation",
+    "topology_scores": "propagation",
+    "composition_levels": "propagation",
+    "loopy_bp": "propagation",
+    "compare_unseen": "propagation",
+    "GraphTooLargeError": "propagation",
+    "ZeroMassError": "propagation",
+    "TripletHistory": "simulation",
+    "random_triplet_history": "simulation",
+    "random_scenario": "simulation",
+    "triplet_histories": "simulation",
+}
+
+__all__ = ["__version__", *_MODULES, *_NAMES]
+
+
+def __getattr__(name):
+    if name in _MODULES:
+        return importlib.import_module(f".{name}", __name__)
+    if name in _NAMES:
+        mod = importlib.import_module(f".{_NAMES[name]}", __name__)
+        return getattr(mod, name)
+    raise AttributeError(f"module 'qfg' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))
