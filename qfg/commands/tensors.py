@@ -78,7 +78,10 @@ def _info(args):
         print(f"  quad_segs {t.quad_segs}, version {t.version}, sha256 {t.sha256[:16]}..., "
               f"min non-zero {t.T[t.support].min():.3g}, max {t.T.max():.3g}")
         for k, v in sorted(t.meta.items()):
-            print(f"  {k}: {v}")
+            if getattr(v, "ndim", 0):
+                print(f"  {k}: array of shape {v.shape}")
+            else:
+                print(f"  {k}: {v}")
     return 0
 
 

@@ -224,14 +224,24 @@ def intersection_areas(polys: np.ndarray, C, *, return_geometries: bool = False)
     [[2.0, 0.0], [0.0, 2.0]]
     """
     C = np.asarray(C, dtype=float).reshape(-1, 2)
+    polys = _clean(polys)
     moved = _moved_polygons(polys, C)
+    # A similarity transform can round a nearly straight run of vertices into a tiny
+    # self-intersection; repair those few so that the overlay sees valid input.
+    bad = ~shapely.is_valid(moved)
+    if bad.any():
+        moved[bad] = shapely.make_valid(moved[bad])
     # Pairs whose bounding boxes are apart cannot intersect: skip them cheaply.
     mb = shapely.bounds(moved)[:, :, None, :]      # (S, m, 1, 4)
     ab = shapely.bounds(polys)[None, None, :, :]   # (1, 1, m, 4)
     overlap = ((mb[..., 0] <= ab[..., 2]) & (ab[..., 0] <= mb[..., 2])
                & (mb[..., 1] <= ab[..., 3]) & (ab[..., 1] <= mb[..., 3]))
     s, j, k = np.nonzero(overlap)
-    geoms = shapely.intersection(moved[s, j], polys[k])
+    try:
+        geoms = shapely.intersection(moved[s, j], polys[k])
+    except shapely.errors.GEOSException:
+        geoms = np.array([_robust_intersection(a, b) for a, b in zip(moved[s, j], polys[k],
+                                                                      strict=True)], dtype=object)
     out = np.zeros(overlap.shape)
     out[s, j, k] = shapely.area(geoms)
     if not return_geometries:
@@ -252,12 +262,44 @@ def witnessed(partition, C, j, k, geoms) -> np.ndarray:
     """
     part = _partitions.get(partition)
     pts = shapely.point_on_surface(geoms)
-    D = np.column_stack([shapely.get_x(pts), shapely.get_y(pts)])
-    ok = np.isfinite(D).all(axis=1)
+    ok = ~shapely.is_empty(pts)
+    D = np.zeros((len(pts), 2))
+    if ok.any():
+        D[ok] = shapely.get_coordinates(pts[ok])
+    ok &= np.isfinite(D).all(axis=1)
     D = np.where(ok[:, None], D, 0.0)
     Dbc = to_frame(D, _B, C)
     return (ok & (part.state_of(D) == k) & (part.state_of(Dbc) == j) & part.in_window(D)
             & part.in_window(Dbc))
+
+
+#: Least intersection area (|AB|^2) that counts as a real region. Rounding makes slivers of
+#: 1e-40 .. 1e-20 where edges meet at B (every BC-frame polygon has B on an edge, every AB one
+#: has it as a vertex); every real entry of the shipped partitions reaches 1e-4 or more for
+#: some C (docs/composition.md shows the gap).
+MIN_AREA = 1e-12
+
+#: Vertices closer than this (|AB| units) are merged before any overlay: where a sector's ray meets
+#: a circle, the computed crossing lands within rounding of a circle vertex and the two make a
+#: degenerate edge that GEOS's overlay can reject.
+CLEAN_TOLERANCE = 1e-9
+
+
+def _clean(polys: np.ndarray) -> np.ndarray:
+    return shapely.remove_repeated_points(np.asarray(polys, dtype=object), CLEAN_TOLERANCE)
+
+
+def _robust_intersection(a, b):
+    """One intersection when the vectorized overlay raised: make both valid, then snap-round."""
+    a, b = shapely.make_valid(a), shapely.make_valid(b)
+    for grid in (None, 1e-12, 1e-10):
+        try:
+            return shapely.intersection(a, b) if grid is None else \
+                shapely.intersection(a, b, grid_size=grid)
+        except shapely.errors.GEOSException:
+            continue
+    raise ValueError("C: shapely could not intersect two state polygons for this frame "
+                     "(even with snap rounding to 1e-10)")  # pragma: no cover
 
 
 # Worker state: the partition, sent once per process by the pool initializer.
@@ -269,22 +311,21 @@ def _init_worker(part):
     global _PART, _POLYS
     _PART = part
     _POLYS = np.asarray(part.polygons, dtype=object)
-    shapely.prepare(_POLYS)
 
 
 def _work(C: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """For a batch of C (S, 2) with weights (S,): the weighted sum (m, m) of the intersection
-    areas, where any area was positive (m, m), and where that was confirmed by a witness point
-    (the largest intersection in the batch checked with the exact lookups)."""
+    areas, the largest area (m, m), and whether that largest intersection is real: at least
+    MIN_AREA and with a witness point confirmed by the exact lookups."""
     areas, geoms = intersection_areas(_POLYS, C, return_geometries=True)
     m = areas.shape[1]
-    positive = areas.max(axis=0) > 0
-    j, k = np.nonzero(positive)
+    biggest = areas.max(axis=0)
+    j, k = np.nonzero(biggest >= MIN_AREA)
     best = np.argmax(areas[:, j, k], axis=0)
     ok = witnessed(_PART, C[best], j, k, geoms[best, j, k])
     confirmed = np.zeros((m, m), dtype=bool)
     confirmed[j[ok], k[ok]] = True
-    return np.einsum("s,sjk->jk", w, areas), positive, confirmed
+    return np.einsum("s,sjk->jk", w, areas), biggest, confirmed
 
 
 def build(partition, samples: int = 4096, *, seed: int = 0, support_samples: int | None = None,
@@ -340,15 +381,15 @@ def build(partition, samples: int = 4096, *, seed: int = 0, support_samples: int
                 jobs.append((i, kind, batch, np.full(batch.shape[0], w)))
 
     acc = np.zeros((2, m, m, m))
-    positive = np.zeros((2, m, m, m), dtype=bool)
+    biggest = np.zeros((2, m, m, m))
     confirmed = np.zeros((m, m, m), dtype=bool)
     t0 = time.perf_counter()
     bar = _progress(len(jobs), f"tensor {part.name}", progress)
 
     def collect(results):
-        for (i, kind, _, _), (s, pos, conf) in zip(jobs, results, strict=True):
+        for (i, kind, _, _), (s, big, conf) in zip(jobs, results, strict=True):
             acc[kind, i] += s
-            positive[kind, i] |= pos
+            np.maximum(biggest[kind, i], big, out=biggest[kind, i])
             confirmed[i] |= conf
             bar.update(1)
 
@@ -366,20 +407,23 @@ def build(partition, samples: int = 4096, *, seed: int = 0, support_samples: int
         for i in todo:
             if sigma[i] != i:
                 acc[:, sigma[i]] = acc[:, i][(slice(None),) + ix]
-                positive[:, sigma[i]] = positive[:, i][(slice(None),) + ix]
+                biggest[:, sigma[i]] = biggest[:, i][(slice(None),) + ix]
                 confirmed[sigma[i]] = confirmed[i][ix]
-    # Entries whose only positive areas are slivers between the polygons' straight-segment
-    # circles and the exact boundaries (no witness point) are not feasible: drop them.
+    # Entries whose only positive areas are rounding slivers (below MIN_AREA) or slivers between
+    # the polygons' straight-segment circles and the exact boundaries (no witness point) are not
+    # feasible: drop them.
     total = np.where(confirmed, acc.sum(axis=0), 0.0)
     T = total / total.sum()
     support = T > 0
-    from_weights = positive[0] & confirmed
+    positive = biggest > 0
+    from_weights = (biggest[0] >= MIN_AREA) & confirmed
     meta = {"method": "semi-sample-based: scrambled-Sobol C per state (weights) + corner C "
                       "samples (support), exact shapely intersection areas, witness-checked",
             "support_samples_per_state": support_samples, "support_weight": support_weight,
             "nnz_weight_samples": int(np.count_nonzero(from_weights)),
             "nnz_support_only": int(np.count_nonzero(support & ~from_weights)),
             "dropped_unwitnessed": int(np.count_nonzero(positive.any(axis=0) & ~confirmed)),
+            "max_area": biggest.max(axis=0),
             "mirror_symmetry": sigma is not None, "workers": workers,
             "build_seconds": round(seconds, 3)}
     return CompositionTensor(partition=part.name, T=T, support=support, window=part.window,
