@@ -97,6 +97,14 @@ def test_corner_points_of_a_square_and_an_arc_state():
         assert np.min(np.linalg.norm(c - p, axis=1)) < 1e-5
 
 
+def test_random_configurations_counts_match_the_exact_lookup():
+    counts = qb.random_configurations("lr", 50_000, 0)
+    # LR: D in the BC window; every one of the 8 (i, j, k) occurs, the total is the kept number
+    assert counts.shape == (2, 2, 2) and (counts > 0).all() and 0 < counts.sum() <= 50_000
+    # by the mirror symmetry the counts of mirrored triples agree up to sampling noise
+    np.testing.assert_allclose(counts, counts[::-1, ::-1, ::-1], rtol=0.1)
+
+
 def test_mirror_permutation_is_an_involution_matching_the_lookup():
     for name in ("edc", "fdc", "lr", "tpcc"):
         part = qp.get(name)
@@ -231,8 +239,11 @@ def test_cli_build_info_compare(tmp_path, capsys):
                      "--output", str(tmp_path / "u"), "--no-progress"]) == 0
     assert cli_main(["tensors", "info", str(out / "lr.npz")]) == 0
     assert cli_main(["tensors", "compare", str(out / "lr.npz"), str(tmp_path / "u" / "lr.npz")]) == 0
+    assert cli_main(["tensors", "check", "--file", str(out / "lr.npz"),
+                     "--configurations", "20000"]) == 0
     text = capsys.readouterr().out
     assert "non-zero 8 of 8" in text and "L1 =" in text and "only in a: 0" in text
+    assert "8 distinct triples seen" in text and "seen but infeasible in the tensor: 0" in text
     (tmp_path / "bad.npz").write_bytes(b"xx")
     assert cli_main(["tensors", "info", str(tmp_path / "bad.npz")]) == 2
     assert "qfg tensors build --partition bad" in capsys.readouterr().err

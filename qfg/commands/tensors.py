@@ -36,6 +36,16 @@ def register(sub):
                    help="entries of a at least this large count in max_rel (default 1e-4)")
     c.set_defaults(func=_compare)
 
+    k = tsub.add_parser("check", help="draw random configurations (C, D uniform in the window, D "
+                                      "in the BC window) and list any state triple the tensor "
+                                      "calls infeasible")
+    k.add_argument("--partition", default="all", help="partition name or 'all' (default all)")
+    k.add_argument("--configurations", type=float, default=1e7,
+                   help="configurations drawn (default 1e7; 1e9 takes minutes)")
+    k.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    k.add_argument("--file", default=None, help="tensor file to check (default: the shipped one)")
+    k.set_defaults(func=_check)
+
     p.set_defaults(func=lambda args: (p.print_help(), 0)[1])
 
 
@@ -83,6 +93,41 @@ def _info(args):
             else:
                 print(f"  {k}: {v}")
     return 0
+
+
+def _check(args):
+    import time
+    from pathlib import Path
+
+    import numpy as np
+
+    from ..composition import load, tensor
+    from ..composition.build import random_configurations
+
+    names = [load(Path(args.file)).partition] if args.file else _names(args.partition)
+    n = int(args.configurations)
+    bad_total = 0
+    for name in names:
+        t = load(Path(args.file)) if args.file else tensor(name)
+        t0 = time.perf_counter()
+        counts = random_configurations(name, n, args.seed)
+        dt = time.perf_counter() - t0
+        seen = counts > 0
+        outside = seen & ~t.support
+        bad_total += int(outside.sum())
+        print(f"{name}: {n:.3g} configurations drawn, {counts.sum()} kept, {dt:.0f} s; "
+              f"{int(seen.sum())} distinct triples seen; tensor support {t.nnz}; "
+              f"seen but infeasible in the tensor: {int(outside.sum())}; "
+              f"in the tensor but never seen: {int((t.support & ~seen).sum())}")
+        for i, j, k in np.argwhere(outside):
+            print(f"  infeasible in tensor but seen: (i, j, k) = ({i + 1}, {j + 1}, {k + 1}) "
+                  f"x {counts[i, j, k]}")
+        unseen = np.argwhere(t.support & ~seen)
+        if len(unseen):
+            print("  never seen (1-based i, j, k; T): " + ", ".join(
+                f"({i + 1},{j + 1},{k + 1}; {t.T[i, j, k]:.1e})" for i, j, k in unseen[:40])
+                + (" ..." if len(unseen) > 40 else ""))
+    return 1 if bad_total else 0
 
 
 def _compare(args):

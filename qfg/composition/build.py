@@ -52,7 +52,7 @@ from .._version import __version__
 from ..geometry import from_frame, to_frame
 from .store import CompositionTensor, checksum
 
-__all__ = ["build", "compare", "SHIPPED_SAMPLES", "sample_state", "corner_points",
+__all__ = ["build", "compare", "random_configurations", "SHIPPED_SAMPLES", "sample_state", "corner_points",
            "mirror_permutation",
            "intersection_areas", "witnessed", "support_sample_points", "DEFAULT_SUPPORT_WEIGHT"]
 
@@ -429,6 +429,34 @@ def build(partition, samples: int = 4096, *, seed: int = 0, support_samples: int
     return CompositionTensor(partition=part.name, T=T, support=support, window=part.window,
                              samples_per_state=samples, seed=seed, quad_segs=part.quad_segs,
                              version=__version__, sha256=checksum(T), meta=meta)
+
+
+def random_configurations(partition, n: int, rng, *, batch: int = 2_000_000):
+    """Counts (m, m, m) of the states (AB:C, BC:D, AB:D) of ``n`` random configurations.
+
+    In the AB frame (A = (0, 0), B = (0, 1)): C and D uniform in the window, kept when D is also
+    inside the BC window (so ``n`` is the number drawn, the counts sum to the number kept). The
+    states come from the exact lookups (:meth:`~qfg.partitions.Partition.state_of`, with
+    :func:`qfg.geometry.to_frame` for the BC frame), not from the polygons: an independent check
+    of a tensor's support (``qfg tensors check``).
+    """
+    part = _partitions.get(partition)
+    n = positive_int("n", n)
+    rng = np.random.default_rng(rng)
+    m = part.n_states
+    x0, x1, y0, y1 = part.window
+    counts = np.zeros(m ** 3, dtype=np.int64)
+    done = 0
+    while done < n:
+        k = min(batch, n - done)
+        C = rng.uniform([x0, y0], [x1, y1], (k, 2))
+        D = rng.uniform([x0, y0], [x1, y1], (k, 2))
+        Dbc = to_frame(D, _B, C)
+        ok = part.in_window(Dbc)
+        i, j, kk = part.state_of(C[ok]), part.state_of(Dbc[ok]), part.state_of(D[ok])
+        counts += np.bincount((i * m + j) * m + kk, minlength=m ** 3)
+        done += k
+    return counts.reshape(m, m, m)
 
 
 def compare(a, b, threshold: float = COMPARE_THRESHOLD) -> dict:
