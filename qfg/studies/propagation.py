@@ -1,0 +1,361 @@
+"""The factor-graph propagation study (paper sections 5c and 6f, issue 6).
+
+One scenario = one factor graph:
+
+1. Landmarks placed as in the simulation (:func:`qfg.simulation.sample_positions`: uniform in the
+   box, at least ``min_distance`` apart), ids ``0 .. n_landmarks - 1``.
+2. ``n_candidates`` candidate graphs. Each: ``n_fc`` (uniform in ``[n_fc_min, n_fc_max]``)
+   composition factors drawn without replacement from all ``n (n-1) (n-2) (n-3)`` factors of the
+   landmarks, and the triplets they touch (``n_v``); ``n_seen = round(coverage_rate * n_v)``
+   (conventions.md: the paper's text divides, read as a product; at least 1, at most ``n_v - 1``)
+   of them drawn as seen. Connectivity score: Algorithm 3 with every seen triplet at 1, the
+   entropy (natural log, :func:`qfg.metrics.entropy`) of the histogram of all triplets' topology
+   scores in 10 equal bins on [0, 1]. The candidate with the highest connectivity score is kept
+   (the first of equal ones).
+3. Each seen triplet of the kept graph gets its own ``n_views`` camera poses, placed with the
+   landmarks (one :func:`~qfg.simulation.sample_positions` call over landmarks and all cameras),
+   bearings with N(0, sigma_bearing^2) noise and motion headings with N(0, sigma_heading^2) noise
+   (paper eqs. MsrLkl, MotionModel; :func:`qfg.geometry.bearing`, :func:`~qfg.geometry.
+   motion_heading`), solved by :func:`qfg.solvers.solve_triplets` (``method=solver``, "fast").
+   The rest are unseen.
+4. Algorithm 2 (:func:`qfg.propagation.propagate`) -> ISC of every triplet; Algorithm 3
+   (:func:`~qfg.propagation.topology_scores`) with seen triplets starting at their prior's ISC
+   (``tsc``) and at 1 (``tsc1``, the paper's unbiased comparison with composition levels);
+   composition levels (``cl``, normalized ``cl_norm`` = eq. cl3).
+
+Rows: one per triplet (``scenario``, ``triplet``, ``seen``, ``reached``, ``isc``, ``tsc``,
+``tsc1``, ``cl`` (-1 where unreachable), ``cl_norm``, ground-truth ``dmse``, ``gt_rating``,
+``gmd`` of the Algorithm 2 marginal (or the prior for seen triplets) and graph-level columns). The
+first row of a graph also carries ``factors`` (``"i-j-k-s;..."``) so the summary can draw graphs.
+
+Run: ``qfg experiment propagation --preset quick --output results/propagation-quick``.
+"""
+
+from __future__ import annotations
+
+import csv
+import itertools
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..geometry import bearing, motion_heading, wrap_angle
+from ..graph import QualitativeFactorGraph, truth_states
+from ..metrics import dmse, entropy, gmd, gt_rating
+from ..propagation import composition_levels, propagate, topology_scores
+from ..runner import Study
+from ..simulation import SimulationConfig, sample_positions
+
+DEFAULTS = {
+    "n_graphs": 20, "n_landmarks": 8, "n_fc_min": 6, "n_fc_max": 30, "n_candidates": 10,
+    "coverage_rate": 0.5, "alpha": 0.5, "n_views": 3, "sigma_bearing_deg": 2.0,
+    "sigma_heading_deg": 5.0, "solver": "fast", "partition": "edc", "n_bins": 10,
+    # Tests only: a seeded random tensor instead of tensors/<partition>.npz (needs m = 20: edc).
+    "random_tensor": False,
+}
+
+#: Small parameters for the tests (seconds per run, random tensor).
+TEST_PARAMS = {"n_graphs": 4, "n_landmarks": 6, "n_fc_min": 3, "n_fc_max": 8, "n_candidates": 3,
+               "random_tensor": True}
+
+_HEADLINE = ("spearman_tsc_isc", "spearman_cl_isc", "pearson_tsc_isc", "pearson_cl_isc")
+
+
+def tasks(params: dict) -> list[dict]:
+    """One task per graph: the merged parameters (validated) and the graph's index."""
+    unknown = set(params) - set(DEFAULTS)
+    if unknown:
+        raise ValueError(f"params: unknown keys {sorted(unknown)}")
+    p = {**DEFAULTS, **params}
+    n_l = int(p["n_landmarks"])
+    if n_l < 4:
+        raise ValueError(f"n_landmarks: expected >= 4 (a factor needs 4 landmarks), got {n_l}")
+    n_all = n_l * (n_l - 1) * (n_l - 2) * (n_l - 3)
+    if not 1 <= int(p["n_fc_min"]) <= int(p["n_fc_max"]) <= n_all:
+        raise ValueError(f"n_fc_min, n_fc_max: expected 1 <= min <= max <= {n_all} (all factors "
+                         f"of {n_l} landmarks), got {p['n_fc_min']}, {p['n_fc_max']}")
+    if not 0.0 < float(p["coverage_rate"]) < 1.0:
+        raise ValueError(f"coverage_rate: expected in (0, 1), got {p['coverage_rate']}")
+    if int(p["n_candidates"]) < 1:
+        raise ValueError(f"n_candidates: expected >= 1, got {p['n_candidates']}")
+    return [{"index": i, **{k: v for k, v in p.items() if k != "n_graphs"}}
+            for i in range(int(p["n_graphs"]))]
+
+
+def _tensor(task):
+    if task["random_tensor"]:
+        rng = np.random.default_rng(12345)
+        return rng.random((20, 20, 20)) * (rng.random((20, 20, 20)) < 0.3) + 1e-6
+    from ..composition import tensor
+    return tensor(task["partition"])
+
+
+def factor_triplets(f) -> tuple[tuple, tuple, tuple]:
+    """The triplets (AB:C, BC:D, AB:D) of composition factor ``f = (i, j, k, s)``."""
+    i, j, k, s = f
+    return (i, j, k), (j, k, s), (i, j, s)
+
+
+def connectivity_score(g, n_bins: int = 10) -> float:
+    """Entropy (nats) of the histogram of Algorithm 3 topology scores, seen triplets at 1.
+
+    Bins: ``n_bins`` equal bins on [0, 1] (1 falls in the last). High: the scores spread over many
+    levels; 0: all triplets in one bin.
+    """
+    tsc = topology_scores(g, seen_score=1.0).scores
+    counts, _ = np.histogram(tsc, bins=n_bins, range=(0.0, 1.0))
+    return float(entropy(counts / counts.sum()))
+
+
+def candidate_graph(rng, n_landmarks, n_fc, coverage_rate, table):
+    """A random candidate: factors, triplets (sorted), seen mask, graph with placeholder priors.
+
+    Seen triplets get uniform placeholder priors (Algorithm 3 with ``seen_score=1`` ignores them).
+    """
+    all_f = list(itertools.permutations(range(n_landmarks), 4))
+    pick = np.sort(rng.choice(len(all_f), size=n_fc, replace=False))
+    factors = [all_f[i] for i in pick]
+    triplets = sorted({t for f in factors for t in factor_triplets(f)})
+    n_v = len(triplets)
+    n_seen = int(min(max(round(coverage_rate * n_v), 1), n_v - 1))
+    seen = np.zeros(n_v, dtype=bool)
+    seen[rng.choice(n_v, size=n_seen, replace=False)] = True
+    g = _build(triplets, seen, None, factors, table)
+    return factors, triplets, seen, g
+
+
+def _build(triplets, seen, priors, factors, table, partition="edc"):
+    g = QualitativeFactorGraph(partition, tensor=table)
+    m = table.shape[0]
+    it = iter(priors) if priors is not None else None
+    for t, s in zip(triplets, seen, strict=True):
+        g.add_triplet(t, (next(it) if it is not None else np.ones(m)) if s else None)
+    for f in factors:
+        g.add_composition(f)
+    return g
+
+
+def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
+    from ..composition.online import as_table
+    from ..partitions import get
+    from ..solvers import solve_triplets
+
+    table = as_table(_tensor(task))
+    n_l = int(task["n_landmarks"])
+    best = None
+    for c in range(int(task["n_candidates"])):
+        n_fc = int(rng.integers(int(task["n_fc_min"]), int(task["n_fc_max"]) + 1))
+        factors, triplets, seen, g = candidate_graph(rng, n_l, n_fc, float(task["coverage_rate"]),
+                                                     table)
+        score = connectivity_score(g, int(task["n_bins"]))
+        if best is None or score > best[0]:
+            best = (score, c, factors, triplets, seen)
+    conn, kept, factors, triplets, seen = best
+
+    # measurements of the seen triplets: n_views own cameras each, placed with the landmarks
+    n_seen, nv = int(seen.sum()), int(task["n_views"])
+    sb, sh = np.deg2rad(float(task["sigma_bearing_deg"])), np.deg2rad(float(task["sigma_heading_deg"]))
+    pts = sample_positions(rng, n_l + n_seen * nv, SimulationConfig())
+    L = pts[:n_l]
+    poses = np.concatenate([pts[n_l:].reshape(n_seen, nv, 2),
+                            rng.uniform(-np.pi, np.pi, size=(n_seen, nv, 1))], axis=-1)
+    ids = np.array([t for t, s in zip(triplets, seen, strict=True) if s], dtype=np.intp)
+    phi = bearing(poses[:, :, None, :], L[ids][:, None, :, :])             # (n_seen, nv, 3)
+    phi = wrap_angle(phi + rng.normal(size=phi.shape) * sb)
+    psi = motion_heading(poses[:, :-1], poses[:, 1:, :2])                     # (n_seen, nv - 1)
+    psi = wrap_angle(psi + rng.normal(size=psi.shape) * sh)
+    est = solve_triplets(phi, psi, method=task["solver"], partition=task["partition"],
+                         sigma_bearing=sb, sigma_heading=sh, seed=int(rng.integers(2**63)))
+    g = _build(triplets, seen, [e.landmark for e in est], factors, table, task["partition"])
+
+    prop = propagate(g)
+    tsc = topology_scores(g, alpha=float(task["alpha"])).scores
+    tsc1 = topology_scores(g, alpha=float(task["alpha"]), seen_score=1.0).scores
+    cl = composition_levels(g)
+    truth = truth_states(g.triplets, L, task["partition"])
+    part = get(task["partition"])
+    M = prop.marginals
+    d, r, gm = dmse(M, truth), gt_rating(M, truth), gmd(M, truth, part.centroids)
+    graph_cols = {"n_v": g.n_triplets, "n_fc": g.n_factors, "n_seen": n_seen,
+                  "connectivity": conn, "kept_candidate": kept}
+    rows = []
+    for v, t in enumerate(g.triplets):
+        row = {"triplet": "-".join(map(str, t)), "seen": int(g.seen[v]),
+               "reached": int(prop.reached[v]), "isc": float(prop.isc[v]), "tsc": float(tsc[v]),
+               "tsc1": float(tsc1[v]),
+               "cl": float(cl.levels[v]) if np.isfinite(cl.levels[v]) else -1.0,
+               "cl_norm": float(cl.normalized[v]), "truth": int(truth[v]),
+               "dmse": float(d[v]), "gt_rating": float(r[v]), "gmd": float(gm[v]), **graph_cols}
+        if v == 0:
+            row["factors"] = ";".join("-".join(map(str, f)) for f in g.factors)
+        rows.append(row)
+    return rows
+
+
+# ------------------------------------------------------------------------------ summary
+def _corr(x, y):
+    from scipy import stats
+
+    if len(x) < 3 or np.ptp(x) == 0 or np.ptp(y) == 0:
+        return None, None  # undefined for constant inputs
+    return float(stats.spearmanr(x, y).statistic), float(stats.pearsonr(x, y).statistic)
+
+
+def binned_percentiles(x, y, n_bins: int = 10):
+    """For ``n_bins`` equal bins of ``x`` on [0, 1]: count and 25/50/75 percentiles of ``y``.
+
+    Returns a list of dicts (``lo, hi, count, p25, p50, p75``; percentiles None for empty bins).
+    """
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    b = np.clip((x * n_bins).astype(int), 0, n_bins - 1)
+    out = []
+    for k in range(n_bins):
+        sel = y[b == k]
+        q = np.percentile(sel, [25, 50, 75]).tolist() if sel.size else [None] * 3
+        out.append({"lo": k / n_bins, "hi": (k + 1) / n_bins, "count": int(sel.size),
+                    "p25": q[0], "p50": q[1], "p75": q[2]})
+    return out
+
+
+def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
+    outdir = Path(outdir)
+    p = {**DEFAULTS, **params}
+    nb = int(p["n_bins"])
+    cols = {k: np.array([r[k] for r in rows], dtype=float)
+            for k in ("isc", "tsc", "tsc1", "cl_norm", "seen", "reached", "dmse", "gt_rating", "gmd")}
+    seen = cols["seen"] > 0
+    sets = {"all": np.ones(len(rows), bool), "unseen": ~seen}
+    corr, bins_rows = {}, []
+    for sname, sel in sets.items():
+        for pred in ("tsc", "tsc1", "cl_norm"):
+            s, pr = _corr(cols[pred][sel], cols["isc"][sel])
+            short = "cl" if pred == "cl_norm" else pred
+            corr[f"{sname}/spearman_{short}_isc"] = s
+            corr[f"{sname}/pearson_{short}_isc"] = pr
+            for b in binned_percentiles(cols[pred][sel], cols["isc"][sel], nb):
+                bins_rows.append({"triplets": sname, "predictor": pred, **b})
+    with open(outdir / "bins.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(bins_rows[0]), lineterminator="\n")
+        w.writeheader()
+        w.writerows(bins_rows)
+    unseen = ~seen
+    reached_u = unseen & (cols["reached"] > 0)
+    gt = {}
+    for name, sel in (("unseen", unseen), ("unseen_reached", reached_u),
+                      ("unseen_unreached", unseen & ~(cols["reached"] > 0)), ("seen", seen)):
+        gt[name] = {"count": int(sel.sum())}
+        for k in ("dmse", "gt_rating", "gmd", "isc"):
+            gt[name][k] = (np.percentile(cols[k][sel], [25, 50, 75]).tolist() if sel.any() else None)
+    run = {}
+    if (outdir / "run.json").exists():
+        run = json.loads((outdir / "run.json").read_text())
+    graphs = sorted({r["scenario"] for r in rows})
+    summary = {
+        "n_graphs": len(graphs), "n_triplets": len(rows), "n_unseen": int(unseen.sum()),
+        # headline: unseen triplets (what the models predict; a seen triplet's tsc is its isc)
+        "headline_triplets": "unseen",
+        **{k: corr[f"unseen/{k}"] for k in _HEADLINE},
+        "correlations": corr, "ground_truth": gt,
+        "connectivity_mean": float(np.mean([r["connectivity"] for r in rows if "factors" in r])),
+        "command": run.get("command"), "seed": run.get("seed"), "params": p,
+    }
+    (outdir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    _figures(outdir, rows, cols, bins_rows, summary, nb)
+
+
+def _figures(outdir, rows, cols, bins_rows, summary, nb):
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:  # pragma: no cover
+        return
+
+    def band(ax, triplets, pred, color, label):
+        bs = [b for b in bins_rows if b["triplets"] == triplets and b["predictor"] == pred
+              and b["count"]]
+        x = [(b["lo"] + b["hi"]) / 2 for b in bs]
+        ax.fill_between(x, [b["p25"] for b in bs], [b["p75"] for b in bs], color=color, alpha=0.25)
+        ax.plot(x, [b["p50"] for b in bs], "o-", color=color, label=label)
+
+    c = summary["correlations"]
+    # decay-model correlation (paper fig. decayModelCorrelation): all triplets and unseen only
+    fig, axes = plt.subplots(1, 2, figsize=(9, 3.8), sharey=True)
+    for ax, sname in zip(axes, ("all", "unseen"), strict=True):
+        band(ax, sname, "tsc", "C0", "TSC (seen at their ISC)")
+        ax.plot([0, 1], [0, 1], ":", color="grey", lw=0.8)
+        ax.set_title(f"{sname} triplets: Spearman {_fmt(c[f'{sname}/spearman_tsc_isc'])}, "
+                     f"Pearson {_fmt(c[f'{sname}/pearson_tsc_isc'])}", fontsize=8)
+        ax.set_xlabel("topology score bin")
+    axes[0].set_ylabel("information score (25/50/75 %)")
+    fig.tight_layout()
+    fig.savefig(outdir / "decay_model_correlation.png", dpi=120)
+    plt.close(fig)
+    # the two models side by side, unseen triplets (paper's comparison: TSC with seen at 1 vs CL)
+    fig, axes = plt.subplots(1, 2, figsize=(9, 3.8), sharey=True)
+    for ax, pred, color, label in ((axes[0], "tsc1", "C0", "topology score (seen = 1)"),
+                                   (axes[1], "cl_norm", "C3", "normalized composition level")):
+        band(ax, "unseen", pred, color, label)
+        short = "cl" if pred == "cl_norm" else pred
+        ax.set_title(f"{label}\nSpearman {_fmt(c[f'unseen/spearman_{short}_isc'])}, "
+                     f"Pearson {_fmt(c[f'unseen/pearson_{short}_isc'])}", fontsize=8)
+        ax.set_xlabel(f"{label} bin")
+    axes[0].set_ylabel("information score of unseen triplets")
+    fig.tight_layout()
+    fig.savefig(outdir / "tsc_vs_cl.png", dpi=120)
+    plt.close(fig)
+    _example_graphs(outdir, rows, nb, plt)
+
+
+def _fmt(x):
+    return "n/a" if x is None else f"{x:.3f}"
+
+
+def _example_graphs(outdir, rows, nb, plt, n_examples: int = 4):
+    """Paper fig. fgSelection: kept graphs (seen triplets dark) and their TSC (seen = 1)
+    histograms with the connectivity score."""
+    import networkx as nx
+
+    by = {}
+    for r in rows:
+        by.setdefault(r["scenario"], []).append(r)
+    chosen = sorted(by)[:n_examples]
+    if not chosen:
+        return
+    fig, axes = plt.subplots(2, len(chosen), figsize=(3.2 * len(chosen), 6), squeeze=False)
+    for col, s in enumerate(chosen):
+        rs = by[s]
+        G = nx.Graph()
+        for r in rs:
+            G.add_node(r["triplet"], seen=r["seen"], tsc=r["tsc1"])
+        for f in rs[0].get("factors", "").split(";"):
+            if f:
+                G.add_node(f, factor=True)
+                i, j, k, t = f.split("-")
+                for tr in ((i, j, k), (j, k, t), (i, j, t)):
+                    G.add_edge(f, "-".join(tr))
+        pos = nx.spring_layout(G, seed=0)
+        var = [n for n in G if not G.nodes[n].get("factor")]
+        fac = [n for n in G if G.nodes[n].get("factor")]
+        ax = axes[0, col]
+        nx.draw_networkx_edges(G, pos, ax=ax, width=0.5, alpha=0.5)
+        nx.draw_networkx_nodes(G, pos, nodelist=fac, node_shape="s", node_size=12,
+                               node_color="k", ax=ax)
+        nx.draw_networkx_nodes(G, pos, nodelist=var, node_size=30, ax=ax, cmap="viridis",
+                               vmin=0, vmax=1, node_color=[G.nodes[n]["tsc"] for n in var],
+                               edgecolors=["r" if G.nodes[n]["seen"] else "none" for n in var])
+        ax.set_title(f"graph {s}: {len(var)} triplets, {len(fac)} factors\n"
+                     "(red ring: seen; colour: TSC)", fontsize=7)
+        ax.axis("off")
+        ax = axes[1, col]
+        ax.hist([r["tsc1"] for r in rs], bins=nb, range=(0, 1), color="C0")
+        ax.set_title(f"connectivity score {rs[0]['connectivity']:.3f}", fontsize=8)
+        ax.set_xlabel("topology score (seen = 1)")
+    fig.tight_layout()
+    fig.savefig(outdir / "example_graphs.png", dpi=110)
+    plt.close(fig)
+
+
+STUDY = Study("propagation", tasks, run_task, summarize,
+              "factor-graph propagation: topology score vs composition level vs ISC (paper 6f)")
