@@ -48,7 +48,7 @@ from ..runner import Study
 from ..simulation import SimulationConfig, sample_positions
 
 DEFAULTS = {
-    "n_graphs": 20, "n_landmarks": 8, "n_fc_min": 6, "n_fc_max": 30, "n_candidates": 10,
+    "n_graphs": 20, "n_landmarks": 6, "n_fc_min": 5, "n_fc_max": 40, "n_candidates": 10,
     "coverage_rate": 0.5, "alpha": 0.5, "n_views": 3, "sigma_bearing_deg": 2.0,
     "sigma_heading_deg": 5.0, "solver": "fast", "partition": "edc", "n_bins": 10,
     # Tests only: a seeded random tensor instead of tensors/<partition>.npz (needs m = 20: edc).
