@@ -259,9 +259,22 @@ def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
         "correlations": corr, "ground_truth": gt,
         "connectivity_mean": float(np.mean([r["connectivity"] for r in rows if "factors" in r])),
         "command": run.get("command"), "seed": run.get("seed"), "params": p,
+        "tensor": _tensor_info(p),
     }
     (outdir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     _figures(outdir, rows, cols, bins_rows, summary, nb)
+
+
+def _tensor_info(p):
+    """Which composition tensor the run used (the summary must say: results depend on it)."""
+    if p["random_tensor"]:
+        return {"random": True}
+    try:
+        from ..composition import tensor
+        t = tensor(p["partition"])
+    except Exception as exc:  # noqa: BLE001 - reported, not fatal for a summary
+        return {"error": str(exc)}
+    return {"path": str(t.path), "samples_per_state": t.samples_per_state, "sha256": t.sha256}
 
 
 def _figures(outdir, rows, cols, bins_rows, summary, nb):
