@@ -156,3 +156,60 @@ def test_bad_params():
         P.tasks({"coverage_rate": 1.5})
     with pytest.raises(ValueError, match="n_fc"):
         P.tasks({"n_landmarks": 4, "n_fc_max": 100})
+
+
+# ----------------------------------------------------------------- qfg experiment all, results doc
+def test_experiment_all_runs_studies_and_rebuilds_results_doc(tmp_path, monkeypatch):
+    from qfg import results_doc
+    from qfg.studies import _all
+
+    exp = tmp_path / "experiments"
+    exp.mkdir()
+    tiny = ", ".join(f"{k} = {str(v).lower() if isinstance(v, bool) else v}"
+                     for k, v in PARAMS.items())
+    (exp / "propagation.toml").write_text(f"[quick]\n{tiny.replace(', ', chr(10))}\n")
+    monkeypatch.setenv("QFG_EXPERIMENTS", str(exp))
+    secs = tmp_path / "sections"
+    secs.mkdir()
+    (secs / "propagation.md").write_text("## Propagation\n\n    qfg experiment propagation\n\n"
+                                         "![f](../figures/propagation/x.png)\n")
+    (secs / "composition.md").write_text("## Composition\n\nno command here\n")
+    doc = tmp_path / "results.md"
+    # composition has no preset file in exp: recorded as failed, propagation still runs
+    runs = _all.run_all("quick", root=tmp_path / "res", seed=2, progress=False,
+                        only=["composition", "propagation"], doc=False)
+    assert runs[0]["error"] and "preset" in runs[0]["error"]
+    assert runs[1]["rows"] > 0 and not runs[1].get("error")
+    assert (tmp_path / "res" / "propagation-quick" / "rows.csv").exists()
+    results_doc.write(doc, runs, results_dir=secs)
+    text = doc.read_text()
+    # paper order: composition before propagation; figure links rebased from docs/results/ to docs/
+    assert text.index("## Composition") < text.index("## Propagation")
+    assert "](figures/propagation/x.png)" in text
+    assert "qfg experiment propagation --preset quick --seed 2" in text
+    assert "| n_graphs | 4 |" in text
+    assert results_doc.missing_commands(results_doc.sections(secs)) == ["composition"]
+
+
+def test_scheduler_executor_is_closed_after_the_run(tmp_path, monkeypatch):
+    from qfg import cli, runner
+
+    closed = []
+
+    class Fake(runner.SerialExecutor):
+        def close(self):
+            closed.append(True)
+
+    monkeypatch.setattr(runner, "make_executor", lambda workers=1, scheduler=None: Fake())
+    exp = tmp_path / "experiments"
+    exp.mkdir()
+    (exp / "propagation.toml").write_text("[quick]\nn_graphs = 1\nrandom_tensor = true\n"
+                                          "n_landmarks = 5\nn_fc_min = 2\nn_fc_max = 4\nn_candidates = 1\n")
+    monkeypatch.setenv("QFG_EXPERIMENTS", str(exp))
+    argv = ["experiment", "propagation", "--scheduler", "tcp://fake:1", "--no-progress",
+            "--output", str(tmp_path / "o")]
+    assert cli.main(argv) == 0
+    assert closed == [True]
+    # closed also when the run fails (used output directory without --resume)
+    assert cli.main(argv) == 2
+    assert closed == [True, True]

@@ -10,13 +10,14 @@ def register(sub):
     p = sub.add_parser("experiment", help="run a study (qfg experiment list shows them)",
                        description="Run a study through the experiment runner. Presets come from "
                                    "experiments/<name>.toml.")
-    p.add_argument("name", help="study name, or 'list'")
+    p.add_argument("name", help="study name, 'list', or 'all' (every study, then docs/results.md)")
     p.add_argument("--preset", default="quick", help="preset in experiments/<name>.toml "
                                                      "(quick or paper; default quick)")
     p.add_argument("--workers", type=int, default=1, help="local worker processes (default 1)")
     p.add_argument("--scheduler", default=None,
                    help="dask.distributed scheduler address (needs qfg[dask]); overrides --workers")
-    p.add_argument("--output", default=None, help="output directory (default results/<name>-<preset>)")
+    p.add_argument("--output", default=None, help="output directory (default results/<name>-<preset>;"
+                                                  " with 'all': the root, default results)")
     p.add_argument("--seed", type=int, default=0, help="experiment seed (default 0)")
     p.add_argument("--resume", action="store_true", help="continue a run in --output")
     p.add_argument("--overwrite", action="store_true", help="start again in a used --output")
@@ -49,6 +50,8 @@ def _main(args):
         for name, st in sorted(runner.studies().items()):
             print(f"{name:20s} {st.description}")
         return 0
+    if args.name == "all":
+        return _main_all(args)
     study = runner.get_study(args.name)
     presets = runner.load_presets(study.name)
     if args.preset not in presets:
@@ -58,8 +61,33 @@ def _main(args):
     output = args.output or f"results/{study.name}-{args.preset}"
     executor = runner.make_executor(args.workers, args.scheduler) if args.scheduler else None
     command = "qfg " + " ".join(shlex.quote(a) for a in sys.argv[1:])
-    rows = runner.run_study(study, params, output, seed=args.seed, workers=args.workers,
-                            resume=args.resume, overwrite=args.overwrite, executor=executor,
-                            progress=not args.no_progress, command=command)
+    try:
+        rows = runner.run_study(study, params, output, seed=args.seed, workers=args.workers,
+                                resume=args.resume, overwrite=args.overwrite, executor=executor,
+                                progress=not args.no_progress, command=command)
+    finally:
+        if executor is not None:  # the cluster client made for --scheduler
+            executor.close()
     print(f"{study.name}: {len(rows)} rows in {output}")
     return 0
+
+
+def _main_all(args):
+    """``qfg experiment all``: every study with ``--preset`` into ``<--output or results>/
+    <name>-<preset>``, then docs/results.md rebuilt (qfg/studies/_all.py)."""
+    from .. import runner
+    from ..studies._all import run_all
+
+    if args.set:
+        raise ValueError("--set: not accepted with 'all' (parameters differ between studies)")
+    extra = "".join([f" --workers {args.workers}" if args.workers > 1 else "",
+                     f" --scheduler {shlex.quote(args.scheduler)}" if args.scheduler else ""])
+    executor = runner.make_executor(args.workers, args.scheduler) if args.scheduler else None
+    try:
+        runs = run_all(args.preset, root=args.output or "results", seed=args.seed,
+                       workers=args.workers, executor=executor, resume=args.resume,
+                       overwrite=args.overwrite, progress=not args.no_progress, extra_args=extra)
+    finally:
+        if executor is not None:
+            executor.close()
+    return 1 if any(r.get("error") for r in runs) else 0

@@ -1,0 +1,56 @@
+"""``qfg experiment all``: every study with one preset, then ``docs/results.md`` rebuilt.
+
+Studies are the modules of :mod:`qfg.studies` with a ``STUDY`` (this module has none, so it is not
+one). Each runs through :func:`qfg.runner.run_study` into ``<root>/<name>-<preset>`` with the
+same seed, executor and resume/overwrite choice; a study that fails (e.g. a missing tensor file)
+is reported and the others still run. Exit status 1 if any failed.
+"""
+
+from __future__ import annotations
+
+import shlex
+import sys
+from pathlib import Path
+
+from .. import results_doc, runner
+
+__all__ = ["run_all"]
+
+
+def _order(names):
+    key = {n.replace("_", "-"): i for i, n in enumerate(results_doc.ORDER)}
+    return sorted(names, key=lambda n: (key.get(n, len(key)), n))
+
+
+def run_all(preset: str = "quick", *, root="results", seed: int = 0, workers: int = 1,
+            executor=None, resume: bool = False, overwrite: bool = False, progress: bool = True,
+            only=None, doc: Path | None = None, extra_args: str = "") -> list[dict]:
+    """Run every study's ``preset``; return one record per study (study, command, output, seed,
+    rows, error) and rewrite ``doc`` (default ``docs/results.md``; ``doc=False``: leave it)."""
+    found = runner.studies()
+    names = _order(found) if only is None else list(only)
+    runs = []
+    for name in names:
+        study = found[name]
+        output = str(Path(root) / f"{name}-{preset}")
+        command = (f"qfg experiment {name} --preset {preset} --seed {seed} "
+                   f"--output {shlex.quote(output)}{extra_args}")
+        rec = {"study": name, "command": command, "output": output, "seed": seed, "rows": 0}
+        try:
+            presets = runner.load_presets(name)
+            if preset not in presets:
+                raise runner.RunnerError(f"no [{preset}] preset in experiments/"
+                                         f"{name.replace('-', '_')}.toml")
+            rows = runner.run_study(study, presets[preset], output, seed=seed, workers=workers,
+                                    resume=resume, overwrite=overwrite, executor=executor,
+                                    progress=progress, command=command)
+            rec["rows"] = len(rows)
+            print(f"{name}: {len(rows)} rows in {output}")
+        except Exception as exc:  # noqa: BLE001 - one failed study must not stop the others
+            rec["error"] = f"{type(exc).__name__}: {exc}"
+            print(f"{name}: FAILED: {rec['error']}", file=sys.stderr)
+        runs.append(rec)
+    if doc is not False:
+        path = results_doc.write(doc, runs)
+        print(f"rebuilt {path}")
+    return runs
