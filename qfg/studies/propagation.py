@@ -223,10 +223,20 @@ def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
     p = {**DEFAULTS, **params}
     nb = int(p["n_bins"])
     cols = {k: np.array([r[k] for r in rows], dtype=float)
-            for k in ("isc", "tsc", "tsc1", "cl_norm", "seen", "reached", "dmse", "gt_rating", "gmd")}
+            for k in ("isc", "tsc", "tsc1", "cl", "cl_norm", "seen", "reached", "dmse",
+                      "gt_rating", "gmd")}
     seen = cols["seen"] > 0
+    reached = cols["reached"] > 0
     sets = {"all": np.ones(len(rows), bool), "unseen": ~seen}
     corr, bins_rows = {}, []
+    # diagnostics: among reached unseen triplets only (unreachable ones score 0 in every model),
+    # and the raw level (lower is closer; negated so a positive correlation means "predicts")
+    sel = ~seen & reached
+    for pred, x in (("tsc", cols["tsc"]), ("tsc1", cols["tsc1"]), ("cl", cols["cl_norm"]),
+                    ("negcl", -cols["cl"])):
+        s, pr = _corr(x[sel], cols["isc"][sel])
+        corr[f"unseen_reached/spearman_{pred}_isc"] = s
+        corr[f"unseen_reached/pearson_{pred}_isc"] = pr
     for sname, sel in sets.items():
         for pred in ("tsc", "tsc1", "cl_norm"):
             s, pr = _corr(cols[pred][sel], cols["isc"][sel])
@@ -241,6 +251,17 @@ def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
         w.writerows(bins_rows)
     unseen = ~seen
     reached_u = unseen & (cols["reached"] > 0)
+    # why one model beats the other: ISC of reached unseen triplets by (level, TSC with seen = 1);
+    # equal levels with different TSC show what the decay model sees that the level does not
+    by_level = []
+    keys = np.round(np.column_stack([cols["cl"], cols["tsc1"]])[reached_u], 6)
+    isc_u = cols["isc"][reached_u]
+    for cl_v, t_v in sorted({tuple(k) for k in keys.tolist()}):
+        sel = (keys[:, 0] == cl_v) & (keys[:, 1] == t_v)
+        if sel.sum() >= 20:
+            q = np.percentile(isc_u[sel], [25, 50, 75]).tolist()
+            by_level.append({"cl": cl_v, "tsc1": t_v, "count": int(sel.sum()),
+                             "isc_p25": q[0], "isc_p50": q[1], "isc_p75": q[2]})
     gt = {}
     for name, sel in (("unseen", unseen), ("unseen_reached", reached_u),
                       ("unseen_unreached", unseen & ~(cols["reached"] > 0)), ("seen", seen)):
@@ -256,7 +277,7 @@ def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
         # headline: unseen triplets (what the models predict; a seen triplet's tsc is its isc)
         "headline_triplets": "unseen",
         **{k: corr[f"unseen/{k}"] for k in _HEADLINE},
-        "correlations": corr, "ground_truth": gt,
+        "correlations": corr, "ground_truth": gt, "isc_by_level_and_tsc1": by_level,
         "connectivity_mean": float(np.mean([r["connectivity"] for r in rows if "factors" in r])),
         "command": run.get("command"), "seed": run.get("seed"), "params": p,
         "tensor": _tensor_info(p),
