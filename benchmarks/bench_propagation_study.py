@@ -1,7 +1,8 @@
 """Propagation study (paper 6f, `qfg experiment propagation`): scenarios (graphs) per second with
 the `paper` preset's parameters in one process, the share of each stage, and the time of the whole
 `paper` preset (5400 graphs): measured from `results/propagation-paper` (run.json written at the
-start, summary.json at the end) when that run exists, else extrapolated from the rate.
+start, the last record appended to records.jsonl at the end) when that run exists, and
+extrapolated from the rate.
 Uses the EDC tensor `qfg.composition.tensor("edc")` (`$QFG_TENSORS` to point elsewhere): named in
 the notes."""
 
@@ -41,12 +42,12 @@ def run():
            {"name": "propagation paper preset (5400 graphs), extrapolated, 1 process",
             "value": 5400 / rate / 60, "unit": "min", "note": "5400 / the rate above"}]
     run_dir = Path(__file__).resolve().parent.parent / "results" / "propagation-paper"
-    rj, sj = run_dir / "run.json", run_dir / "summary.json"
+    rj, sj = run_dir / "run.json", run_dir / "records.jsonl"
     if rj.exists() and sj.exists() and sj.stat().st_mtime > rj.stat().st_mtime:
         meta = json.loads(rj.read_text())
         wall = sj.stat().st_mtime - rj.stat().st_mtime
         out.append({"name": "propagation paper preset, measured wall time", "value": wall / 60,
                     "unit": "min",
-                    "note": f"`{meta.get('command')}` (run.json to summary.json mtimes; "
+                    "note": f"`{meta.get('command')}` (run.json to last record mtimes; "
                             f"shared 2-core machine with other jobs running)"})
     return out

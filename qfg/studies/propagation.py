@@ -326,16 +326,21 @@ def _figures(outdir, rows, cols, bins_rows, summary, nb):
     fig.tight_layout()
     fig.savefig(outdir / "decay_model_correlation.png", dpi=120)
     plt.close(fig)
-    # the two models side by side, unseen triplets (paper's comparison: TSC with seen at 1 vs CL)
-    fig, axes = plt.subplots(1, 2, figsize=(9, 3.8), sharey=True)
-    for ax, pred, color, label in ((axes[0], "tsc1", "C0", "topology score (seen = 1)"),
-                                   (axes[1], "cl_norm", "C3", "normalized composition level")):
-        band(ax, "unseen", pred, color, label)
-        short = "cl" if pred == "cl_norm" else pred
-        ax.set_title(f"{label}\nSpearman {_fmt(c[f'unseen/spearman_{short}_isc'])}, "
-                     f"Pearson {_fmt(c[f'unseen/pearson_{short}_isc'])}", fontsize=8)
-        ax.set_xlabel(f"{label} bin")
-    axes[0].set_ylabel("information score of unseen triplets")
+    # the two models side by side (paper fig. comareModels: TSC with seen at 1 vs normalized CL);
+    # top row all triplets as in the paper, bottom row unseen triplets only
+    fig, axes = plt.subplots(2, 2, figsize=(9, 7), sharey=True)
+    for row, sname in enumerate(("all", "unseen")):
+        for ax, pred, color, label in ((axes[row, 0], "tsc1", "C0", "topology score (seen = 1)"),
+                                       (axes[row, 1], "cl_norm", "C3",
+                                        "normalized composition level")):
+            band(ax, sname, pred, color, label)
+            short = "cl" if pred == "cl_norm" else pred
+            ax.set_title(f"{sname} triplets, {label}\nSpearman "
+                         f"{_fmt(c[f'{sname}/spearman_{short}_isc'])}, Pearson "
+                         f"{_fmt(c[f'{sname}/pearson_{short}_isc'])}", fontsize=8)
+            ax.set_xlabel(f"{label} bin")
+            ax.set_xlim(0, 1)
+        axes[row, 0].set_ylabel(f"information score, {sname} triplets")
     fig.tight_layout()
     fig.savefig(outdir / "tsc_vs_cl.png", dpi=120)
     plt.close(fig)
