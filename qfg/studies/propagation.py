@@ -278,7 +278,11 @@ def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
         "headline_triplets": "unseen",
         **{k: corr[f"unseen/{k}"] for k in _HEADLINE},
         "correlations": corr, "ground_truth": gt, "isc_by_level_and_tsc1": by_level,
-        "connectivity_mean": float(np.mean([r["connectivity"] for r in rows if "factors" in r])),
+        # per kept graph, percentiles 0/25/50/75/100 (the selection favours bigger graphs: more
+        # triplets can fill more histogram bins)
+        "graphs": {k: np.percentile([r[k] for r in rows if "factors" in r],
+                                    [0, 25, 50, 75, 100]).tolist()
+                   for k in ("n_v", "n_fc", "n_seen", "connectivity", "kept_candidate")},
         "command": run.get("command"), "seed": run.get("seed"), "params": p,
         "tensor": _tensor_info(p),
     }
