@@ -1,0 +1,214 @@
+"""Single-triplet solvers: P(S^{AB:C} | H) and P(S^{AB:X}_i | H) from one triplet's history.
+
+One entry point, :func:`solve_triplet`, with three methods (paper section 4, Table 1):
+
+* ``"full"``: Algorithm 1, the sampling solver with the motion model (:mod:`._full`);
+* ``"fast"``: the faster variant, samples represent only the prior (:mod:`._fast`);
+* ``"baseline"``: the same Bayesian model without motion factors, views independent
+  (:mod:`._baseline`).
+
+:func:`solve_triplets` solves many triplets in one call (the fast variant batched in numpy);
+:func:`add_view` updates an estimate with one more view and gives exactly the estimate of all
+views solved at once. Defaults of every option and the measurements behind them:
+``docs/solvers.md``.
+
+>>> import numpy as np
+>>> from qfg.simulation import random_triplet_history
+>>> h = random_triplet_history(np.random.default_rng(3), n_views=3)
+>>> est = solve_triplet(h, method="full", seed=0)
+>>> int(np.argmax(est.landmark)) == h.truth.state
+True
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from . import _baseline, _fast, _full
+from . import _common as C
+from ._common import DEFAULTS, METHODS, TripletEstimate
+
+__all__ = ["solve_triplet", "solve_triplets", "add_view", "TripletEstimate", "DEFAULTS",
+           "METHODS"]
+
+
+def _model(method, meas):
+    """The model actually solved: without headings the motion factors are absent."""
+    if method not in METHODS:
+        raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
+    if method != "baseline" and meas.headings is None and meas.n_views > 1:
+        return "baseline"
+    return method
+
+
+def _options(method, model, options):
+    opts = C.resolve_options(method, options)   # validates against the requested method
+    if model == method:
+        return opts
+    shared = {k: v for k, v in opts.items() if k in DEFAULTS[model]}
+    return C.resolve_options(model, shared)
+
+
+def solve_triplet(bearings, headings=None, *, method: str = "full", partition="edc",
+                  sigma_bearing=None, sigma_heading=None, seed=None, **options) -> TripletEstimate:
+    """Estimate the qualitative states of C and of the cameras of one triplet AB:C.
+
+    Args:
+        bearings: (n, 3) radians, [phi_A, phi_B, phi_C] per view in time order; or a
+            :class:`qfg.simulation.TripletHistory` (then ``headings`` must be None and the sigmas
+            default to the history's).
+        headings: (n - 1,) radians, direction of travel from view i to view i+1 relative to the
+            heading at view i. None (or a history with ``has_motion=False``): no motion model, the
+            ``baseline`` model is solved whatever ``method`` says (the result's ``method`` tells).
+        method: ``"full"``, ``"fast"`` or ``"baseline"``.
+        partition: partition name or :class:`qfg.partitions.Partition`.
+        sigma_bearing, sigma_heading: noise standard deviations (radians, >= 0; zero works: the
+            likelihood widths have floors, see ``bearing_floor``/``heading_floor``).
+        seed: None, int, SeedSequence or Generator. Same seed, same estimate.
+        **options: method options (``qfg.solvers.DEFAULTS[method]``), e.g. ``n_samples``.
+
+    Returns:
+        :class:`TripletEstimate`: ``landmark`` (m,), ``cameras`` (n, m), hypotheses, flags.
+
+    The model (AB frame, paper eqs. MsrLkl, MotionModel): ``phi ~ N(f(L, X), sigma_v^2)``,
+    ``psi_i ~ N(g(X_{i+1}, X_i), sigma_w^2)``, uniform prior over positions and headings; the
+    state probabilities integrate ``P(X_{1:n}, L_C | H)`` over each state (eqs. slam1/2).
+
+    >>> est = solve_triplet([[0.3, 1.2, 0.8]], sigma_bearing=0.02, method="fast")
+    >>> est.cameras.shape, est.method
+    ((1, 20), 'fast')
+    """
+    meas = C.measurements(bearings, headings, sigma_bearing, sigma_heading)
+    part = C.get_partition(partition)
+    model = _model(method, meas)
+    opts = _options(method, model, options)
+    root = C.root_seed(seed)
+    return _solve(model, meas, part, opts, root)
+
+
+def _solve(model, meas, part, opts, root):
+    if model == "full":
+        st = _full.start(meas, root, opts, part)
+        for i in range(1, meas.n_views):
+            st = _full.step(st, meas.bearings[i], meas.headings[i - 1])
+        return _full.finish(st)
+    if model == "fast":
+        return _solve_fast_batch([meas], part, opts)[0]
+    st = _baseline.start(meas, root, opts, part)
+    for i in range(1, meas.n_views):
+        st = _baseline.step(st, meas.bearings[i])
+    return _baseline.finish(st)
+
+
+def _solve_fast_batch(metas, part, opts):
+    b = np.stack([m.bearings for m in metas])
+    n = b.shape[1]
+    sv = np.array([m.sigma_bearing for m in metas])
+    st = _fast.start(b[:, 0], sv, opts, part)
+    for i in range(1, n):
+        st = _fast.step(st, b[:, i], np.array([m.headings[i - 1] for m in metas]))
+    return _fast.finish(st)
+
+
+def solve_triplets(histories, headings=None, *, method: str = "full", partition="edc",
+                   sigma_bearing=None, sigma_heading=None, seed=None, **options
+                   ) -> list[TripletEstimate]:
+    """Solve many triplets in one call; returns one :class:`TripletEstimate` per triplet.
+
+    ``histories`` is a sequence of TripletHistory objects, or bearings (T, n, 3) with
+    ``headings`` (T, n - 1) and the sigmas (scalars, or (T,) arrays). Triplet t is solved with
+    seed ``SeedSequence(seed).spawn``-style child ``t``, so
+    ``solve_triplets(hs, seed=s)[t]`` equals ``solve_triplet(hs[t], seed=child)`` with
+    ``child = SeedSequence(entropy, spawn_key=(t,))``. The fast variant is vectorized over all
+    triplets with the same number of views; the other methods loop over triplets.
+
+    >>> import numpy as np
+    >>> from qfg.simulation import random_triplet_history
+    >>> rng = np.random.default_rng(1)
+    >>> hs = [random_triplet_history(rng, 3, 0.01, 0.02) for _ in range(4)]
+    >>> [e.landmark.shape for e in solve_triplets(hs, method="fast")]
+    [(20,), (20,), (20,), (20,)]
+    """
+    metas = _batch_measurements(histories, headings, sigma_bearing, sigma_heading)
+    part = C.get_partition(partition)
+    root = C.root_seed(seed)
+    out: list = [None] * len(metas)
+    groups: dict = {}
+    for t, meas in enumerate(metas):
+        model = _model(method, meas)
+        if model == "fast":
+            groups.setdefault(meas.n_views, []).append(t)
+        else:
+            out[t] = _solve(model, meas, part, _options(method, model, options),
+                            C.child_seed(root, t))
+    if groups:
+        opts = _options(method, "fast", options)
+        for idx in groups.values():
+            for t, est in zip(idx, _solve_fast_batch([metas[t] for t in idx], part, opts),
+                              strict=True):
+                out[t] = est
+    return out
+
+
+def _batch_measurements(histories, headings, sigma_bearing, sigma_heading):
+    from ..simulation import TripletHistory
+
+    if isinstance(histories, TripletHistory):
+        raise ValueError("histories: expected a sequence of TripletHistory objects or an "
+                         "(T, n, 3) array; for one triplet use solve_triplet")
+    if isinstance(histories, Sequence) and histories and all(
+            isinstance(h, TripletHistory) for h in histories):
+        if headings is not None:
+            raise ValueError("headings: pass either TripletHistory objects or bearings and "
+                             "headings, not both")
+        return [C.measurements(h, None, sigma_bearing, sigma_heading) for h in histories]
+    b = np.asarray(histories, dtype=float) if not isinstance(histories, Sequence) or histories \
+        else np.zeros((0, 1, 3))
+    if b.ndim != 3 or b.shape[-1] != 3:
+        raise ValueError(f"histories: expected TripletHistory objects or bearings of shape "
+                         f"(T, n, 3), got shape {b.shape}")
+    T, n = b.shape[:2]
+    if headings is None:
+        hs = [None] * T
+    else:
+        h = np.asarray(headings, dtype=float)
+        if h.shape != (T, n - 1):
+            raise ValueError(f"headings: expected shape ({T}, {n - 1}) for bearings {b.shape}, "
+                             f"got {h.shape}")
+        hs = list(h)
+    sb = np.broadcast_to(np.asarray(sigma_bearing if sigma_bearing is not None else np.nan,
+                                    dtype=float), (T,))
+    sh = np.broadcast_to(np.asarray(sigma_heading if sigma_heading is not None else np.nan,
+                                    dtype=float), (T,))
+    return [C.measurements(b[t], hs[t], None if np.isnan(sb[t]) else sb[t],
+                           None if np.isnan(sh[t]) else sh[t]) for t in range(T)]
+
+
+def add_view(estimate: TripletEstimate, bearings, heading=None) -> TripletEstimate:
+    """``estimate`` updated with one more view: ``bearings`` (3,) [phi_A, phi_B, phi_C] radians
+    and ``heading`` psi from the previous view (required with a motion model, ignored by the
+    baseline). The result equals solving all views at once with the same seed.
+
+    >>> est = solve_triplet([[0.3, 1.2, 0.8]], sigma_bearing=0.02, method="fast")
+    >>> est2 = add_view(est, [0.1, 1.5, 0.4], heading=0.6)
+    >>> est2.n_views
+    2
+    """
+    if not isinstance(estimate, TripletEstimate) or estimate._state is None:
+        raise ValueError("estimate: expected a TripletEstimate returned by solve_triplet")
+    phi = C.check_bearings(bearings)
+    if phi.shape[0] != 1:
+        raise ValueError(f"bearings: expected one view (3,), got shape {phi.shape}")
+    phi = phi[0]
+    st = estimate._state
+    if estimate.method == "baseline":
+        return _baseline.finish(_baseline.step(st, phi))
+    if heading is None:
+        raise ValueError(f"heading: method {estimate.method!r} needs the heading from the "
+                         "previous view")
+    psi = float(C.check_headings([heading], 2)[0])
+    if estimate.method == "full":
+        return _full.finish(_full.step(st, phi, psi))
+    return _fast.finish(_fast.step(st, phi[None, :], np.array([psi])))[0]

@@ -1,0 +1,200 @@
+"""The no-motion baseline: the paper's model without motion factors (eqs. slamInd1/2), the
+stand-in for the previous state of the art in Table 1.
+
+Views are independent given C, so
+
+    P(L_C | Z) ~ prior(L_C) prod_i  integral P(Z_i | X_i, L_C) p(X_i) dX_i.
+
+It is evaluated by samples: C candidates drawn from the prior (stratified), and for each view
+``noise_samples`` draws of the measurement noise. The integral over the camera pose has a closed
+form per noise draw: with ``u = f(X, L)`` the three bearings a pose sees,
+
+    integral N(phi - f(X, L); sigma) p(X) dX = E_{u ~ N(phi, sigma^2)} [ p(X*(u, L)) / |det df/dX| ]
+
+where ``X*(u, L)`` is the 3-point resection (the pose that sees A, B and L at bearings u: the
+second intersection of the locus circles of chords AB and AL). So
+
+    density_i(L) = mean_k  p(X*_k) / |det J(X*_k)|,   J = d(phi_A, phi_B, phi_C) / d(x, y, alpha),
+
+with zero noise exact (one draw). ``1 / |det J|`` is singular (integrably) where A, B, L and the
+camera are concyclic; a candidate that happens to fall next to that circle is capped at
+``jacobian_cap`` x the median over candidates, so that no single candidate dominates.
+
+The camera-state posterior of view i is ``sum_L P(L | Z) R_i(L, s)``, ``R_i(L, s)`` the share of
+density_i(L) whose resected camera is in state s. Headings are never read. A view with a
+degenerate locus (camera on line AB with zero noise) has no resection; it is ignored and flagged.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..geometry import LOCUS_EPS, wrap_angle
+from . import _common as C
+
+#: Largest relative bearing residual accepted for a resected pose (radians).
+_RESECTION_TOL = 1e-6
+
+
+@dataclass(frozen=True, eq=False)
+class BaselineState:
+    meas: C.Measurements
+    root: np.random.SeedSequence
+    opts: dict
+    part: object
+    candidates: np.ndarray     # (N, 2) C candidates (drawn from the prior)
+    lw: np.ndarray             # (N,) sum over views of log density_i
+    shares: tuple              # per view: (N, m) R_i, or None for an ignored view
+    cameras: tuple             # per view: ((N, K, 3) resected poses, (N, K) contributions)
+    reasons: tuple
+
+
+def _candidates(rng, n, prior, window):
+    """n C candidates drawn from the prior by a jittered grid in its inverse-CDF coordinates."""
+    if prior == "world":
+        # p(P) = (s^2/pi)(s^2 + r^2)^-2 about the centre: P(radius <= r) = r^2 / (s^2 + r^2)
+        gx = max(1, int(round(np.sqrt(n / 4))))
+        gy = max(1, int(np.ceil(n / gx)))
+        ix, iy = np.meshgrid(np.arange(gx), np.arange(gy), indexing="ij")
+        u = rng.random((gx * gy, 2))
+        U = (ix.ravel() + u[:, 0]) / gx
+        ang = 2 * np.pi * (iy.ravel() + u[:, 1]) / gy
+        r = C.WORLD_SCALE * np.sqrt(U / (1.0 - U))
+        return C.WORLD_CENTRE + np.stack([r * np.cos(ang), r * np.sin(ang)], axis=-1)
+    xmin, xmax, ymin, ymax = window
+    w, h = xmax - xmin, ymax - ymin
+    gx = max(1, int(round(np.sqrt(n * w / h))))
+    gy = max(1, int(np.ceil(n / gx)))
+    ix, iy = np.meshgrid(np.arange(gx), np.arange(gy), indexing="ij")
+    u = rng.random((gx * gy, 2))
+    x = xmin + (ix.ravel() + u[:, 0]) * (w / gx)
+    y = ymin + (iy.ravel() + u[:, 1]) * (h / gy)
+    return np.stack([x, y], axis=-1)
+
+
+def resect(L, phi):
+    """3-point resection in the AB frame: the poses that see A = (0, 0), B = (0, 1) and ``L``
+    (N, 2) at bearings ``phi`` (K, 3). Returns ``(poses (N, K, 3), log|det J| (N, K), valid)``.
+
+    The camera is the second intersection (besides A) of the locus circle of chord AB (angle
+    ``phi_B - phi_A``) and that of chord AL (angle ``phi_C - phi_A``): the reflection of A in the
+    line through the two centres. ``J = d(phi_A, phi_B, phi_C) / d(x, y, alpha)`` has rows
+    ``(d_y / |d|^2, -d_x / |d|^2, -1)``, d from the camera to A, B, L. Invalid where a circle is
+    degenerate, the circles coincide (the camera would be on the circle through A, B and L), or
+    the pose would see a landmark at the supplementary angle (the other arc).
+    """
+    L = np.asarray(L, dtype=float)[:, None, :]
+    pa, pb, pc = phi[None, :, 0], phi[None, :, 1], phi[None, :, 2]
+    g1, g2 = wrap_angle(pb - pa), wrap_angle(pc - pa)
+    s1, s2 = np.sin(g1), np.sin(g2)
+    ok = (np.abs(s1) > LOCUS_EPS) & (np.abs(s2) > LOCUS_EPS)
+    cot1 = np.cos(g1) / np.where(ok, s1, 1.0)
+    cot2 = np.cos(g2) / np.where(ok, s2, 1.0)
+    c1 = np.stack(np.broadcast_arrays(-0.5 * cot1, np.full_like(cot1, 0.5)), axis=-1)
+    c2 = 0.5 * L + 0.5 * cot2[..., None] * np.stack([-L[..., 1], L[..., 0]], axis=-1)
+    v = c2 - c1
+    vv = np.sum(v * v, axis=-1)
+    ok = ok & (vv > 1e-24)
+    t = -np.sum(c1 * v, axis=-1) / np.where(ok, vv, 1.0)
+    X = 2.0 * (c1 + t[..., None] * v)
+    alpha = wrap_angle(np.arctan2(-X[..., 1], -X[..., 0]) - pa)
+    rows = []
+    for P, ph in (((0.0, 0.0), pa), ((0.0, 1.0), pb), (L, pc)):
+        d = np.asarray(P) - X
+        r2 = np.sum(d * d, axis=-1)
+        ok = ok & (r2 > 1e-24)
+        r2 = np.where(ok, r2, 1.0)
+        res = wrap_angle(np.arctan2(d[..., 1], d[..., 0]) - alpha - ph)
+        ok = ok & (np.abs(res) < _RESECTION_TOL)
+        rows.append((d[..., 1] / r2, -d[..., 0] / r2))
+    (a1, b1), (a2, b2), (a3, b3) = rows
+    det = (a2 * b3 - a3 * b2) - (a1 * b3 - a3 * b1) + (a1 * b2 - a2 * b1)
+    ok = ok & (np.abs(det) > 0)
+    with np.errstate(divide="ignore"):
+        logdet = np.where(ok, np.log(np.where(ok, np.abs(det), 1.0)), np.inf)
+    return np.concatenate([X, alpha[..., None]], axis=-1), logdet, ok
+
+
+def start(meas: C.Measurements, root, opts, part) -> BaselineState:
+    rng = C.stream(root, 0, C.STREAM_LANDMARKS)
+    cand = _candidates(rng, opts["n_landmark_samples"], opts["prior"], opts["prior_window"])
+    st = BaselineState(meas=C.Measurements(meas.bearings[:0], None, meas.sigma_bearing,
+                                           meas.sigma_heading),
+                       root=root, opts=opts, part=part, candidates=cand,
+                       lw=np.zeros(cand.shape[0]), shares=(), cameras=(), reasons=())
+    return step(st, meas.bearings[0])
+
+
+def step(state: BaselineState, phi) -> BaselineState:
+    """Add one view's bearings ``phi`` (3,). (No heading: the baseline has no motion model.)"""
+    opts, part = state.opts, state.part
+    i = state.meas.n_views
+    meas = replace(state.meas, bearings=np.vstack([state.meas.bearings, phi[None, :]]))
+    sv = float(meas.sigma_bearing)
+    k = 1 if sv == 0 else opts["noise_samples"]
+    rng = C.stream(state.root, i, C.STREAM_CAMERAS)
+    draws = phi[None, :] + sv * rng.standard_normal((k, 3))
+    L = state.candidates
+    poses, logdet, ok = resect(L, draws)
+    lc = C.log_point_prior(poses[..., :2], opts["prior"], opts["prior_window"]) - logdet
+    lc = np.where(ok, lc, -np.inf)
+    fin = np.isfinite(lc)
+    if not np.any(fin):
+        return replace(state, meas=meas, shares=state.shares + (None,),
+                       cameras=state.cameras + ((poses, lc),),
+                       reasons=state.reasons + (f"view {i + 1}: no camera pose sees A, B and any "
+                                                "candidate C at these bearings (ignored)",))
+    # cap the integrable 1/|det J| singularity relative to the typical candidate
+    cap = np.median(lc[fin]) + np.log(opts["jacobian_cap"])
+    lc = np.minimum(lc, cap)
+    ld = C.logsumexp(lc, axis=1) - np.log(k)
+    shares = np.full((L.shape[0], part.n_states), 1.0 / part.n_states)
+    good = np.isfinite(ld)
+    if np.any(good):
+        p = np.exp(lc[good] - (ld[good] + np.log(k))[:, None])      # (N', k), rows sum to 1
+        s = part.state_of(poses[good][..., :2])                      # (N', k)
+        idx = (np.arange(s.shape[0])[:, None] * part.n_states + s).ravel()
+        shares[good] = np.bincount(idx, weights=p.ravel(),
+                                   minlength=s.shape[0] * part.n_states).reshape(-1, part.n_states)
+    return replace(state, meas=meas, lw=state.lw + ld, shares=state.shares + (shares,),
+                   cameras=state.cameras + ((poses, lc),))
+
+
+def finish(state: BaselineState) -> C.TripletEstimate:
+    opts, part, meas = state.opts, state.part, state.meas
+    n, m = meas.n_views, part.n_states
+    reasons = list(state.reasons)
+    bad = C.nominal_degenerate(meas.bearings)
+    if bad:
+        reasons.insert(0, "camera on line AB (phi_A = phi_B or opposite) in view(s) "
+                       + ", ".join(str(b + 1) for b in bad))
+    w = C.normalize_log(state.lw)
+    landmark, ok = C.state_histogram(part, state.candidates, w)
+    N = state.candidates.shape[0]
+    K = max(c[0].shape[1] for c in state.cameras)
+    cam_samples = np.zeros((n, N * K, 3))
+    cam_w = np.zeros((n, N * K))
+    if not ok:
+        reasons.append("no C candidate is consistent with every view")
+        cams = np.full((n, m), 1.0 / m)
+    else:
+        cams = np.stack([np.full(m, 1.0 / m) if R is None else w @ R for R in state.shares])
+        cams = cams / cams.sum(axis=1, keepdims=True)
+        for t, (poses, lc) in enumerate(state.cameras):
+            k = poses.shape[1]
+            if state.shares[t] is None:
+                continue
+            # P(X = X*_{L,j} | Z) = P(L | Z) c_{L,j} / sum_j c_{L,j}
+            cw = C.normalize_log(lc) * w[:, None]
+            cam_samples[t, :N * k] = poses.reshape(-1, 3)
+            cam_w[t, :N * k] = cw.ravel()
+        s = cam_w.sum(axis=1, keepdims=True)
+        cam_w = np.where(s > 0, cam_w / np.where(s > 0, s, 1.0), 0.0)
+    return C.TripletEstimate(
+        landmark=landmark, cameras=cams, n_hypotheses=int(np.count_nonzero(w > 0)),
+        degenerate=bool(reasons), reason="; ".join(reasons), method="baseline",
+        partition=part.name, n_views=n, landmark_samples=state.candidates, landmark_weights=w,
+        camera_samples=cam_samples, camera_weights=cam_w, joint=False, options=opts,
+        _state=state)

@@ -1,0 +1,387 @@
+"""Single-triplet solvers: accuracy on noiseless scenarios, the baseline's independence of the
+headings, incremental = batch, valid distributions on random and degenerate input, bad input."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from qfg import geometry, metrics, partitions
+from qfg.simulation import TripletHistory, random_triplet_history
+from qfg.solvers import _common as C
+from qfg.solvers import add_view, solve_triplet, solve_triplets
+from qfg.solvers._baseline import resect
+
+METHODS = ("full", "fast", "baseline")
+EDC = partitions.get("edc")
+
+
+def _noiseless(n, seed, n_views=3):
+    ss = np.random.SeedSequence(seed)
+    return [random_triplet_history(np.random.default_rng(c), n_views) for c in ss.spawn(n)]
+
+
+# ---------------------------------------------------------------------------------------------
+# accuracy (acceptance): noiseless 3-view scenarios
+
+
+@pytest.fixture(scope="module")
+def noiseless200():
+    return _noiseless(200, 20240)
+
+
+@pytest.mark.parametrize("method", ["full", "fast"])
+def test_noiseless_truth_is_most_probable(noiseless200, method):
+    hs = noiseless200
+    ests = solve_triplets(hs, method=method, seed=7)
+    P = np.array([e.landmark for e in ests])
+    g = np.array([h.truth.state for h in hs])
+    top_c = np.mean(metrics.gt_rating(P, g) == 1)
+    cams = np.array([e.cameras for e in ests])                 # (200, 3, 20)
+    gc = np.array([h.truth.camera_states for h in hs])          # (200, 3)
+    top_x = np.mean(metrics.gt_rating(cams, gc) == 1)
+    assert top_c >= 0.95, f"{method}: true C state most probable in {top_c:.1%}"
+    assert top_x >= 0.95, f"{method}: true camera states most probable in {top_x:.1%}"
+
+
+# ---------------------------------------------------------------------------------------------
+# baseline ignores headings; incremental equals batch; batch equals single
+
+
+def test_baseline_ignores_headings():
+    h = random_triplet_history(np.random.default_rng(5), 4, 0.03, 0.1)
+    a = solve_triplet(h.bearings, h.headings, method="baseline", sigma_bearing=0.03,
+                      sigma_heading=0.1, seed=11)
+    other = np.random.default_rng(6).uniform(-np.pi, np.pi, 3)
+    b = solve_triplet(h.bearings, other, method="baseline", sigma_bearing=0.03,
+                      sigma_heading=1.5, seed=11)
+    c = solve_triplet(h.bearings, None, method="baseline", sigma_bearing=0.03, seed=11)
+    for e in (b, c):
+        np.testing.assert_array_equal(a.landmark, e.landmark)
+        np.testing.assert_array_equal(a.cameras, e.cameras)
+    # while the motion-model solvers do read them
+    f1 = solve_triplet(h, method="fast")
+    f2 = solve_triplet(h.bearings, other, method="fast", sigma_bearing=0.03, sigma_heading=0.1)
+    assert not np.allclose(f1.landmark, f2.landmark)
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("sigmas", [(0.0, 0.0), (0.03, 0.08)])
+def test_incremental_equals_batch(method, sigmas):
+    h = random_triplet_history(np.random.default_rng(12), 4, *sigmas)
+    batch = solve_triplet(h, method=method, seed=99)
+    inc = solve_triplet(h.bearings[:1], method=method, sigma_bearing=sigmas[0],
+                        sigma_heading=sigmas[1], seed=99)
+    for i in range(1, 4):
+        inc = add_view(inc, h.bearings[i], h.headings[i - 1])
+    assert inc.n_views == batch.n_views == 4
+    np.testing.assert_allclose(inc.landmark, batch.landmark, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(inc.cameras, batch.cameras, rtol=0, atol=1e-12)
+    assert inc.n_hypotheses == batch.n_hypotheses
+    # the method form does the same
+    two = solve_triplet(h.bearings[:2], h.headings[:1], method=method, sigma_bearing=sigmas[0],
+                        sigma_heading=sigmas[1], seed=99).add_view(h.bearings[2], h.headings[1])
+    three = solve_triplet(h.bearings[:3], h.headings[:2], method=method, sigma_bearing=sigmas[0],
+                          sigma_heading=sigmas[1], seed=99)
+    np.testing.assert_allclose(two.landmark, three.landmark, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_batch_equals_single_and_seeds(method):
+    rng = np.random.default_rng(3)
+    hs = [random_triplet_history(rng, 3, 0.02, 0.05) for _ in range(3)]
+    hs.append(random_triplet_history(rng, 2, 0.02, 0.05))   # a different number of views
+    batch = solve_triplets(hs, method=method, seed=17)
+    root = np.random.SeedSequence(17)
+    for t, h in enumerate(hs):
+        single = solve_triplet(h, method=method, seed=C.child_seed(root, t))
+        np.testing.assert_allclose(batch[t].landmark, single.landmark, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(batch[t].cameras, single.cameras, rtol=0, atol=1e-12)
+    # arrays in, same numbers out
+    b = np.stack([h.bearings for h in hs[:3]])
+    hd = np.stack([h.headings for h in hs[:3]])
+    arr = solve_triplets(b, hd, method=method, sigma_bearing=0.02, sigma_heading=0.05, seed=17)
+    for t in range(3):
+        np.testing.assert_allclose(arr[t].landmark, batch[t].landmark, rtol=0, atol=1e-12)
+
+
+def test_same_seed_same_result_and_seed_matters():
+    h = random_triplet_history(np.random.default_rng(8), 3, 0.03, 0.08)
+    a = solve_triplet(h, method="full", seed=4)
+    b = solve_triplet(h, method="full", seed=4)
+    c = solve_triplet(h, method="full", seed=5)
+    np.testing.assert_array_equal(a.landmark, b.landmark)
+    assert not np.array_equal(a.landmark_samples, c.landmark_samples)
+    g1 = solve_triplet(h, method="full", seed=np.random.default_rng(1))
+    g2 = solve_triplet(h, method="full", seed=np.random.default_rng(1))
+    np.testing.assert_array_equal(g1.landmark, g2.landmark)
+
+
+# ---------------------------------------------------------------------------------------------
+# outputs are valid distributions on random and degenerate input
+
+
+def _check_valid(e, n_views):
+    m = EDC.n_states
+    assert e.landmark.shape == (m,) and e.cameras.shape == (n_views, m)
+    for p in (e.landmark, e.cameras):
+        assert np.all(np.isfinite(p)) and np.all(p >= 0)
+        np.testing.assert_allclose(p.sum(axis=-1), 1.0, atol=1e-9)
+    assert isinstance(e.degenerate, bool)
+    if e.degenerate:
+        assert e.reason
+    w = e.landmark_weights
+    assert np.all(np.isfinite(w)) and np.all(w >= 0)
+    assert np.all(np.isfinite(e.landmark_samples))
+
+
+angles = st.floats(-np.pi, np.pi, allow_nan=False)
+
+
+@given(st.integers(1, 4), st.integers(0, 2**31 - 1), st.sampled_from([0.0, 0.01, 0.1]),
+       st.sampled_from([0.0, 0.05, 0.3]), st.sampled_from(METHODS))
+@settings(max_examples=40, deadline=None)
+def test_random_input_gives_valid_distributions(n, seed, sb, sh, method):
+    rng = np.random.default_rng(seed)
+    b = rng.uniform(-np.pi, np.pi, (n, 3))
+    psi = rng.uniform(-np.pi, np.pi, n - 1)
+    e = solve_triplet(b, psi, method=method, sigma_bearing=sb, sigma_heading=sh, seed=seed,
+                      **({"n_landmark_samples": 1024} if method == "baseline" else {}))
+    _check_valid(e, n)
+
+
+@given(st.integers(1, 3), angles, angles, st.sampled_from(["equal", "opposite", "miss"]),
+       st.sampled_from([0.0, 0.02]), st.sampled_from(METHODS))
+@settings(max_examples=40, deadline=None)
+def test_degenerate_input_gives_valid_flagged_distributions(n, phi_a, phi_c, kind, sb, method):
+    if kind == "miss":
+        # view 1 left of AB facing A, later views right of AB, travelling straight away from A:
+        # (with zero noise) no ray meets a later arc
+        b = np.tile([0.0, np.pi / 2, phi_c], (n, 1))
+        b[1:, :2] = [np.pi / 2, 0.0]
+        psi = np.full(n - 1, np.pi)
+    else:
+        gap = 0.0 if kind == "equal" else np.pi
+        b = np.tile([phi_a, phi_a + gap, phi_c], (n, 1))
+        psi = np.zeros(n - 1)
+    e = solve_triplet(b, psi, method=method, sigma_bearing=sb, sigma_heading=0.0, seed=1,
+                      **({"n_landmark_samples": 1024} if method == "baseline" else {}))
+    _check_valid(e, n)
+    if kind != "miss":
+        assert e.degenerate and "line AB" in e.reason
+        if sb == 0.0 and method != "baseline":
+            np.testing.assert_allclose(e.landmark, 1.0 / 20)
+
+
+def test_rays_that_miss_every_locus_give_uniform_flagged():
+    # view 1 on the arc left of AB (x < 0) facing A (phi_A = 0), view 2 right of AB; travelling
+    # along alpha + pi moves straight away from A, so x stays < 0 and no ray meets the view-2 arc
+    b = np.array([[0.0, np.pi / 2, 0.3], [np.pi / 2, 0.0, 0.3]])
+    for method in ("full", "fast"):
+        e = solve_triplet(b, [np.pi], method=method, sigma_bearing=0.0, sigma_heading=0.0,
+                          seed=2)
+        _check_valid(e, 2)
+        assert e.degenerate and e.n_hypotheses == 0
+        np.testing.assert_allclose(e.landmark, 1.0 / 20)
+        np.testing.assert_allclose(e.cameras, 1.0 / 20)
+
+
+def test_zero_sigmas_work():
+    h = random_triplet_history(np.random.default_rng(21), 3)
+    for m in METHODS:
+        e = solve_triplet(h.bearings, h.headings, method=m, sigma_bearing=0.0, sigma_heading=0.0,
+                          seed=0)
+        _check_valid(e, 3)
+        assert not e.degenerate
+
+
+# ---------------------------------------------------------------------------------------------
+# bad input
+
+
+@pytest.mark.parametrize("kwargs, arg", [
+    (dict(bearings=np.zeros((3, 2)), headings=np.zeros(2)), "bearings"),
+    (dict(bearings=np.zeros((0, 3)), headings=np.zeros(0)), "bearings"),
+    (dict(bearings=np.zeros((2, 2, 3)), headings=np.zeros(1)), "bearings"),
+    (dict(bearings=[[0.1, np.nan, 0.2]], headings=None), "bearings"),
+    (dict(bearings=np.zeros((3, 3)), headings=np.zeros(3)), "headings"),
+    (dict(bearings=np.zeros((3, 3)), headings=[0.0, np.inf]), "headings"),
+    (dict(bearings=np.zeros((2, 3)), headings=[0.0], sigma_bearing=-0.1), "sigma_bearing"),
+    (dict(bearings=np.zeros((2, 3)), headings=[0.0], sigma_heading=-1.0), "sigma_heading"),
+    (dict(bearings=np.zeros((2, 3)), headings=[0.0], sigma_heading=np.nan), "sigma_heading"),
+    (dict(bearings=np.zeros((2, 3)), headings=[0.0], method="exact"), "method"),
+    (dict(bearings=np.zeros((2, 3)), headings=[0.0], n_samples=0), "n_samples"),
+    (dict(bearings=np.zeros((2, 3)), headings=[0.0], warp=3), "warp"),
+    (dict(bearings=np.zeros((2, 3)), headings=[0.0], prior="flat"), "prior"),
+    (dict(bearings=np.zeros((2, 3)), headings=[0.0], seed=-3), "seed"),
+    (dict(bearings=np.zeros((2, 3)), headings=[0.0], partition="nope"), "partition"),
+])
+def test_bad_input_names_the_argument(kwargs, arg):
+    kw = dict(sigma_bearing=0.01, sigma_heading=0.02, method="full")
+    kw.update(kwargs)
+    b, h = kw.pop("bearings"), kw.pop("headings")
+    with pytest.raises(ValueError, match=arg):
+        solve_triplet(b, h, **kw)
+
+
+def test_bad_input_other_entry_points():
+    with pytest.raises(ValueError, match="sigma_bearing"):
+        solve_triplet(np.zeros((2, 3)), [0.0])
+    h = random_triplet_history(np.random.default_rng(0), 3)
+    with pytest.raises(ValueError, match="headings"):
+        solve_triplet(h, [0.0, 0.0])
+    with pytest.raises(ValueError, match="headings"):
+        solve_triplets(np.zeros((2, 3, 3)), np.zeros((2, 3)), sigma_bearing=0.0)
+    with pytest.raises(ValueError, match="histories"):
+        solve_triplets(np.zeros((2, 3)), sigma_bearing=0.0)
+    e = solve_triplet(h, method="full", seed=0)
+    with pytest.raises(ValueError, match="heading"):
+        add_view(e, [0.1, 0.2, 0.3])
+    with pytest.raises(ValueError, match="bearings"):
+        add_view(e, [0.1, 0.2], 0.1)
+    with pytest.raises(ValueError, match="estimate"):
+        add_view("nope", [0.1, 0.2, 0.3], 0.1)
+
+
+def test_history_without_motion_uses_baseline_model():
+    h = random_triplet_history(np.random.default_rng(4), 3, 0.02, 0.05)
+    nm = TripletHistory(landmarks=h.landmarks, bearings=h.bearings, headings=h.headings,
+                        sigma_bearing=0.02, sigma_heading=0.05, has_motion=False)
+    e = solve_triplet(nm, method="full", seed=3)
+    assert e.method == "baseline"
+    b = solve_triplet(h, method="baseline", seed=3)
+    np.testing.assert_array_equal(e.landmark, b.landmark)
+
+
+# ---------------------------------------------------------------------------------------------
+# geometry behind the weights, against independent computations
+
+
+@given(st.integers(0, 2**31 - 1))
+@settings(max_examples=30, deadline=None)
+def test_resection_recovers_the_pose(seed):
+    rng = np.random.default_rng(seed)
+    X = np.append(rng.uniform(-3, 3, 2), rng.uniform(-np.pi, np.pi))
+    L = rng.uniform(-3, 3, (1, 2))
+    P = np.array([[0.0, 0.0], [0.0, 1.0], L[0]])
+    phi = geometry.bearing(X[None, :], P)
+    # away from the degenerate configurations (camera on the circle through A, B, L)
+    poses, logdet, ok = resect(L, phi[None, :])
+    if ok[0, 0]:
+        np.testing.assert_allclose(poses[0, 0, :2], X[:2], atol=1e-6)
+        assert abs(geometry.wrap_angle(poses[0, 0, 2] - X[2])) < 1e-6
+        # |det J| by finite differences of the bearings
+        J = np.empty((3, 3))
+        for k in range(3):
+            d = np.zeros(3)
+            d[k] = 1e-6
+            J[:, k] = geometry.wrap_angle(geometry.bearing((X + d)[None], P)
+                                          - geometry.bearing((X - d)[None], P)) / 2e-6
+        np.testing.assert_allclose(logdet[0, 0], np.log(abs(np.linalg.det(J))), atol=1e-4)
+
+
+@given(st.integers(0, 2**31 - 1))
+@settings(max_examples=30, deadline=None)
+def test_ray_jacobian_matches_finite_differences(seed):
+    rng = np.random.default_rng(seed)
+    O = rng.uniform(-3, 3, 2)
+    X = rng.uniform(-3, 3, 2)
+    if min(np.linalg.norm(X), np.linalg.norm(X - [0, 1]), np.linalg.norm(X - O)) < 0.2:
+        return
+    theta = np.arctan2(*(X - O)[::-1])
+
+    def point(th, gam):
+        c = geometry.locus_circle(0.0, gam)
+        pts, valid = geometry.ray_circle_intersection(O, th, c.center, c.radius)
+        k = np.argmin(np.linalg.norm(pts - X, axis=-1) + 1e9 * ~valid)
+        return pts[k]
+
+    gam = geometry.wrap_angle(np.arctan2(1 - X[1], -X[0]) - np.arctan2(-X[1], -X[0]))
+    h = 1e-6
+    J = np.column_stack([(point(theta + h, gam) - point(theta - h, gam)) / (2 * h),
+                         (point(theta, gam + h) - point(theta, gam - h)) / (2 * h)])
+    det = abs(np.linalg.det(J))
+    if not np.isfinite(det) or det > 1e6:    # grazing rays: finite differences are meaningless
+        return
+    np.testing.assert_allclose(C.log_ray_jacobian(X, O, theta), np.log(det), atol=1e-3)
+
+
+def test_arc_jacobian_matches_finite_differences():
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        gam = rng.choice([-1, 1]) * rng.uniform(0.1, 3.0)
+        w = rng.uniform(0.05, 0.95)
+
+        def point(g, ww):
+            a, _ = C.arc_parameter(g, ww)
+            return geometry.locus_point(g, a)
+
+        h = 1e-6
+        J = np.column_stack([(point(gam + h, w) - point(gam - h, w)) / (2 * h),
+                             (point(gam, w + h) - point(gam, w - h)) / (2 * h)])
+        X = point(gam, w)
+        _, ld = C.arc_parameter(gam, w)
+        np.testing.assert_allclose(C.log_arc_jacobian(X, gam, ld),
+                                   np.log(abs(np.linalg.det(J))), atol=1e-4)
+
+
+def test_world_prior_is_a_density_matching_the_simulator():
+    # proper: P(|P - centre| <= R) = R^2 / (s^2 + R^2), by quadrature of the density
+    r = np.linspace(0, 400, 400001)
+    dens = np.exp(C.log_point_prior(np.stack([r, np.full_like(r, 0.5)], -1), "world", None))
+    cdf = np.concatenate([[0], np.cumsum(np.diff(r) * 0.5 * (2 * np.pi * r * dens)[1:]
+                                         + np.diff(r) * 0.5 * (2 * np.pi * r * dens)[:-1])])
+    s2 = C.WORLD_SCALE**2
+    for R in (0.5, 1.0, 3.0, 400.0):
+        assert abs(cdf[np.searchsorted(r, R)] - R**2 / (s2 + R**2)) < 1e-4
+    # and close to the AB-frame distribution of uniformly placed objects (the simulator)
+    rng = np.random.default_rng(0)
+    hs = [random_triplet_history(rng, 3) for _ in range(3000)]
+    pts = np.concatenate([np.vstack([h.truth.C_ab, h.truth.poses_ab[:, :2]]) for h in hs])
+    d = np.linalg.norm(pts - C.WORLD_CENTRE, axis=1)
+    for radius in (0.5, 1.0, 2.0, 4.0):
+        assert abs(np.mean(d <= radius) - radius**2 / (s2 + radius**2)) < 0.03
+
+
+def test_one_view_samples_lie_on_lines_of_sight_and_locus():
+    phi = np.array([0.4, 1.3, -0.7])
+    for method in ("full", "fast"):
+        e = solve_triplet(phi[None], method=method, sigma_bearing=0.0, seed=1)
+        cams = e.camera_samples[0]
+        c = geometry.locus_circle(phi[0], phi[1])
+        np.testing.assert_allclose(np.linalg.norm(cams[:, :2] - c.center, axis=1), c.radius,
+                                   atol=1e-9)
+        np.testing.assert_allclose(geometry.bearing(cams, [0.0, 1.0]), phi[1], atol=1e-9)
+        assert not e.joint
+        # C samples are on the rays of some camera sample: bearing phi_C from it
+        k = e.options["one_view_samples"]
+        L = e.landmark_samples.reshape(-1, k, 2) if method == "full" else None
+        if L is not None:
+            np.testing.assert_allclose(
+                geometry.wrap_angle(geometry.bearing(cams[:, None, :], L) - phi[2]), 0,
+                atol=1e-9)
+
+
+def test_motion_match_variant_runs():
+    hs = _noiseless(20, 5)
+    ests = solve_triplets(hs, method="full", seed=1, motion="match", n_samples=300)
+    for e in ests:
+        _check_valid(e, 3)
+    g = np.array([h.truth.state for h in hs])
+    P = np.array([e.landmark for e in ests])
+    assert np.mean(metrics.gt_rating(P, g) == 1) >= 0.8
+
+
+def test_estimate_exposes_hypotheses():
+    h = random_triplet_history(np.random.default_rng(2), 3, 0.02, 0.05)
+    e = solve_triplet(h, method="full", seed=0)
+    assert e.joint
+    J = e.n_hypotheses
+    assert e.camera_samples.shape[:2] == (3, e.landmark_samples.shape[0])
+    assert J == np.count_nonzero(e.landmark_weights)
+    np.testing.assert_allclose(e.landmark_weights.sum(), 1.0)
+    # the landmark estimate is the weighted histogram of the hypotheses (eq. slamapprox1)
+    hist = np.bincount(EDC.state_of(e.landmark_samples), e.landmark_weights, minlength=20)
+    np.testing.assert_allclose(hist, e.landmark, atol=1e-12)
+    s, p = e.most_likely
+    assert p == e.landmark.max() and 0 <= s < 20
