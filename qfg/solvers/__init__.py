@@ -106,7 +106,8 @@ def _solve_fast_batch(metas, part, opts):
     b = np.stack([m.bearings for m in metas])
     n = b.shape[1]
     sv = np.array([m.sigma_bearing for m in metas])
-    st = _fast.start(b[:, 0], sv, opts, part)
+    sh = np.array([m.sigma_heading for m in metas])
+    st = _fast.start(b[:, 0], sv, sh, opts, part)
     for i in range(1, n):
         st = _fast.step(st, b[:, i], np.array([m.headings[i - 1] for m in metas]))
     return _fast.finish(st)

@@ -120,21 +120,23 @@ DEFAULTS = {
         "bearing_floor": np.deg2rad(0.2),
         "heading_floor": np.deg2rad(1.0),
         "one_view_samples": 16,      # C samples per camera sample with a single view
-        "resection": "centroid",
+        "resection": "lsq",          # "lsq" or the paper's "centroid" of pairwise intersections
         "landmark_volume": False,    # Laplace volume of C about the triangulated point
         "prior": "world",
         "prior_window": (-6.0, 6.0, -5.5, 6.5),
     },
     "fast": {
         "n_samples": 256,            # camera positions on the first view's arc (coarse grid)
-        "refine_levels": 2,          # adaptive refinement of the first camera's arc parameter:
+        "refine_levels": 1,          # adaptive refinement of the first camera's arc parameter:
         "refine_cells": 16,          #   the heaviest cells, split into
         "refine_factor": 16,         #   this many sub-cells, this many times
         "jacobian": True,            # weight positions by the motion step's change of variables
+        "kernel": "bearing",         # C-bearing likelihood width: "bearing" = sigma_v,
+                                     # "combined" = hypot(sigma_v, sigma_w)
         "max_hypotheses": 8192,
         "bearing_floor": np.deg2rad(0.2),
         "one_view_samples": 16,
-        "resection": "centroid",
+        "resection": "lsq",
         "landmark_volume": False,
         "prior": "world",
         "prior_window": (-6.0, 6.0, -5.5, 6.5),
@@ -180,6 +182,8 @@ def resolve_options(method: str, options: dict) -> dict:
         if pr >= 1:
             raise ValueError(f"prune_ratio: expected a number in [0, 1), got {pr}")
         opts["prune_ratio"] = pr
+    if opts.get("kernel", "bearing") not in ("bearing", "combined"):
+        raise ValueError(f"kernel: expected 'bearing' or 'combined', got {opts['kernel']!r}")
     if opts.get("resection", "centroid") not in RESECTIONS:
         raise ValueError(f"resection: expected one of {RESECTIONS}, got {opts['resection']!r}")
     if opts["prior"] not in PRIORS:

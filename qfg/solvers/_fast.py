@@ -40,6 +40,7 @@ class FastState:
     bearings: np.ndarray   # (T, i, 3)
     headings: np.ndarray   # (T, i - 1)
     sigma_bearing: np.ndarray  # (T,)
+    sigma_heading: np.ndarray  # (T,)
     opts: dict
     part: object
     poses: np.ndarray      # (T, H, i, 3)
@@ -51,11 +52,21 @@ class FastState:
     def n_views(self) -> int:
         return self.bearings.shape[1]
 
+    def kernel_sigma(self) -> np.ndarray:
+        """(T,) width of the C-bearing likelihood: ``max(sigma_v, floor)``, combined in quadrature
+        with sigma_w when ``kernel="combined"`` (the headings taken as exact move the cameras, and
+        so the predicted C bearings, by about that much)."""
+        sv = C.effective_sigma(self.sigma_bearing, self.opts["bearing_floor"])
+        if self.opts["kernel"] == "combined":
+            sv = np.hypot(sv, self.sigma_heading)
+        return sv
+
     def take(self, t: int) -> "FastState":
         """The state of triplet t alone (T = 1)."""
         sl = slice(t, t + 1)
         return replace(self, bearings=self.bearings[sl], headings=self.headings[sl],
-                       sigma_bearing=self.sigma_bearing[sl], poses=self.poses[sl],
+                       sigma_bearing=self.sigma_bearing[sl],
+                       sigma_heading=self.sigma_heading[sl], poses=self.poses[sl],
                        lw_base=self.lw_base[sl], w=self.w[sl], lwidth=self.lwidth[sl])
 
 
@@ -143,21 +154,22 @@ def _chain(bearings, headings, sv, w, lwidth, opts):
     return poses, lw, w, lwidth
 
 
-def start(bearings0, sigma_bearing, opts, part) -> FastState:
-    """First view of T triplets: bearings0 (T, 3)."""
+def start(bearings0, sigma_bearing, sigma_heading, opts, part) -> FastState:
+    """First view of T triplets: bearings0 (T, 3), sigmas (T,)."""
     T, M = bearings0.shape[0], opts["n_samples"]
     w = np.broadcast_to((np.arange(M) + 0.5) / M, (T, M))
     lwidth = np.full((T, M), -np.log(M))
     poses, lw = _first(bearings0, w, lwidth, opts)
     return FastState(bearings=bearings0[:, None, :], headings=np.zeros((T, 0)),
                      sigma_bearing=np.asarray(sigma_bearing, dtype=float).reshape(T),
+                     sigma_heading=np.asarray(sigma_heading, dtype=float).reshape(T),
                      opts=opts, part=part, poses=poses, lw_base=lw, w=w, lwidth=lwidth)
 
 
 def step(state: FastState, phi, psi) -> FastState:
     """Add one view to T triplets: ``phi`` (T, 3), ``psi`` (T,)."""
     bearings = np.concatenate([state.bearings, phi[:, None, :]], axis=1)
-    sv = C.effective_sigma(state.sigma_bearing, state.opts["bearing_floor"])
+    sv = state.kernel_sigma()
     poses, lw, w, lwidth = _extend(state.poses, state.lw_base, state.w, state.lwidth, bearings,
                                    phi, psi, sv, state.opts)
     return replace(state, bearings=bearings,
@@ -213,7 +225,7 @@ def finish(state: FastState) -> list[C.TripletEstimate]:
     opts, part = state.opts, state.part
     m = part.n_states
     T, H, n = state.poses.shape[0], state.poses.shape[1], state.n_views
-    sv = C.effective_sigma(state.sigma_bearing, opts["bearing_floor"])
+    sv = state.kernel_sigma()
     if n == 1:
         k = opts["one_view_samples"]
         poses = state.poses

@@ -1,0 +1,51 @@
+"""The single-triplet study runs end to end at a tiny size through the runner, reproducibly."""
+
+import csv
+import json
+
+import numpy as np
+
+from qfg import runner
+from qfg.studies import single_triplet as st
+
+TINY = {"n_scenarios": 2, "sigma_v_deg": [0.0, 2.0], "sigma_w_deg": [0.0, 5.0],
+        "headline": [2.0, 5.0]}
+
+
+def test_presets_and_tasks():
+    presets = runner.load_presets("single-triplet")
+    paper = presets["paper"]
+    assert len(paper["sigma_v_deg"]) * len(paper["sigma_w_deg"]) == 36
+    assert paper["n_scenarios"] == 300
+    assert max(paper["sigma_v_deg"]) == 10 and max(paper["sigma_w_deg"]) == 20
+    # the headline combination of Table 1 is in the grid, and the diagonal is sigma_w ~ 2 sigma_v
+    assert 2.0 in paper["sigma_v_deg"] and 5.0 in paper["sigma_w_deg"]
+    for sv, sw in zip(paper["sigma_v_deg"], paper["sigma_w_deg"], strict=True):
+        assert sv == sw == 0 or 2 <= sw / sv <= 2.5
+    tasks = st.tasks(presets["quick"])
+    assert len(tasks) == presets["quick"]["n_scenarios"]
+    assert runner.get_study("single-triplet") is st.STUDY
+
+
+def test_tiny_run(tmp_path):
+    rows = runner.run_study(st.STUDY, TINY, tmp_path / "a", seed=3, progress=False)
+    assert len(rows) == 2 * 4 * 3
+    for r in rows:
+        assert r["method"] in st.METHODS
+        assert 0 <= r["dmse"] <= np.sqrt(2) + 1e-9 and r["gt_rating"] >= 1
+        assert r["time_s"] > 0
+    # the noise grid shares one geometry per scenario
+    by = {(r["scenario"], r["method"]): r["gt_state"] for r in rows}
+    for r in rows:
+        assert r["gt_state"] == by[(r["scenario"], r["method"])]
+    assert (tmp_path / "a" / "table1.md").exists()
+    for name in ("dmse_vs_noise", "gmd_vs_noise", "entropy_vs_noise", "gt_rating_vs_noise",
+                 "fast_motion_noise", "fast_measurement_noise", "dmse_grid"):
+        assert (tmp_path / "a" / "figures" / f"{name}.png").exists()
+    summary = json.loads((tmp_path / "a" / "summary.json").read_text())
+    assert set(summary["headline_dmse_p50"]) == set(st.METHODS)
+    # same seed, same rows (timings excluded), whatever the worker count
+    runner.run_study(st.STUDY, TINY, tmp_path / "b", seed=3, workers=2, progress=False)
+    a = list(csv.DictReader(open(tmp_path / "a" / "rows.csv")))
+    b = list(csv.DictReader(open(tmp_path / "b" / "rows.csv")))
+    assert a == b
