@@ -1,10 +1,10 @@
 """Propagation study (paper 6f, `qfg experiment propagation`): scenarios (graphs) per second with
-the `paper` preset's parameters in one process, the share of each stage, and the time of the whole
-`paper` preset (5400 graphs): measured from `results/propagation-paper` (run.json written at the
-start, the last record appended to records.jsonl at the end) when that run exists, and
-extrapolated from the rate.
-Uses the EDC tensor `qfg.composition.tensor("edc")` (`$QFG_TENSORS` to point elsewhere): named in
-the notes."""
+the `paper` preset's parameters in one process, and the time of the whole `paper` preset (5400
+graphs): measured from `results/propagation-paper` (run.json written at the start, the last record
+appended to records.jsonl at the end) when that run exists, and extrapolated from the rate.
+Uses the EDC tensor `qfg.composition.tensor("edc")` (`$QFG_TENSORS` to point elsewhere, e.g.
+`QFG_TENSORS=/tmp/qfg_tensors_D python -m benchmarks propagation_study` while tensors/edc.npz
+does not exist): the tensor used is named in the notes."""
 
 from __future__ import annotations
 
