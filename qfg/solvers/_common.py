@@ -126,10 +126,10 @@ DEFAULTS = {
         "prior_window": (-6.0, 6.0, -5.5, 6.5),
     },
     "fast": {
-        "n_samples": 256,            # camera positions on the first view's arc (coarse grid)
+        "n_samples": 128,            # camera positions on the first view's arc (coarse grid)
         "refine_levels": 1,          # adaptive refinement of the first camera's arc parameter:
         "refine_cells": 16,          #   the heaviest cells, split into
-        "refine_factor": 16,         #   this many sub-cells, this many times
+        "refine_factor": 8,          #   this many sub-cells, this many times
         "jacobian": True,            # weight positions by the motion step's change of variables
         "kernel": "bearing",         # C-bearing likelihood width: "bearing" = sigma_v,
                                      # "combined" = hypot(sigma_v, sigma_w)
