@@ -1,49 +1,90 @@
-"""The ``qfg demo``: a small simulated scenario, its ground-truth qualitative map, and figures."""
+"""The ``qfg demo``: a small simulated scenario, its ground-truth qualitative map, the single-triplet
+estimates of every seen triplet against that truth, and figures."""
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import numpy as np
 
-from . import partitions
+from . import metrics, partitions
 from .simulation import random_scenario, triplet_histories
+from .solvers import solve_triplets
 
 
 def run(seed: int = 0, output: str | Path = "out/demo", n_landmarks: int = 6, n_poses: int = 12,
-        landmarks_per_view: int = 4, partition: str = "edc", echo=print) -> dict:
-    """Simulate, print the ground-truth map and write ``scenario.png``; return what was made."""
+        landmarks_per_view: int = 4, partition: str = "edc", methods=("fast", "full"),
+        echo=print) -> dict:
+    """Simulate, print the ground-truth map and the estimates of ``methods`` for every seen
+    triplet, write ``scenario.png``; return what was made."""
     rng = np.random.default_rng(seed)
     part = partitions.get(partition)
     sc = random_scenario(rng, n_landmarks, n_poses, landmarks_per_view,
                          sigma_bearing=np.deg2rad(2.0), sigma_heading=np.deg2rad(5.0))
     hist = triplet_histories(sc, partition=part.name)
     echo(f"qfg demo: {n_landmarks} landmarks, {n_poses} poses, {landmarks_per_view} landmarks per "
-         f"view, seed {seed}")
+         f"view, seed {seed}; noise sigma_v = 2 deg, sigma_w = 5 deg")
+    ests, secs = {}, {}
+    for m in methods:
+        t0 = time.perf_counter()
+        ests[m] = solve_triplets(hist, method=m, partition=part, seed=seed) if hist else []
+        secs[m] = time.perf_counter() - t0
     echo(f"{len(hist)} ordered triplets seen together at least once; ground-truth "
-         f"{part.name.upper()} states (1-based):")
-    echo(f"{'triplet':>9}  {'views':>5}  state  region")
-    for h in hist:
+         f"{part.name.upper()} states (1-based) and each method's most likely state with its "
+         "probability [p(truth)]:")
+    head = f"{'triplet':>9}  {'views':>5}  {'truth':>5}  " + "  ".join(
+        f"{m:>16}" for m in methods) + "  region (truth)"
+    echo(head)
+    for k, h in enumerate(hist):
         a, b, c = h.landmarks
         s = h.truth.state
-        echo(f"{f'{a},{b}:{c}':>9}  {h.n_views:5d}  {part.labels[s]:>5}  {part.descriptions[s]}")
+        cells = []
+        for m in methods:
+            p = ests[m][k].landmark
+            j = int(np.argmax(p))
+            mark = " " if j == s else "*"
+            cells.append(f"{part.labels[j]:>3}{mark}{p[j]:5.2f} [{p[s]:4.2f}]")
+        echo(f"{f'{a},{b}:{c}':>9}  {h.n_views:5d}  {part.labels[s]:>5}  " + "  ".join(
+            f"{x:>16}" for x in cells) + f"  {part.descriptions[s]}")
+    summary = {}
+    if hist:
+        g = np.array([h.truth.state for h in hist])
+        multi = np.array([h.n_views >= 2 for h in hist])
+        echo("(* = the most likely state is not the true one)")
+        for m in methods:
+            P = np.array([e.landmark for e in ests[m]])
+            top = metrics.gt_rating(P, g) == 1
+            d = metrics.dmse(P, g)
+            summary[m] = {"top1": float(top.mean()), "dmse_median": float(np.median(d))}
+            echo(f"{m:>8}: truth most likely for {top.sum()}/{len(hist)} triplets "
+                 f"({top[multi].sum()}/{multi.sum()} with 2+ views, {top[~multi].sum()}/"
+                 f"{(~multi).sum()} with one view); median DMSE {np.median(d):.2f} "
+                 f"(uniform: {float(metrics.dmse(np.full(part.n_states, 1 / part.n_states), 0)):.2f})"
+                 f"; {1e3 * secs[m] / len(hist):.1f} ms per triplet")
     out = Path(output)
     out.mkdir(parents=True, exist_ok=True)
     fig_path = out / "scenario.png"
     if hist:
-        best = max(hist, key=lambda h: h.n_views)
-        _figure(sc, best, part, fig_path)
+        k = max(range(len(hist)), key=lambda i: hist[i].n_views)
+        best = hist[k]
+        probs = ests[methods[0]][k].landmark if methods else None
+        _figure(sc, best, part, fig_path, probs, methods[0] if methods else None)
         echo(f"figure: {fig_path} (scenario, and triplet "
-             f"{best.landmarks[0]},{best.landmarks[1]}:{best.landmarks[2]} in its AB frame)")
-    return {"scenario": sc, "histories": hist, "figure": fig_path if hist else None}
+             f"{best.landmarks[0]},{best.landmarks[1]}:{best.landmarks[2]} in its AB frame"
+             + (f" with the {methods[0]} estimate)" if methods else ")"))
+    return {"scenario": sc, "histories": hist, "estimates": ests, "summary": summary,
+            "figure": fig_path if hist else None}
 
 
-def _figure(scenario, history, part, path):
+def _figure(scenario, history, part, path, probabilities=None, method=None):
     from .plotting import draw_scenario, draw_triplet, plt
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 5.5))
     draw_scenario(scenario, axes[0], triplet=history)
-    draw_triplet(history, axes[1], partition=part)
+    draw_triplet(history, axes[1], partition=part, probabilities=probabilities)
+    if method is not None:
+        axes[1].set_title(axes[1].get_title() + f": {method} estimate")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)

@@ -385,3 +385,14 @@ def test_estimate_exposes_hypotheses():
     np.testing.assert_allclose(hist, e.landmark, atol=1e-12)
     s, p = e.most_likely
     assert p == e.landmark.max() and 0 <= s < 20
+
+
+def test_demo_estimates_every_seen_triplet(tmp_path):
+    from qfg.demo import run
+
+    lines = []
+    res = run(seed=1, output=tmp_path, methods=("fast",), echo=lines.append)
+    assert len(res["estimates"]["fast"]) == len(res["histories"]) > 0
+    assert 0 <= res["summary"]["fast"]["top1"] <= 1
+    text = "\n".join(lines)
+    assert "truth most likely for" in text and (tmp_path / "scenario.png").exists()
