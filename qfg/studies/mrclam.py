@@ -48,6 +48,7 @@ from ..runner import Study
 METRICS = ("dmse", "gmd", "entropy", "gt_rating")
 COMBINE = ("product", "mean", "best")
 METHODS = ("fast", "full", "baseline")
+EDC_WINDOW_CORNERS = ((-2.0, -2.0), (2.0, 3.0))
 
 DEFAULTS = {
     "data": "/work/shared/data/mrclam",   # directory holding MRCLAM_Dataset* directories
@@ -290,21 +291,22 @@ def write_outputs(outdir, rows: list[dict], *, figures: bool = True, figure_robo
 
 # ----------------------------------------------------------------------------- figures
 def _pick_triplet(rows, robot=None):
-    """The seen row with the most views (of ``robot`` if given, baseline-free if possible)."""
+    """The seen row with the most views (of ``robot`` if given; motion model and no degenerate
+    history preferred: a degenerate estimate is uniform and shows no hypotheses)."""
     seen = [r for r in rows if r["kind"] == "seen"
             and (robot is None or str(robot) in r["robots"].split(";"))]
     if not seen:
         return None
-    return max(seen, key=lambda r: ("baseline" not in r["method"], r["n_views"], -r["A"], -r["B"],
-                                    -r["C"]))
+    return max(seen, key=lambda r: ("baseline" not in r["method"], int(r["n_degenerate"]) == 0,
+                                    r["n_views"], -r["A"], -r["B"], -r["C"]))
 
 
 def make_figures(fig_dir: Path, rows: list[dict], *, details=None, robot=None) -> list[Path]:
     """Landmarks + one robot's dead-reckoned path, and one triplet's hypotheses in its AB frame.
 
-    The triplet is the seen one with most views; its longest history is solved again (seed 0, the
-    rows' method) to get the hypotheses: C samples (size ~ weight), camera samples per view, and
-    the state probabilities of that history.
+    The triplet is the seen one with most views; its longest non-degenerate history is solved
+    again (seed 0, the rows' method) to get the hypotheses: C samples (size ~ weight), camera
+    samples per view, and the state probabilities of that history.
     """
     import matplotlib
 
@@ -327,8 +329,8 @@ def make_figures(fig_dir: Path, rows: list[dict], *, details=None, robot=None) -
     r = int(row["robots"].split(";")[0]) if robot is None else int(robot)
     trip = (row["A"], row["B"], row["C"])
     hs = [h for rr, h in histories(ds, [r]) if tuple(h.landmarks) == trip]
-    h = max(hs, key=lambda x: x.n_views)
-    est = solve_triplet(h, method=row["method"].split(";")[0], seed=0)
+    sols = [(x, solve_triplet(x, method=row["method"].split(";")[0], seed=0)) for x in hs]
+    h, est = max(sols, key=lambda he: (not he[1].degenerate, he[0].n_views))
     p = dataset_figure(ds, r, fig_dir / f"{name}_robot{r}.png", history=h)
     paths.append(Path(p))
 
@@ -348,6 +350,10 @@ def make_figures(fig_dir: Path, rows: list[dict], *, details=None, robot=None) -
             ax.scatter(*cs[i][sel][:, :2].T, s=3, alpha=0.3, label=f"camera {i + 1}")
     c = h.truth.C_ab
     ax.plot(c[0], c[1], "r*", ms=14, label="C (truth)")
+    # cameras are often outside the partition window: widen the view to every point drawn
+    pts = np.vstack([ax.dataLim.get_points(), np.reshape(EDC_WINDOW_CORNERS, (2, 2))])
+    ax.set_xlim(pts[:, 0].min() - 0.2, pts[:, 0].max() + 0.2)
+    ax.set_ylim(pts[:, 1].min() - 0.2, pts[:, 1].max() + 0.2)
     ax.legend(loc="lower right", fontsize=6)
     ax.set_title(f"{name} robot {r}: {trip[0]},{trip[1]}:{trip[2]}, {h.n_views} views, "
                  f"{est.method}", fontsize=9)
