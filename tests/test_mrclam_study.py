@@ -194,3 +194,16 @@ def test_combination_fallback_and_other_rules():
         study.combine_estimates([a], "vote")
     with pytest.raises(ValueError, match="p"):
         study.combine_estimates([[0.5, 0.6]])
+
+
+def test_study_runs_through_the_runner(data, small_tensor, tmp_path):
+    from qfg.runner import run_study
+
+    out = tmp_path / "run"
+    rows = run_study(study.STUDY, {"data": str(data), "datasets": [1], "robots": [2],
+                                   "tensor": str(small_tensor)}, out, progress=False)
+    assert len(rows) == 60 and {r["dataset"] for r in rows} == {"MRCLAM_Dataset1"}
+    summ = json.loads((out / "summary.json").read_text())
+    assert summ["n_triplets"] == 60 and summ["n_seen"] == 6
+    assert set(summ["datasets"]) == {"MRCLAM_Dataset1"}
+    assert (out / "triplets.csv").exists() and any((out / "figures").iterdir())
