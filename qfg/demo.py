@@ -62,6 +62,7 @@ def run(seed: int = 0, output: str | Path = "out/demo", n_landmarks: int = 6, n_
                  f"{(~multi).sum()} with one view); median DMSE {np.median(d):.2f} "
                  f"(uniform: {float(metrics.dmse(np.full(part.n_states, 1 / part.n_states), 0)):.2f})"
                  f"; {1e3 * secs[m] / len(hist):.1f} ms per triplet")
+    qmap = _qualitative_map(sc, hist, part, seed, echo) if hist else []
     out = Path(output)
     out.mkdir(parents=True, exist_ok=True)
     fig_path = out / "scenario.png"
@@ -74,7 +75,68 @@ def run(seed: int = 0, output: str | Path = "out/demo", n_landmarks: int = 6, n_
              f"{best.landmarks[0]},{best.landmarks[1]}:{best.landmarks[2]} in its AB frame"
              + (f" with the {methods[0]} estimate)" if methods else ")"))
     return {"scenario": sc, "histories": hist, "estimates": ests, "summary": summary,
-            "figure": fig_path if hist else None}
+            "map": qmap, "figure": fig_path if hist else None}
+
+
+def _qualitative_map(sc, hist, part, seed, echo, n_unseen: int = 3, support: int = 2) -> list[dict]:
+    """Hide up to ``n_unseen`` triplets (or use never-seen ones), propagate to them from the seen
+    triplets that compose into them, and compare with the exact marginal and the truth.
+
+    The map keeps, for each unseen triplet i,j:s, at most ``support`` pairs (i,j:k, j,k:s) of seen
+    triplets, those with the most views, so that exact elimination stays small enough for a demo.
+    """
+    from .graph import map_from_histories, truth_states
+    from .propagation import compare_unseen
+
+    by_key = {h.landmarks: h for h in hist}
+    L = sc.n_landmarks
+    rng = np.random.default_rng(seed)
+    perms = [(i, j, s) for i in range(L) for j in range(L) for s in range(L) if len({i, j, s}) == 3]
+    never = [t for t in perms if t not in by_key]
+    hidden = [perms[k] for k in rng.permutation(len(perms))]
+    chosen, used = [], set()
+    for t in never + hidden:
+        i, j, s = t
+        pairs = [((i, j, k), (j, k, s)) for k in range(L)
+                 if k not in t and (i, j, k) in by_key and (j, k, s) in by_key]
+        # the best-measured evidence first: pairs whose weaker triplet has the most views
+        pairs.sort(key=lambda p: -min(by_key[p[0]].n_views, by_key[p[1]].n_views))
+        pairs = pairs[:support]
+        if not pairs or any(x in chosen for p in pairs for x in p):
+            continue
+        chosen.append(t)
+        used.update(x for p in pairs for x in p)
+        if len(chosen) == n_unseen:
+            break
+    if not chosen:
+        echo("no triplet can be reached by composition in this scenario")
+        return []
+    seen_hist = [by_key[t] for t in sorted(used - set(chosen))]
+    g = map_from_histories(seen_hist, unseen=chosen, partition=part.name, seed=seed)
+    g.discover_compositions()
+    truth = truth_states(g.triplets, sc.landmarks, partition=part.name)
+    rows = compare_unseen(g, truth)
+    echo(f"qualitative map: {g.n_triplets} triplets ({int(g.seen.sum())} seen, fast-solver priors; "
+         f"{len(rows)} unseen, hidden from the solver), {g.n_factors} composition factors")
+    echo(f"{'unseen':>9}  {'truth':>5}  {'propagated (Alg. 2)':>20}  {'exact marginal':>16}  ISC")
+    for r in rows:
+        a, b, c = r["triplet"]
+        cells = []
+        for key in ("propagated", "exact"):
+            p = r[key]
+            if p is None:
+                cells.append("n/a")
+                continue
+            j = int(np.argmax(p))
+            cells.append(f"{part.labels[j]:>3}{' ' if j == r['truth'] else '*'}{p[j]:5.2f} "
+                         f"[{p[r['truth']]:4.2f}]")
+        echo(f"{f'{a},{b}:{c}':>9}  {part.labels[r['truth']]:>5}  {cells[0]:>20}  {cells[1]:>16}  "
+             f"{r['isc']:.2f}")
+    if rows and rows[0]["exact"] is None:
+        echo(f"(exact marginals not computed: {rows[0]['exact_error']})")
+    echo("(most likely state, its probability [probability of the truth]; * = not the truth; "
+         f"uniform would give {1 / part.n_states:.2f} to every state)")
+    return rows
 
 
 def _figure(scenario, history, part, path, probabilities=None, method=None):
