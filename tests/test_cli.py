@@ -38,3 +38,19 @@ def test_partitions_command(tmp_path, capsys):
     assert "TPCC: 16 states" in out and png.exists()
     assert main(["partitions", "--name", "nope", "--output", str(png)]) == 2
     assert "unknown name 'nope'" in capsys.readouterr().err
+
+
+def test_demo_map_compares_propagated_exact_and_truth(tmp_path):
+    import numpy as np
+
+    from qfg.demo import run
+
+    lines = []
+    res = run(seed=1, output=tmp_path, methods=("fast",), echo=lines.append)
+    rows = res["map"]
+    assert rows and any(line.startswith("qualitative map:") for line in lines)
+    for r in rows:
+        for key in ("propagated", "exact"):
+            p = np.asarray(r[key])
+            assert p.shape == (20,) and np.all(p >= 0) and abs(p.sum() - 1) < 1e-9
+        assert 0 <= r["truth"] < 20
