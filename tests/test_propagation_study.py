@@ -213,3 +213,13 @@ def test_scheduler_executor_is_closed_after_the_run(tmp_path, monkeypatch):
     # closed also when the run fails (used output directory without --resume)
     assert cli.main(argv) == 2
     assert closed == [True, True]
+
+
+def test_experiment_all_doc_only_rebuilds_without_running(tmp_path, monkeypatch):
+    from qfg import cli, results_doc, runner
+
+    calls = []
+    monkeypatch.setattr(results_doc, "write", lambda *a, **k: calls.append(a) or tmp_path / "r.md")
+    monkeypatch.setattr(runner, "run_study", lambda *a, **k: pytest.fail("ran a study"))
+    assert cli.main(["experiment", "all", "--doc-only"]) == 0
+    assert calls == [()]

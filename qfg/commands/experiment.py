@@ -24,6 +24,8 @@ def register(sub):
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a preset parameter (TOML value), may repeat")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--doc-only", action="store_true",
+                   help="with 'all': only rebuild docs/results.md from docs/results/*.md")
     p.set_defaults(func=_main)
 
 
@@ -78,6 +80,11 @@ def _main_all(args):
     from .. import runner
     from ..studies._all import run_all
 
+    if args.doc_only:
+        from ..results_doc import write
+
+        print(f"rebuilt {write()}")
+        return 0
     if args.set:
         raise ValueError("--set: not accepted with 'all' (parameters differ between studies)")
     extra = "".join([f" --workers {args.workers}" if args.workers > 1 else "",
