@@ -80,3 +80,20 @@ def test_bad_address_is_a_clear_error():
         DaskExecutor("")
     with pytest.raises(ValueError, match="cannot reach"):
         DaskExecutor("tcp://127.0.0.1:1", timeout=1)
+
+
+def test_cli_scheduler_option_runs_on_the_cluster(tmp_path, cluster, monkeypatch):
+    from qfg import cli
+
+    exp = tmp_path / "experiments"
+    exp.mkdir()
+    (exp / "propagation.toml").write_text(
+        "[quick]\nn_graphs = 3\nrandom_tensor = true\nn_landmarks = 5\nn_fc_min = 2\n"
+        "n_fc_max = 6\nn_candidates = 2\n")
+    monkeypatch.setenv("QFG_EXPERIMENTS", str(exp))
+    base = ["experiment", "propagation", "--no-progress", "--seed", "4"]
+    assert cli.main(base + ["--output", str(tmp_path / "local")]) == 0
+    assert cli.main(base + ["--output", str(tmp_path / "dask"),
+                            "--scheduler", cluster.scheduler_address]) == 0
+    assert ((tmp_path / "dask" / "rows.csv").read_bytes()
+            == (tmp_path / "local" / "rows.csv").read_bytes())
