@@ -207,3 +207,12 @@ def test_study_runs_through_the_runner(data, small_tensor, tmp_path):
     assert summ["n_triplets"] == 60 and summ["n_seen"] == 6
     assert set(summ["datasets"]) == {"MRCLAM_Dataset1"}
     assert (out / "triplets.csv").exists() and any((out / "figures").iterdir())
+
+
+def test_chunked_solving_gives_the_same_fast_rows(data, monkeypatch):
+    T = np.full((M, M, M), 1.0 / M**3)
+    whole = study.run_dataset(data / "MRCLAM_Dataset1", tensor=T, seed=0)
+    monkeypatch.setattr(study, "CHUNK", 7)      # 66 histories -> 10 chunks
+    parts = study.run_dataset(data / "MRCLAM_Dataset1", tensor=T, seed=0)
+    keys = ("A", "B", "C", "dmse", "entropy", "gt_rating", "n_histories", "method")
+    assert [[r[k] for k in keys] for r in whole] == [[r[k] for k in keys] for r in parts]
