@@ -109,7 +109,8 @@ class TripletEstimate:
 #: Documented defaults (chosen by measurement: docs/solvers.md). Angles in radians.
 DEFAULTS = {
     "full": {
-        "n_samples": 600,            # camera samples on the first view's locus (sampling step)
+        "n_samples": 600,            # camera samples on the first view's locus (sampling step);
+                                     # x motion_samples when both sigmas are 0 (see _full)
         "motion": "sample",          # motion step: "sample" = each hypothesis' ray, heading noise
                                      # sampled, meets locus arcs drawn under bearing noise;
                                      # "match" = independent view samples matched by heading
@@ -117,7 +118,7 @@ DEFAULTS = {
         "match_sigmas": 3.0,         # matching window in heading sigmas (motion="match")
         "max_hypotheses": 3000,      # cap after pruning (systematic resampling down to it)
         "prune_ratio": 1e-6,         # drop hypotheses lighter than this x the heaviest
-        "bearing_floor": np.deg2rad(0.2),
+        "bearing_floor": np.deg2rad(0.05),
         "heading_floor": np.deg2rad(1.0),
         "one_view_samples": 16,      # C samples per camera sample with a single view
         "resection": "lsq",          # "lsq" or the paper's "centroid" of pairwise intersections
@@ -134,7 +135,7 @@ DEFAULTS = {
         "kernel": "bearing",         # C-bearing likelihood width: "bearing" = sigma_v,
                                      # "combined" = hypot(sigma_v, sigma_w)
         "max_hypotheses": 8192,
-        "bearing_floor": np.deg2rad(0.2),
+        "bearing_floor": np.deg2rad(0.05),
         "one_view_samples": 16,
         "resection": "lsq",
         "landmark_volume": False,

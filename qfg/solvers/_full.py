@@ -149,12 +149,20 @@ def _prune(state: FullState, view: int) -> FullState:
                    landmark=state.landmark[idx])
 
 
+def _noiseless(meas, opts) -> bool:
+    return opts["motion"] == "sample" and meas.sigma_bearing == 0 and meas.sigma_heading == 0
+
+
 def start(meas: C.Measurements, root, opts, part) -> FullState:
     """State after the first view (sampling step only)."""
     sv = float(meas.sigma_bearing)
     rng = C.stream(root, 0, C.STREAM_CAMERAS)
-    poses, lp = C.sample_view(rng, meas.bearings[0], sv, opts["n_samples"], opts["prior"],
-                              opts["prior_window"])
+    n1 = opts["n_samples"]
+    if _noiseless(meas, opts):
+        # no noise to draw in the motion step (one child per hypothesis instead of
+        # motion_samples): spend the same hypothesis budget on the first view instead
+        n1 *= opts["motion_samples"]
+    poses, lp = C.sample_view(rng, meas.bearings[0], sv, n1, opts["prior"], opts["prior_window"])
     st = FullState(meas=replace(meas, bearings=meas.bearings[:1],
                                 headings=None if meas.headings is None else meas.headings[:0]),
                    root=root, opts=opts, part=part, poses=poses[:, None, :], lw_base=lp,
@@ -201,8 +209,7 @@ def step(state: FullState, phi, psi) -> FullState:
     rng = C.stream(state.root, i, C.STREAM_CAMERAS)
     reasons = state.reasons
     if opts["motion"] == "sample":
-        noiseless = meas.sigma_bearing == 0 and meas.sigma_heading == 0
-        r = 1 if noiseless else opts["motion_samples"]
+        r = 1 if _noiseless(meas, opts) else opts["motion_samples"]
         jj, Y, lpY = _propose(rng, state.poses[:, -1, :], phi, psi, float(meas.sigma_bearing),
                               float(meas.sigma_heading), r, opts)
         poses = np.concatenate([state.poses[jj], Y[:, None, :]], axis=1)
