@@ -29,6 +29,12 @@ Sampling C. The expectation over C is estimated with the same number of samples 
   resolve, so T stays the uniform-C estimate to that precision while its support is complete.
   docs/composition.md explains the choice and which entries need these samples.
 
+Only real regions count: an entry enters the support when some intersection behind it has area
+>= :data:`MIN_AREA` and a point on it passes the exact lookups (:func:`witnessed`); this drops
+slivers between the polygons' straight-segment circles and the true circles, and rounding slivers
+at B. A mirror-symmetric partition (:func:`mirror_permutation`) is sampled in half its states and
+the rest mirrored.
+
 Example (a quick, coarse tensor; the shipped ones use many more samples):
 
 >>> from qfg.composition.build import build
@@ -52,9 +58,9 @@ from .._version import __version__
 from ..geometry import from_frame, to_frame
 from .store import CompositionTensor, checksum
 
-__all__ = ["build", "compare", "random_configurations", "SHIPPED_SAMPLES", "sample_state", "corner_points",
-           "mirror_permutation",
-           "intersection_areas", "witnessed", "support_sample_points", "DEFAULT_SUPPORT_WEIGHT"]
+__all__ = ["build", "compare", "random_configurations", "sample_state", "support_sample_points",
+           "corner_points", "mirror_permutation", "intersection_areas", "witnessed",
+           "SHIPPED_SAMPLES", "DEFAULT_SUPPORT_WEIGHT", "MIN_AREA"]
 
 #: Share of a state's mass given to its support samples (see module docstring).
 DEFAULT_SUPPORT_WEIGHT = 1e-9
