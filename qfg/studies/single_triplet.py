@@ -218,6 +218,8 @@ def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
     hv, hw = p["headline"]
     head = {m: next((r for r in grid if r["sigma_v_deg"] == hv and r["sigma_w_deg"] == hw
                      and r["method"] == m), None) for m in METHODS}
+    hrows = {m: [r for r in rows if r["method"] == m and r["sigma_v_deg"] == hv
+                 and r["sigma_w_deg"] == hw] for m in METHODS}
     info = {
         "n_rows": len(rows),
         "n_scenarios": len({r["scenario"] for r in rows}) if "scenario" in rows[0] else None,
@@ -229,6 +231,14 @@ def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
         "headline_top1": {m: (r["top1"] if r else None) for m, r in head.items()},
         "headline_time_ms_p50": {m: (r["time_s_p50"] * 1e3 if r else None)
                                  for m, r in head.items()},
+        # calibration at the headline: log-likelihood of the truth (clipped at 1e-9) and how often
+        # a state given more than 0.9 is not the true one
+        "headline_mean_log_p_truth": {
+            m: _mean([np.log(max(r["gt_likelihood"], 1e-9)) for r in hrows[m]]) for m in METHODS},
+        "headline_confidently_wrong": {
+            m: _mean([r["p_max"] > 0.9 and r["map_state"] != r["gt_state"] for r in hrows[m]])
+            for m in METHODS},
+        "headline_mean_p_max": {m: _mean([r["p_max"] for r in hrows[m]]) for m in METHODS},
         "noiseless_top1": {m: next((r["top1"] for r in grid if r["sigma_v_deg"] == 0
                                     and r["sigma_w_deg"] == 0 and r["method"] == m), None)
                            for m in METHODS},
@@ -241,6 +251,10 @@ def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
     (outdir / "summary.json").write_text(json.dumps(info, indent=2))
     figures(outdir / "figures", grid, p)
     print(md)
+
+
+def _mean(v):
+    return float(np.mean(v)) if len(v) else None
 
 
 def _diagonal(p):
@@ -282,8 +296,8 @@ def figures(figdir: Path, grid: list[dict], params: dict) -> list[Path]:
             for m in methods:
                 recs = [cell[(sv, sw, m)] for sv, sw in diag]
                 _band(ax, recs, met, [d[0] for d in diag], m)
-            ax.set_xlabel("bearing noise sigma_v (deg); heading noise sigma_w: "
-                          + ", ".join(f"{sw:g}" for _, sw in diag))
+            ax.set_xticks([d[0] for d in diag], [f"{sv:g}/{sw:g}" for sv, sw in diag])
+            ax.set_xlabel("noise sigma_v / sigma_w (deg): bearings / headings")
             ax.set_ylabel(_LABEL[met])
             ax.set_title(f"EDC single triplet, 3 views: {_LABEL[met]} (median, 25-75%)",
                          fontsize=9)
