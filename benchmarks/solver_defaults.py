@@ -130,12 +130,37 @@ def calibration(method, hs):
     return out
 
 
+def world_prior_fit(n_draws=60000, seed=DEV_SEED):
+    """The AB-frame distribution of a point placed uniformly in the world (with A and B also
+    uniform, the simulator's placement) against the ``"world"`` prior's CDF R^2 / (s^2 + R^2)."""
+    from qfg.geometry import to_frame
+    from qfg.simulation import sample_positions
+    from qfg.solvers import _common as C
+
+    rng = np.random.default_rng(seed)
+    pts = np.concatenate([to_frame(p[2:], p[0], p[1])
+                          for p in (sample_positions(rng, 4) for _ in range(n_draws))])
+    r = np.linalg.norm(pts - C.WORLD_CENTRE, axis=1)
+    radii = np.array([0.25, 0.5, 0.75, 1, 1.5, 2, 3, 4, 6, 10, 20])
+    emp = np.array([np.mean(r <= x) for x in radii])
+    model = radii**2 / (C.WORLD_SCALE**2 + radii**2)
+    return radii, emp, model, pts.shape[0]
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="20 + 10 scenarios, defaults only")
     ap.add_argument("--output", default="out/solver_defaults.md")
     ap.add_argument("--methods", default="full,fast,baseline")
+    ap.add_argument("--prior-fit", action="store_true",
+                    help="only print the world prior's fit to the simulator and exit")
     args = ap.parse_args(argv)
+    if args.prior_fit:
+        radii, emp, model, n = world_prior_fit()
+        print(f"{n} points; radius, empirical CDF, model CDF, difference")
+        for x, e, m in zip(radii, emp, model, strict=True):
+            print(f"{x:6.2f}  {e:.4f}  {m:.4f}  {m - e:+.4f}")
+        return
     n0, n1 = (20, 10) if args.quick else (200, 100)
     noiseless = _histories(n0, 0.0, 0.0)
     noisy = _histories(n1, np.deg2rad(2.0), np.deg2rad(5.0))
