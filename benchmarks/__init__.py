@@ -6,3 +6,17 @@ Each ``benchmarks/bench_<topic>.py`` defines ``run() -> list[dict]`` with keys `
 ``docs/benchmarks.md`` is rebuilt from every saved topic, so re-running one topic keeps the others.
 Speed is measured here, never asserted in tests.
 """
+
+
+def median_time(fn, repeats: int = 7) -> float:
+    """Median wall time (s) of ``fn()`` over ``repeats`` calls, after one warm-up call."""
+    import time
+
+    fn()
+    ts = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        fn()
+        ts.append(time.perf_counter() - t)
+    ts.sort()
+    return ts[len(ts) // 2]

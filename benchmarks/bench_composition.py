@@ -14,18 +14,13 @@ import time
 
 import numpy as np
 
+from benchmarks import median_time
 from qfg import composition
 from qfg.composition import build as qb
 
 
 def _median_time(fn, repeats=5):
-    fn()
-    ts = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t)
-    return float(np.median(ts))
+    return median_time(fn, repeats)
 
 
 def run():

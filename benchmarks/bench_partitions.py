@@ -1,21 +1,15 @@
 """State lookup: `Partition.state_of` throughput on 10^6 uniform points in the partition's window
 (median of 7 runs after a warm-up)."""
 
-import time
 
 import numpy as np
 
+from benchmarks import median_time
 from qfg import partitions
 
 
 def _median_time(fn, repeats=7):
-    fn()
-    ts = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t)
-    return float(np.median(ts))
+    return median_time(fn, repeats)
 
 
 def run():

@@ -56,6 +56,7 @@ __all__ = [
     "studies",
     "get_study",
     "RunnerError",
+    "write_table",
     "TIMING_PREFIX",
 ]
 
@@ -219,6 +220,16 @@ def _write_csv(path: Path, rows: list[dict], columns: list[str]):
     for r in rows:
         w.writerow({k: r.get(k, "") for k in columns})
     path.write_text(buf.getvalue())
+
+
+def write_table(path, recs: list[dict]) -> None:
+    """Write summary records (dicts) as CSV: columns in first-seen order, floats to 6 digits."""
+    keys = list(dict.fromkeys(k for r in recs for k in r))
+    with open(path, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=keys)
+        w.writeheader()
+        for r in recs:
+            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
 
 
 def _columns(rows):

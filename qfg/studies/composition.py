@@ -34,7 +34,7 @@ from ..composition import marginal, tensor
 from ..geometry import bearing, to_frame, wrap_angle
 from ..partitions import get as get_partition
 from ..partitions import state_of_triplet
-from ..runner import Study
+from ..runner import Study, write_table
 from ..simulation import Scenario, sample_positions, triplet_histories
 
 ESTIMATES = ("composition", "uniform", "deterministic", "oracle")
@@ -172,13 +172,7 @@ def percentile_table(rows: list[dict]) -> list[dict]:
 
 
 def _write_csv(path: Path, recs: list[dict]) -> None:
-    import csv
-    keys = list(dict.fromkeys(k for r in recs for k in r))
-    with open(path, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=keys)
-        w.writeheader()
-        for r in recs:
-            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+    write_table(path, recs)
 
 
 def _in_windows(r: dict) -> bool:

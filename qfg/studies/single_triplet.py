@@ -34,7 +34,7 @@ import numpy as np
 
 from .. import metrics
 from ..partitions import get as get_partition
-from ..runner import Study
+from ..runner import Study, write_table
 from ..simulation import random_triplet_history
 from ..solvers import solve_triplet
 
@@ -149,13 +149,7 @@ def grid_table(rows: list[dict]) -> list[dict]:
 
 
 def _write_csv(path: Path, recs: list[dict]) -> None:
-    import csv
-    keys = list(dict.fromkeys(k for r in recs for k in r))
-    with open(path, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=keys)
-        w.writeheader()
-        for r in recs:
-            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+    write_table(path, recs)
 
 
 def _fmt(x):
