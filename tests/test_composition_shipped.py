@@ -62,7 +62,7 @@ def test_no_false_infeasibility_on_a_million_configurations(name):
                     f"{[(tuple((x + 1).tolist()), int(c)) for x, c in zip(trip, count, strict=True)]}")
 
 
-def test_every_observed_triple_is_in_the_support_and_lr_is_full():
+def test_lr_tensor_is_full():
     # LR: every one of the 8 combinations is geometrically possible.
     assert qc.tensor("lr").nnz == 8
 
