@@ -19,8 +19,8 @@ N_SCENARIOS = 60
 
 def run():
     from qfg.composition import tensor
-    from qfg.runner import load_presets, scenario_rng
-    from qfg.studies import propagation as P
+    from qfg.harness.runner import load_presets, scenario_rng
+    from qfg.harness.studies import propagation as P
 
     t = tensor("edc")
     tname = f"{t.path} ({t.samples_per_state} samples/state)"

@@ -23,7 +23,7 @@ import importlib
 from ._version import __version__
 
 _MODULES = ("geometry", "partitions", "simulation", "datasets", "solvers", "composition", "graph",
-            "propagation", "metrics", "runner", "plotting")
+            "propagation", "metrics")
 
 #: top-level name -> module that defines it
 _NAMES = {

@@ -4,7 +4,7 @@ import subprocess
 import sys
 
 from qfg import __version__
-from qfg.cli import main
+from qfg.harness.cli import main
 
 
 def test_version_and_help(capsys):
@@ -19,7 +19,7 @@ def test_version_and_help(capsys):
 
 
 def test_installed_console_script():
-    r = subprocess.run([sys.executable, "-m", "qfg.cli", "--version"], capture_output=True, text=True)
+    r = subprocess.run([sys.executable, "-m", "qfg.harness.cli", "--version"], capture_output=True, text=True)
     assert r.returncode == 0 and __version__ in r.stdout
 
 
@@ -43,7 +43,7 @@ def test_partitions_command(tmp_path, capsys):
 def test_demo_map_compares_propagated_exact_and_truth(tmp_path):
     import numpy as np
 
-    from qfg.demo import run
+    from qfg.harness.demo import run
 
     lines = []
     res = run(seed=1, output=tmp_path, methods=("fast",), echo=lines.append)

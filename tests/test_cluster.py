@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from qfg import runner
+from qfg.harness import runner
 
 distributed = pytest.importorskip("distributed")
 
@@ -33,7 +33,7 @@ def cluster():
 
 
 def test_toy_study_on_local_cluster_equals_local_run(tmp_path, cluster):
-    from qfg.cluster import DaskExecutor
+    from qfg.harness.cluster import DaskExecutor
 
     params = {"n": 12, "fail": [5]}
     local = runner.run_study(toy_study.STUDY, params, tmp_path / "local", seed=11, progress=False)
@@ -54,8 +54,8 @@ def test_toy_study_on_local_cluster_equals_local_run(tmp_path, cluster):
 
 
 def test_propagation_study_on_local_cluster_equals_1_and_2_workers(tmp_path, cluster):
-    from qfg.cluster import DaskExecutor
-    from qfg.studies import propagation
+    from qfg.harness.cluster import DaskExecutor
+    from qfg.harness.studies import propagation
 
     params = propagation.TEST_PARAMS
     st = propagation.STUDY
@@ -74,7 +74,7 @@ def test_propagation_study_on_local_cluster_equals_1_and_2_workers(tmp_path, clu
 
 
 def test_bad_address_is_a_clear_error():
-    from qfg.cluster import DaskExecutor
+    from qfg.harness.cluster import DaskExecutor
 
     with pytest.raises(ValueError, match="address"):
         DaskExecutor("")

@@ -7,8 +7,8 @@ from qfg import composition as qc
 from qfg import partitions as qp
 from qfg.composition import build as qb
 from qfg.geometry import bearing, wrap_angle
-from qfg.runner import run_study
-from qfg.studies import composition as study
+from qfg.harness.runner import run_study
+from qfg.harness.studies import composition as study
 
 
 @pytest.fixture(scope="module")

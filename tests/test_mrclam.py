@@ -469,13 +469,13 @@ def test_header_only_measurement_file_gives_a_robot_without_views(tmp_path):
 
 def test_datasets_do_not_import_plotting():
     code = ("import sys, qfg.datasets.mrclam; "
-            "print('qfg.plotting' in sys.modules, 'qfg.plotting_mrclam' in sys.modules)")
+            "print('qfg.harness.plotting' in sys.modules, 'qfg.harness.plotting_mrclam' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["False", "False"]
 
 
 def test_dataset_figure_is_written(tmp_path, synth):
-    from qfg.plotting_mrclam import dataset_figure
+    from qfg.harness.plotting_mrclam import dataset_figure
 
     h = mrclam.triplet_histories(synth, 1, **OPTS)[0]
     out = dataset_figure(synth, 1, tmp_path / "ds.png", history=h, time_range=(0, 30))

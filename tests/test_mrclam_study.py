@@ -15,11 +15,11 @@ from hypothesis import strategies as st
 from test_mrclam import LANDMARKS, write_dataset
 
 from qfg import metrics
-from qfg.cli import main as qfg_main
+from qfg.harness.cli import main as qfg_main
 from qfg.datasets import mrclam
 from qfg.partitions import get as get_partition
 from qfg.solvers import solve_triplets
-from qfg.studies import mrclam as study
+from qfg.harness.studies import mrclam as study
 
 EDC = get_partition("edc")
 M = EDC.n_states
@@ -153,7 +153,7 @@ def test_runner_tasks_one_per_dataset(data, tmp_path):
         study.tasks({"data": str(data), "datasets": [7]})
     with pytest.raises(ValueError, match="unknown"):
         study.tasks({"data": str(data), "colour": 1})
-    from qfg.runner import load_presets
+    from qfg.harness.runner import load_presets
 
     presets = load_presets("mrclam")
     assert {"quick", "paper"} <= set(presets)
@@ -197,7 +197,7 @@ def test_combination_fallback_and_other_rules():
 
 
 def test_study_runs_through_the_runner(data, small_tensor, tmp_path):
-    from qfg.runner import run_study
+    from qfg.harness.runner import run_study
 
     out = tmp_path / "run"
     rows = run_study(study.STUDY, {"data": str(data), "datasets": [1], "robots": [2],

@@ -311,8 +311,8 @@ def test_loopy_bp_reports_non_convergence_and_damping_runs():
 
 # ------------------------------------------------------------------ study smoke test
 def test_exact_vs_approx_study_runs_and_exact_rows_are_zero(tmp_path):
-    from qfg.runner import load_presets, run_study
-    from qfg.studies.exact_vs_approx import STUDY
+    from qfg.harness.runner import load_presets, run_study
+    from qfg.harness.studies.exact_vs_approx import STUDY
 
     assert {"quick", "paper"} <= set(load_presets("exact-vs-approx"))
     rows = run_study(STUDY, {"n_scenarios": 2, "random_tensor_states": 20}, tmp_path,

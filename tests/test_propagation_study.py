@@ -8,9 +8,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from qfg import runner
+from qfg.harness import runner
 from qfg.graph import QualitativeFactorGraph
-from qfg.studies import propagation as P
+from qfg.harness.studies import propagation as P
 
 PARAMS = P.TEST_PARAMS
 
@@ -161,7 +161,7 @@ def test_bad_params():
 # ----------------------------------------------------------------- qfg experiment all, results doc
 def test_experiment_all_runs_studies_and_rebuilds_results_doc(tmp_path, monkeypatch):
     from qfg import results_doc
-    from qfg.studies import _all
+    from qfg.harness.studies import _all
 
     exp = tmp_path / "experiments"
     exp.mkdir()
@@ -192,7 +192,7 @@ def test_experiment_all_runs_studies_and_rebuilds_results_doc(tmp_path, monkeypa
 
 
 def test_scheduler_executor_is_closed_after_the_run(tmp_path, monkeypatch):
-    from qfg import cli, runner
+    from qfg.harness import cli, runner
 
     closed = []
 
@@ -216,7 +216,7 @@ def test_scheduler_executor_is_closed_after_the_run(tmp_path, monkeypatch):
 
 
 def test_experiment_all_doc_only_rebuilds_without_running(tmp_path, monkeypatch):
-    from qfg import cli, results_doc, runner
+    from qfg.harness import cli, results_doc, runner
 
     calls = []
     monkeypatch.setattr(results_doc, "write", lambda *a, **k: calls.append(a) or tmp_path / "r.md")

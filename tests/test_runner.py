@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 import toy_study
 
-from qfg import runner
+from qfg.harness import runner
 
 HERE = Path(__file__).resolve().parent
 
@@ -69,7 +69,7 @@ def test_killed_run_resumes_to_the_uninterrupted_result(tmp_path):
     params = {"n": 40, "sleep": 0.05}
     ref = runner.run_study(toy_study.SLOW, params, tmp_path / "ref", seed=5, progress=False)
     out = tmp_path / "killed"
-    code = (f"import sys; sys.path.insert(0, {str(HERE)!r}); import toy_study; from qfg import runner;"
+    code = (f"import sys; sys.path.insert(0, {str(HERE)!r}); import toy_study; from qfg.harness import runner;"
             f"runner.run_study(toy_study.SLOW, {params!r}, {str(out)!r}, seed=5, workers=2, "
             "progress=False)")
     proc = subprocess.Popen([sys.executable, "-c", code], start_new_session=True)
@@ -94,7 +94,7 @@ def test_presets_and_overrides(tmp_path, monkeypatch):
     (tmp_path / "toy.toml").write_text("[quick]\nn = 3\n[paper]\nn = 300\nname = 'x'\n")
     monkeypatch.setenv("QFG_EXPERIMENTS", str(tmp_path))
     assert runner.load_presets("toy") == {"quick": {"n": 3}, "paper": {"n": 300, "name": "x"}}
-    from qfg.commands.experiment import parse_overrides
+    from qfg.harness.commands.experiment import parse_overrides
 
     assert parse_overrides(["n=5", "s=abc", "l=[1, 2]"]) == {"n": 5, "s": "abc", "l": [1, 2]}
     with pytest.raises(ValueError, match="KEY=VALUE"):

@@ -5,8 +5,9 @@ import json
 
 import numpy as np
 
-from qfg import runner
-from qfg.studies import single_triplet as st
+from qfg.harness import runner
+from qfg.harness.studies import get_study
+from qfg.harness.studies import single_triplet as st
 
 TINY = {"n_scenarios": 2, "sigma_v_deg": [0.0, 2.0], "sigma_w_deg": [0.0, 5.0],
         "headline": [2.0, 5.0]}
@@ -24,7 +25,7 @@ def test_presets_and_tasks():
         assert sv == sw == 0 or 2 <= sw / sv <= 2.5
     tasks = st.tasks(presets["quick"])
     assert len(tasks) == presets["quick"]["n_scenarios"]
-    assert runner.get_study("single-triplet") is st.STUDY
+    assert get_study("single-triplet") is st.STUDY
 
 
 def test_tiny_run(tmp_path):

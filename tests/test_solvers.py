@@ -388,7 +388,7 @@ def test_estimate_exposes_hypotheses():
 
 
 def test_demo_estimates_every_seen_triplet(tmp_path):
-    from qfg.demo import run
+    from qfg.harness.demo import run
 
     lines = []
     res = run(seed=1, output=tmp_path, methods=("fast",), echo=lines.append)

@@ -2,7 +2,7 @@
 
 import time
 
-from qfg.runner import Study
+from qfg.harness.runner import Study
 
 
 def tasks(params):

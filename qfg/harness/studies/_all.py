@@ -12,7 +12,8 @@ import shlex
 import sys
 from pathlib import Path
 
-from .. import results_doc, runner
+from qfg.harness import results_doc, runner
+from qfg.harness.studies import studies
 
 __all__ = ["run_all"]
 
@@ -27,7 +28,7 @@ def run_all(preset: str = "quick", *, root="results", seed: int = 0, workers: in
             only=None, doc: Path | None = None, extra_args: str = "") -> list[dict]:
     """Run every study's ``preset``; return one record per study (study, command, output, seed,
     rows, error) and rewrite ``doc`` (default ``docs/results.md``; ``doc=False``: leave it)."""
-    found = runner.studies()
+    found = studies()
     names = _order(found) if only is None else list(only)
     runs = []
     for name in names:

@@ -9,7 +9,7 @@ def register(sub):
 
 
 def _main(args):
-    from ..demo import run
+    from qfg.harness.demo import run
 
     run(seed=args.seed, output=args.output)
     return 0

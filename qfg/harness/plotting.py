@@ -14,7 +14,7 @@ import shapely  # noqa: E402
 from matplotlib.patches import PathPatch  # noqa: E402
 from matplotlib.path import Path as MplPath  # noqa: E402
 
-from . import partitions as _partitions  # noqa: E402
+from qfg import partitions as _partitions  # noqa: E402
 
 __all__ = ["draw_partition", "draw_scenario", "draw_triplet", "partition_figure"]
 

@@ -7,8 +7,8 @@ import importlib
 import pkgutil
 import sys
 
-from . import commands
-from ._version import __version__
+from qfg.harness import commands
+from qfg._version import __version__
 
 
 def build_parser() -> argparse.ArgumentParser:

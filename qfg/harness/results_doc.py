@@ -27,7 +27,7 @@ _COMMAND = re.compile(r"(^|\s|`)(\.venv/bin/)?qfg \w", re.MULTILINE)
 
 
 def docs_dir() -> Path:
-    return Path(__file__).resolve().parent.parent / "docs"
+    return Path(__file__).resolve().parents[2] / "docs"
 
 
 def sections(results_dir: Path | None = None) -> dict[str, str]:

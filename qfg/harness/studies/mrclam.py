@@ -41,10 +41,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import metrics
-from ..datasets import mrclam as _mrclam
-from ..partitions import get as get_partition
-from ..runner import Study
+from qfg import metrics
+from qfg.datasets import mrclam as _mrclam
+from qfg.partitions import get as get_partition
+from qfg.harness.runner import Study
 
 METRICS = ("dmse", "gmd", "entropy", "gt_rating")
 COMBINE = ("product", "mean", "best")
@@ -95,7 +95,7 @@ def combine_estimates(vectors, how: str = "product") -> tuple[np.ndarray, bool]:
 
 # ----------------------------------------------------------------------------- one dataset
 def _load_tensor(partition: str, path: str | None):
-    from ..composition import load, tensor
+    from qfg.composition import load, tensor
 
     return load(path, partition) if path else tensor(partition)
 
@@ -133,7 +133,7 @@ class _Light:
 
 def _solve(hs, method, part, seed, options) -> list[_Light]:
     """Solve in chunks of :data:`CHUNK`; chunk c gets child c of ``SeedSequence(seed)``."""
-    from ..solvers import solve_triplets
+    from qfg.solvers import solve_triplets
 
     n_chunks = -(-len(hs) // CHUNK)
     seeds = np.random.SeedSequence(seed).spawn(n_chunks) if n_chunks else []
@@ -167,8 +167,8 @@ def run_dataset(path, *, robots=None, method: str = "fast", combine: str = "prod
         ``return_details``: ``(rows, details)``, details a dict with the dataset, histories,
         estimates, the graph and the propagation result (for figures).
     """
-    from ..graph import full_map, truth_states
-    from ..propagation import propagate
+    from qfg.graph import full_map, truth_states
+    from qfg.propagation import propagate
 
     if method not in METHODS:
         raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
@@ -342,9 +342,9 @@ def make_figures(fig_dir: Path, rows: list[dict], *, details=None, robot=None) -
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ..plotting import draw_partition
-    from ..plotting_mrclam import dataset_figure
-    from ..solvers import solve_triplet
+    from qfg.harness.plotting import draw_partition
+    from qfg.harness.plotting_mrclam import dataset_figure
+    from qfg.solvers import solve_triplet
 
     row = _pick_triplet(rows, robot) or _pick_triplet(rows)
     name = rows[0]["dataset"]

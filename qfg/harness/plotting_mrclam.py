@@ -12,7 +12,7 @@ matplotlib.use("Agg")  # figures are written to files; no display is assumed
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .datasets import mrclam as _mrclam  # noqa: E402
+from qfg.datasets import mrclam as _mrclam  # noqa: E402
 
 __all__ = ["draw_dataset", "dataset_figure"]
 

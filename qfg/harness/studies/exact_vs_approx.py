@@ -24,11 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..graph import QualitativeFactorGraph, truth_states
-from ..metrics import dmse, information_score
-from ..propagation import ZeroMassError, exact_marginals, loopy_bp, propagate
-from ..runner import Study
-from ..simulation import random_scenario, triplet_histories
+from qfg.graph import QualitativeFactorGraph, truth_states
+from qfg.metrics import dmse, information_score
+from qfg.propagation import ZeroMassError, exact_marginals, loopy_bp, propagate
+from qfg.harness.runner import Study
+from qfg.simulation import random_scenario, triplet_histories
 
 METHODS = ("exact", "label_correcting", "loopy_bp")
 
@@ -56,7 +56,7 @@ def _tensor(task):
     if m:
         rng = np.random.default_rng(12345)
         return rng.random((m, m, m)) * (rng.random((m, m, m)) < 0.3) + 1e-6
-    from ..composition import tensor
+    from qfg.composition import tensor
     return tensor(task["partition"])
 
 
@@ -90,7 +90,7 @@ def _grow_factors(rng, seen_set, n_land, max_triplets, max_factors, prefer_loops
 def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
     import networkx as nx
 
-    from ..solvers import solve_triplet
+    from qfg.solvers import solve_triplet
 
     T = _tensor(task)
     zero_mass_redraws = 0

@@ -40,12 +40,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..geometry import bearing, motion_heading, wrap_angle
-from ..graph import QualitativeFactorGraph, truth_states
-from ..metrics import dmse, entropy, gmd, gt_rating
-from ..propagation import composition_levels, propagate, topology_scores
-from ..runner import Study
-from ..simulation import SimulationConfig, sample_positions
+from qfg.geometry import bearing, motion_heading, wrap_angle
+from qfg.graph import QualitativeFactorGraph, truth_states
+from qfg.metrics import dmse, entropy, gmd, gt_rating
+from qfg.propagation import composition_levels, propagate, topology_scores
+from qfg.harness.runner import Study
+from qfg.simulation import SimulationConfig, sample_positions
 
 DEFAULTS = {
     "n_graphs": 20, "n_landmarks": 6, "n_fc_min": 5, "n_fc_max": 40, "n_candidates": 10,
@@ -87,7 +87,7 @@ def _tensor(task):
     if task["random_tensor"]:
         rng = np.random.default_rng(12345)
         return rng.random((20, 20, 20)) * (rng.random((20, 20, 20)) < 0.3) + 1e-6
-    from ..composition import tensor
+    from qfg.composition import tensor
     return tensor(task["partition"])
 
 
@@ -137,9 +137,9 @@ def _build(triplets, seen, priors, factors, table, partition="edc"):
 
 
 def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
-    from ..composition.online import as_table
-    from ..partitions import get
-    from ..solvers import solve_triplets
+    from qfg.composition.online import as_table
+    from qfg.partitions import get
+    from qfg.solvers import solve_triplets
 
     table = as_table(_tensor(task))
     n_l = int(task["n_landmarks"])
@@ -295,7 +295,7 @@ def _tensor_info(p):
     if p["random_tensor"]:
         return {"random": True}
     try:
-        from ..composition import tensor
+        from qfg.composition import tensor
         t = tensor(p["partition"])
     except Exception as exc:  # noqa: BLE001 - reported, not fatal for a summary
         return {"error": str(exc)}

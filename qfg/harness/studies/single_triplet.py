@@ -32,11 +32,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import metrics
-from ..partitions import get as get_partition
-from ..runner import Study, write_table
-from ..simulation import random_triplet_history
-from ..solvers import solve_triplet
+from qfg import metrics
+from qfg.partitions import get as get_partition
+from qfg.harness.runner import Study, write_table
+from qfg.simulation import random_triplet_history
+from qfg.solvers import solve_triplet
 
 METHODS = ("full", "fast", "baseline")
 METRICS = ("dmse", "gt_rating", "gmd", "gt_likelihood", "gt_likelihood_ratio", "entropy",
@@ -363,8 +363,8 @@ def hypothesis_figure(history, path, *, method: str = "full", seed: int = 0, par
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ..plotting import draw_partition
-    from ..solvers import add_view
+    from qfg.harness.plotting import draw_partition
+    from qfg.solvers import add_view
 
     part = get_partition(partition)
     n = history.n_views

@@ -22,11 +22,9 @@ identical for identical inputs), ``timings.csv`` (columns whose name starts with
 from __future__ import annotations
 
 import csv
-import importlib
 import io
 import json
 import os
-import pkgutil
 import sys
 import traceback
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -36,7 +34,7 @@ from typing import Callable, Iterable, Iterator, Protocol
 
 import numpy as np
 
-from ._version import __version__
+from qfg._version import __version__
 
 try:  # Python >= 3.11
     import tomllib
@@ -53,8 +51,6 @@ __all__ = [
     "run_study",
     "read_records",
     "load_presets",
-    "studies",
-    "get_study",
     "RunnerError",
     "write_table",
     "TIMING_PREFIX",
@@ -153,7 +149,7 @@ class ProcessExecutor:
 def make_executor(workers: int = 1, scheduler: str | None = None) -> Executor:
     """The executor for ``--workers`` / ``--scheduler``: serial, process pool, or a cluster."""
     if scheduler:
-        from . import cluster  # optional extra: dask.distributed
+        from qfg.harness import cluster  # optional extra: dask.distributed
 
         return cluster.DaskExecutor(scheduler)
     return SerialExecutor() if workers <= 1 else ProcessExecutor(workers)
@@ -338,7 +334,7 @@ def run_study(study: Study, params: dict, output, *, seed: int = 0, workers: int
 def experiments_dir() -> Path:
     """Where study presets live: $QFG_EXPERIMENTS, else the repository's ``experiments/``."""
     env = os.environ.get("QFG_EXPERIMENTS")
-    return Path(env) if env else Path(__file__).resolve().parent.parent / "experiments"
+    return Path(env) if env else Path(__file__).resolve().parents[2] / "experiments"
 
 
 def load_presets(name: str) -> dict[str, dict]:
@@ -352,23 +348,3 @@ def load_presets(name: str) -> dict[str, dict]:
     except tomllib.TOMLDecodeError as exc:
         raise RunnerError(f"{path}: {exc}") from None
     return {k: v for k, v in data.items() if isinstance(v, dict)}
-
-
-def studies() -> dict[str, Study]:
-    """Every study module in :mod:`qfg.studies`, by study name."""
-    from . import studies as pkg
-
-    found = {}
-    for info in sorted(pkgutil.iter_modules(pkg.__path__), key=lambda m: m.name):
-        mod = importlib.import_module(f"{pkg.__name__}.{info.name}")
-        st = getattr(mod, "STUDY", None)
-        if isinstance(st, Study):
-            found[st.name] = st
-    return found
-
-
-def get_study(name: str) -> Study:
-    found = studies()
-    if name not in found:
-        raise RunnerError(f"study: unknown {name!r}; known: {', '.join(sorted(found)) or 'none'}")
-    return found[name]

@@ -8,9 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import metrics, partitions
-from .simulation import random_scenario, triplet_histories
-from .solvers import solve_triplets
+from qfg import metrics, partitions
+from qfg.simulation import random_scenario, triplet_histories
+from qfg.solvers import solve_triplets
 
 
 def run(seed: int = 0, output: str | Path = "out/demo", n_landmarks: int = 6, n_poses: int = 12,
@@ -85,8 +85,8 @@ def _qualitative_map(sc, hist, part, seed, echo, n_unseen: int = 3, support: int
     The map keeps, for each unseen triplet i,j:s, at most ``support`` pairs (i,j:k, j,k:s) of seen
     triplets, those with the most views, so that exact elimination stays small enough for a demo.
     """
-    from .graph import map_from_histories, truth_states
-    from .propagation import compare_unseen
+    from qfg.graph import map_from_histories, truth_states
+    from qfg.propagation import compare_unseen
 
     by_key = {h.landmarks: h for h in hist}
     L = sc.n_landmarks
@@ -140,7 +140,7 @@ def _qualitative_map(sc, hist, part, seed, echo, n_unseen: int = 3, support: int
 
 
 def _figure(scenario, history, part, path, probabilities=None, method=None):
-    from .plotting import draw_scenario, draw_triplet, plt
+    from qfg.harness.plotting import draw_scenario, draw_triplet, plt
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 5.5))
     draw_scenario(scenario, axes[0], triplet=history)

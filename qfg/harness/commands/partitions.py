@@ -9,8 +9,8 @@ def register(sub):
 
 
 def _main(args):
-    from .. import partitions
-    from ..plotting import partition_figure
+    from qfg import partitions
+    from qfg.harness.plotting import partition_figure
 
     part = partitions.get(args.name)
     path = args.output or f"{part.name}.png"

@@ -31,7 +31,7 @@ def register(sub):
 
 def parse_overrides(items):
     """``["a=1", "b='x'", "c=[1, 2]"]`` -> dict, values read as TOML (bare words as strings)."""
-    from ..runner import tomllib
+    from qfg.harness.runner import tomllib
 
     out = {}
     for item in items:
@@ -46,15 +46,16 @@ def parse_overrides(items):
 
 
 def _main(args):
-    from .. import runner
+    from qfg.harness import runner
+    from qfg.harness.studies import get_study, studies
 
     if args.name == "list":
-        for name, st in sorted(runner.studies().items()):
+        for name, st in sorted(studies().items()):
             print(f"{name:20s} {st.description}")
         return 0
     if args.name == "all":
         return _main_all(args)
-    study = runner.get_study(args.name)
+    study = get_study(args.name)
     presets = runner.load_presets(study.name)
     if args.preset not in presets:
         raise ValueError(f"--preset: {args.preset!r} not in experiments/"
@@ -77,11 +78,11 @@ def _main(args):
 def _main_all(args):
     """``qfg experiment all``: every study with ``--preset`` into ``<--output or results>/
     <name>-<preset>``, then docs/results.md rebuilt (qfg/studies/_all.py)."""
-    from .. import runner
-    from ..studies._all import run_all
+    from qfg.harness import runner
+    from qfg.harness.studies._all import run_all
 
     if args.doc_only:
-        from ..results_doc import write
+        from qfg.harness.results_doc import write
 
         print(f"rebuilt {write()}")
         return 0

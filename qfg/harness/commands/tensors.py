@@ -50,7 +50,7 @@ def register(sub):
 
 
 def _names(arg):
-    from .. import partitions
+    from qfg import partitions
     if arg == "all":
         return ["edc", "fdc", "lr", "tpcc"]
     return [partitions.get(arg).name]
@@ -59,8 +59,8 @@ def _names(arg):
 def _build(args):
     from pathlib import Path
 
-    from ..composition import build as B
-    from ..composition import save, tensor_path
+    from qfg.composition import build as B
+    from qfg.composition import save, tensor_path
 
     for name in _names(args.partition):
         samples = args.samples if args.samples is not None else B.SHIPPED_SAMPLES.get(name, 4096)
@@ -79,7 +79,7 @@ def _build(args):
 def _info(args):
     from pathlib import Path
 
-    from ..composition import load, tensor
+    from qfg.composition import load, tensor
 
     items = ([load(Path(f)) for f in args.files] if args.files
              else [tensor(n) for n in _names("all")])
@@ -101,8 +101,8 @@ def _check(args):
 
     import numpy as np
 
-    from ..composition import load, tensor
-    from ..composition.build import random_configurations
+    from qfg.composition import load, tensor
+    from qfg.composition.build import random_configurations
 
     names = [load(Path(args.file)).partition] if args.file else _names(args.partition)
     n = int(args.configurations)
@@ -133,8 +133,8 @@ def _check(args):
 def _compare(args):
     from pathlib import Path
 
-    from ..composition import load
-    from ..composition.build import COMPARE_THRESHOLD, compare
+    from qfg.composition import load
+    from qfg.composition.build import COMPARE_THRESHOLD, compare
 
     a, b = load(Path(args.a)), load(Path(args.b))
     if a.partition != b.partition:

@@ -29,13 +29,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import metrics
-from ..composition import marginal, tensor
-from ..geometry import bearing, to_frame, wrap_angle
-from ..partitions import get as get_partition
-from ..partitions import state_of_triplet
-from ..runner import Study, write_table
-from ..simulation import Scenario, sample_positions, triplet_histories
+from qfg import metrics
+from qfg.composition import marginal, tensor
+from qfg.geometry import bearing, to_frame, wrap_angle
+from qfg.partitions import get as get_partition
+from qfg.partitions import state_of_triplet
+from qfg.harness.runner import Study, write_table
+from qfg.simulation import Scenario, sample_positions, triplet_histories
 
 ESTIMATES = ("composition", "uniform", "deterministic", "oracle")
 METRICS = ("dmse", "gmd", "gt_rating", "entropy")
@@ -92,7 +92,7 @@ def simulate(rng, n_views: int, sigma_bearing: float, sigma_heading: float) -> S
 
 def _solver():
     try:
-        from ..solvers import solve_triplets
+        from qfg.solvers import solve_triplets
     except ImportError:  # pragma: no cover - only before the solvers exist
         return None
     return solve_triplets

@@ -35,7 +35,7 @@ def register(sub):
 def _main(args):
     from pathlib import Path
 
-    from ..studies import mrclam as study
+    from qfg.harness.studies import mrclam as study
 
     robots = _int_list(args.robots)
     T = study._load_tensor("edc", args.tensor) if args.tensor else None

@@ -1,0 +1,7 @@
+"""``python -m qfg``: the ``qfg`` command."""
+
+import sys
+
+from qfg.harness.cli import main
+
+sys.exit(main())
