@@ -8,8 +8,9 @@ One entry point, :func:`solve_triplet`, with three methods (paper section 4, Tab
   (:mod:`._baseline`).
 
 :func:`solve_triplets` solves many triplets in one call (the fast variant batched in numpy);
-:func:`add_view` updates an estimate with one more view and gives exactly the estimate of all
-views solved at once. Defaults of every option and the measurements behind them:
+:class:`TripletSolver` solves one triplet incrementally (``add_view``, ``estimate``,
+``hypotheses``) and gives exactly the estimate of all views solved at once. A
+:class:`TripletEstimate` holds only the answer. Defaults of every option and the measurements behind them:
 ``docs/solvers.md``.
 
 >>> import numpy as np
@@ -28,10 +29,10 @@ import numpy as np
 
 from . import _baseline, _fast, _full
 from . import _common as C
-from ._common import DEFAULTS, METHODS, TripletEstimate
+from ._common import DEFAULTS, METHODS, Hypotheses, TripletEstimate
 
-__all__ = ["solve_triplet", "solve_triplets", "add_view", "TripletEstimate", "DEFAULTS",
-           "METHODS"]
+__all__ = ["solve_triplet", "solve_triplets", "TripletSolver", "TripletEstimate", "Hypotheses",
+           "add_view", "DEFAULTS", "METHODS"]
 
 
 def _model(method, meas):
@@ -85,21 +86,20 @@ def solve_triplet(bearings, headings=None, *, method: str = "full", partition="e
     model = _model(method, meas)
     opts = _options(method, model, options)
     root = C.root_seed(seed)
-    return _solve(model, meas, part, opts, root)
+    if model == "fast":
+        return _solve_fast_batch([meas], part, opts)[0]
+    return _solve(model, meas, part, opts, root)[0]
 
 
 def _solve(model, meas, part, opts, root):
-    if model == "full":
-        st = _full.start(meas, root, opts, part)
-        for i in range(1, meas.n_views):
-            st = _full.step(st, meas.bearings[i], meas.headings[i - 1])
-        return _full.finish(st)
-    if model == "fast":
-        return _solve_fast_batch([meas], part, opts)[0]
-    st = _baseline.start(meas, root, opts, part)
-    for i in range(1, meas.n_views):
-        st = _baseline.step(st, meas.bearings[i])
-    return _baseline.finish(st)
+    """(estimate, hypotheses) of one triplet: the same start/step/finish path as
+    :class:`TripletSolver`, so that incremental and batch solves agree exactly."""
+    solver = TripletSolver._from_parts(model, part, opts, root, meas.sigma_bearing,
+                                       meas.sigma_heading)
+    for i in range(meas.n_views):
+        solver.add_view(meas.bearings[i], None if i == 0 or meas.headings is None
+                        else meas.headings[i - 1])
+    return solver._finish()
 
 
 def _solve_fast_batch(metas, part, opts):
@@ -110,7 +110,7 @@ def _solve_fast_batch(metas, part, opts):
     st = _fast.start(b[:, 0], sv, sh, opts, part)
     for i in range(1, n):
         st = _fast.step(st, b[:, i], np.array([m.headings[i - 1] for m in metas]))
-    return _fast.finish(st)
+    return [e for e, _ in _fast.finish(st)]
 
 
 def solve_triplets(histories, headings=None, *, method: str = "full", partition="edc",
@@ -143,7 +143,7 @@ def solve_triplets(histories, headings=None, *, method: str = "full", partition=
             groups.setdefault(meas.n_views, []).append(t)
         else:
             out[t] = _solve(model, meas, part, _options(method, model, options),
-                            C.child_seed(root, t))
+                            C.child_seed(root, t))[0]
     if groups:
         opts = _options(method, "fast", options)
         for idx in groups.values():
@@ -187,29 +187,135 @@ def _batch_measurements(histories, headings, sigma_bearing, sigma_heading):
                            None if np.isnan(sh[t]) else sh[t]) for t in range(T)]
 
 
-def add_view(estimate: TripletEstimate, bearings, heading=None) -> TripletEstimate:
-    """``estimate`` updated with one more view: ``bearings`` (3,) [phi_A, phi_B, phi_C] radians
-    and ``heading`` psi from the previous view (required with a motion model, ignored by the
-    baseline). The result equals solving all views at once with the same seed.
+def add_view(solver, bearings, heading=None) -> TripletEstimate:
+    """``solver.add_view(bearings, heading)`` then ``solver.estimate()`` for a
+    :class:`TripletSolver`. A :class:`TripletEstimate` holds only the answer and cannot be
+    updated: ValueError naming :class:`TripletSolver`.
 
-    >>> est = solve_triplet([[0.3, 1.2, 0.8]], sigma_bearing=0.02, method="fast")
-    >>> est2 = add_view(est, [0.1, 1.5, 0.4], heading=0.6)
-    >>> est2.n_views
-    2
+    >>> s = TripletSolver("fast", sigma_bearing=0.02, sigma_heading=0.05)
+    >>> add_view(s, [0.3, 1.2, 0.8]).n_views
+    1
     """
-    if not isinstance(estimate, TripletEstimate) or estimate._state is None:
-        raise ValueError("estimate: expected a TripletEstimate returned by solve_triplet")
-    phi = C.check_bearings(bearings)
-    if phi.shape[0] != 1:
-        raise ValueError(f"bearings: expected one view (3,), got shape {phi.shape}")
-    phi = phi[0]
-    st = estimate._state
-    if estimate.method == "baseline":
-        return _baseline.finish(_baseline.step(st, phi))
-    if heading is None:
-        raise ValueError(f"heading: method {estimate.method!r} needs the heading from the "
-                         "previous view")
-    psi = float(C.check_headings([heading], 2)[0])
-    if estimate.method == "full":
-        return _full.finish(_full.step(st, phi, psi))
-    return _fast.finish(_fast.step(st, phi[None, :], np.array([psi])))[0]
+    if not isinstance(solver, TripletSolver):
+        raise ValueError(C.ADD_VIEW_MOVED)
+    return solver.add_view(bearings, heading).estimate()
+
+
+class TripletSolver:
+    """Incremental solver of one triplet AB:C: views are added one at a time and the estimate is
+    available after each. The answer after views 1..n equals :func:`solve_triplet` of those views
+    with the same seed, exactly (every view draws from its own random stream).
+
+    Args:
+        method: ``"full"``, ``"fast"`` or ``"baseline"`` (as :func:`solve_triplet`).
+        partition: partition name or :class:`qfg.partitions.Partition`.
+        sigma_bearing, sigma_heading: noise standard deviations (radians, >= 0).
+        seed: None, int, SeedSequence or Generator.
+        **options: method options (``qfg.solvers.DEFAULTS[method]``), ``prior`` included.
+
+    >>> import numpy as np
+    >>> from qfg.simulation import random_triplet_history
+    >>> h = random_triplet_history(np.random.default_rng(3), 3, 0.02, 0.05)
+    >>> s = TripletSolver("full", sigma_bearing=h.sigma_bearing, sigma_heading=h.sigma_heading,
+    ...                   seed=1)
+    >>> for i in range(3):
+    ...     _ = s.add_view(h.bearings[i], None if i == 0 else h.headings[i - 1])
+    >>> e = s.estimate()
+    >>> bool(np.array_equal(e.landmark, solve_triplet(h, method="full", seed=1).landmark))
+    True
+    >>> s.hypotheses().camera_samples.shape[0]
+    3
+    """
+
+    def __init__(self, method: str = "full", *, partition="edc", sigma_bearing=0.0,
+                 sigma_heading=0.0, seed=None, **options):
+        if method not in METHODS:
+            raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
+        part = C.get_partition(partition)
+        opts = C.resolve_options(method, options)
+        self._init(method, part, opts, C.root_seed(seed),
+                   C.non_negative("sigma_bearing", sigma_bearing),
+                   C.non_negative("sigma_heading", sigma_heading))
+
+    @classmethod
+    def _from_parts(cls, method, part, opts, root, sigma_bearing, sigma_heading):
+        self = cls.__new__(cls)
+        self._init(method, part, opts, root, sigma_bearing, sigma_heading)
+        return self
+
+    def _init(self, method, part, opts, root, sb, sh):
+        self.method, self.partition, self.options = method, part, opts
+        self._root, self._sb, self._sh = root, float(sb), float(sh)
+        self._state = None
+        self._cache = None
+
+    @property
+    def n_views(self) -> int:
+        if self._state is None:
+            return 0
+        if self.method == "fast":
+            return self._state.n_views
+        return self._state.meas.n_views
+
+    def add_view(self, bearings, heading=None) -> "TripletSolver":
+        """Add one view: ``bearings`` (3,) [phi_A, phi_B, phi_C] radians and ``heading`` psi
+        (radians) from the previous view (None for the first view, required after it except for
+        the baseline, which ignores it). Returns the solver (for chaining)."""
+        phi = C.check_bearings(bearings)
+        if phi.shape[0] != 1:
+            raise ValueError(f"bearings: expected one view (3,), got shape {phi.shape}")
+        phi = phi[0]
+        first = self._state is None
+        if first:
+            if heading is not None and self.method != "baseline":
+                raise ValueError("heading: the first view has no previous view (pass None)")
+        elif self.method != "baseline":
+            if heading is None:
+                raise ValueError(f"heading: method {self.method!r} needs the heading from the "
+                                 "previous view")
+            heading = float(C.check_headings([heading], 2)[0])
+        part, opts = self.partition, self.options
+        if self.method == "full":
+            if first:
+                meas = C.Measurements(phi[None, :], None, self._sb, self._sh)
+                self._state = _full.start(meas, self._root, opts, part)
+            else:
+                self._state = _full.step(self._state, phi, heading)
+        elif self.method == "fast":
+            if first:
+                self._state = _fast.start(phi[None, :], np.array([self._sb]),
+                                          np.array([self._sh]), opts, part)
+            else:
+                self._state = _fast.step(self._state, phi[None, :], np.array([heading]))
+        else:
+            if first:
+                meas = C.Measurements(phi[None, :], None, self._sb, self._sh)
+                self._state = _baseline.start(meas, self._root, opts, part)
+            else:
+                self._state = _baseline.step(self._state, phi)
+        self._cache = None
+        return self
+
+    def _finish(self):
+        if self._state is None:
+            raise ValueError("bearings: no view added yet (call add_view first)")
+        if self._cache is None:
+            if self.method == "full":
+                self._cache = _full.finish(self._state)
+            elif self.method == "fast":
+                self._cache = _fast.finish(self._state, hypotheses=True)[0]
+            else:
+                self._cache = _baseline.finish(self._state)
+        return self._cache
+
+    def estimate(self) -> TripletEstimate:
+        """The :class:`TripletEstimate` of the views so far."""
+        return self._finish()[0]
+
+    def hypotheses(self) -> C.Hypotheses:
+        """The weighted hypotheses behind :meth:`estimate` (:class:`Hypotheses`)."""
+        return self._finish()[1]
+
+    def __repr__(self) -> str:
+        return (f"TripletSolver(method={self.method!r}, partition={self.partition.name!r}, "
+                f"n_views={self.n_views}, prior={C.prior_name(self.options)!r})")

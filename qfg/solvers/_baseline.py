@@ -162,7 +162,8 @@ def step(state: BaselineState, phi) -> BaselineState:
                    cameras=state.cameras + ((poses, lc),))
 
 
-def finish(state: BaselineState) -> C.TripletEstimate:
+def finish(state: BaselineState):
+    """(estimate, hypotheses) from the candidates."""
     opts, part, meas = state.opts, state.part, state.meas
     n, m = meas.n_views, part.n_states
     reasons = list(state.reasons)
@@ -192,9 +193,7 @@ def finish(state: BaselineState) -> C.TripletEstimate:
             cam_w[t, :N * k] = cw.ravel()
         s = cam_w.sum(axis=1, keepdims=True)
         cam_w = np.where(s > 0, cam_w / np.where(s > 0, s, 1.0), 0.0)
-    return C.TripletEstimate(
-        landmark=landmark, cameras=cams, n_hypotheses=int(np.count_nonzero(w > 0)),
-        degenerate=bool(reasons), reason="; ".join(reasons), method="baseline",
-        partition=part.name, n_views=n, landmark_samples=state.candidates, landmark_weights=w,
-        camera_samples=cam_samples, camera_weights=cam_w, joint=False, options=opts,
-        _state=state)
+    hyp = C.Hypotheses(landmark_samples=state.candidates, landmark_weights=w,
+                       camera_samples=cam_samples, camera_weights=cam_w, joint=False)
+    return C.make_estimate("baseline", part, n, landmark, cams, hypotheses=hyp, reasons=reasons,
+                           opts=opts)

@@ -226,8 +226,9 @@ def _segment_normalize(tid, lw, T):
     return np.where(s[tid] > 0, e / np.where(s > 0, s, 1.0)[tid], 0.0)
 
 
-def finish(state: FastState) -> list[C.TripletEstimate]:
-    """One estimate per triplet of the batch."""
+def finish(state: FastState, hypotheses: bool = False):
+    """One (estimate, hypotheses or None) pair per triplet of the batch; the hypotheses are
+    built only when asked for (the solver object asks, batched solves do not)."""
     opts, part = state.opts, state.part
     m, T, n = part.n_states, state.n_triplets, state.n_views
     sv = state.kernel_sigma()
@@ -266,23 +267,22 @@ def finish(state: FastState) -> list[C.TripletEstimate]:
         if bad:
             reasons.append("camera on line AB (phi_A = phi_B or opposite) in view(s) "
                            + ", ".join(str(v + 1) for v in bad))
-        st_t = state.take(t)
         cw = c_w[cb[t]:cb[t + 1]]
         alive = cw > 0
         if not np.any(alive):
             reasons.append("no hypothesis survived (rays miss the locus arcs or C cannot be "
                            "triangulated)")
-            out.append(C.uniform_estimate("fast", part, n, "; ".join(reasons), opts, st_t))
+            out.append(C.uniform_estimate("fast", part, n, "; ".join(reasons), opts))
             continue
         lw_t = l_w[lb[t]:lb[t + 1]]
         keep_l = lw_t > 0
         na = int(alive.sum())
-        out.append(C.TripletEstimate(
-            landmark=lm[t] / lm[t].sum(), cameras=cm[t] / cm[t].sum(axis=1, keepdims=True),
-            n_hypotheses=na, degenerate=bool(reasons), reason="; ".join(reasons),
-            method="fast", partition=part.name, n_views=n,
+        hyp = C.Hypotheses(
             landmark_samples=l_samples[lb[t]:lb[t + 1]][keep_l], landmark_weights=lw_t[keep_l],
             camera_samples=np.transpose(poses[cb[t]:cb[t + 1]][alive], (1, 0, 2)),
-            camera_weights=np.broadcast_to(cw[alive], (n, na)).copy(),
-            joint=n > 1, options=opts, _state=st_t))
+            camera_weights=np.broadcast_to(cw[alive], (n, na)).copy(), joint=n > 1)
+        est, hyp = C.make_estimate("fast", part, n, lm[t] / lm[t].sum(),
+                                   cm[t] / cm[t].sum(axis=1, keepdims=True), hypotheses=hyp,
+                                   reasons=reasons, opts=opts)
+        out.append((est, hyp if hypotheses else None))
     return out

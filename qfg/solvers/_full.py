@@ -236,8 +236,8 @@ def step(state: FullState, phi, psi) -> FullState:
     return st
 
 
-def finish(state: FullState, method: str = "full") -> C.TripletEstimate:
-    """State probabilities (eqs. slamapprox1/2) from the hypotheses."""
+def finish(state: FullState, method: str = "full"):
+    """State probabilities (eqs. slamapprox1/2) from the hypotheses: (estimate, hypotheses)."""
     part, opts, meas = state.part, state.opts, state.meas
     n = meas.n_views
     reasons = list(state.reasons)
@@ -247,8 +247,7 @@ def finish(state: FullState, method: str = "full") -> C.TripletEstimate:
                        + ", ".join(str(b + 1) for b in bad))
     J = state.poses.shape[0]
     if J == 0:
-        return C.uniform_estimate(method, part, n, "; ".join(reasons) or "no hypothesis",
-                                  opts, state)
+        return C.uniform_estimate(method, part, n, "; ".join(reasons) or "no hypothesis", opts)
     total = state.lw_base + state.lw_res
     if n == 1:
         k = opts["one_view_samples"]
@@ -278,9 +277,8 @@ def finish(state: FullState, method: str = "full") -> C.TripletEstimate:
     cams = np.stack([C.state_histogram(part, state.poses[:, t, :2], c_w[t])[0] for t in range(n)])
     if not ok:
         reasons.append("every hypothesis has zero weight")
-    return C.TripletEstimate(
-        landmark=landmark, cameras=cams, n_hypotheses=int(np.count_nonzero(c_w[0] > 0)),
-        degenerate=bool(reasons), reason="; ".join(reasons), method=method, partition=part.name,
-        n_views=n, landmark_samples=l_samples, landmark_weights=l_w,
-        camera_samples=np.transpose(state.poses, (1, 0, 2)), camera_weights=c_w, joint=joint,
-        options=opts, _state=state)
+    hyp = C.Hypotheses(landmark_samples=l_samples, landmark_weights=l_w,
+                       camera_samples=np.transpose(state.poses, (1, 0, 2)), camera_weights=c_w,
+                       joint=joint)
+    return C.make_estimate(method, part, n, landmark, cams, hypotheses=hyp, reasons=reasons,
+                           opts=opts)
