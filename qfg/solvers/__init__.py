@@ -238,6 +238,22 @@ class TripletSolver:
                    C.non_negative("sigma_heading", sigma_heading))
 
     @classmethod
+    def solve(cls, bearings, headings=None, *, method: str = "full", partition="edc",
+              sigma_bearing=None, sigma_heading=None, seed=None, **options) -> "TripletSolver":
+        """A solver with every view of a history added; the arguments and the model chosen are
+        those of :func:`solve_triplet` (``.estimate()`` equals its result). Use it when the
+        hypotheses are wanted too (``.hypotheses()``)."""
+        meas = C.measurements(bearings, headings, sigma_bearing, sigma_heading)
+        part = C.get_partition(partition)
+        model = _model(method, meas)
+        solver = cls._from_parts(model, part, _options(method, model, options),
+                                 C.root_seed(seed), meas.sigma_bearing, meas.sigma_heading)
+        for i in range(meas.n_views):
+            solver.add_view(meas.bearings[i], None if i == 0 or meas.headings is None
+                            else meas.headings[i - 1])
+        return solver
+
+    @classmethod
     def _from_parts(cls, method, part, opts, root, sigma_bearing, sigma_heading):
         self = cls.__new__(cls)
         self._init(method, part, opts, root, sigma_bearing, sigma_heading)

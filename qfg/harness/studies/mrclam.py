@@ -344,7 +344,7 @@ def make_figures(fig_dir: Path, rows: list[dict], *, details=None, robot=None) -
 
     from qfg.harness.plotting import draw_partition
     from qfg.harness.plotting_mrclam import dataset_figure
-    from qfg.solvers import solve_triplet
+    from qfg.solvers import TripletSolver
 
     row = _pick_triplet(rows, robot) or _pick_triplet(rows)
     name = rows[0]["dataset"]
@@ -358,22 +358,23 @@ def make_figures(fig_dir: Path, rows: list[dict], *, details=None, robot=None) -
     r = int(row["robots"].split(";")[0]) if robot is None else int(robot)
     trip = (row["A"], row["B"], row["C"])
     hs = [h for rr, h in histories(ds, [r]) if tuple(h.landmarks) == trip]
-    sols = [(x, solve_triplet(x, method=row["method"].split(";")[0], seed=0)) for x in hs]
-    h, est = max(sols, key=lambda he: (not he[1].degenerate, he[0].n_views))
+    sols = [(x, TripletSolver.solve(x, method=row["method"].split(";")[0], seed=0)) for x in hs]
+    h, solver = max(sols, key=lambda he: (not he[1].estimate().degenerate, he[0].n_views))
+    est, hyp = solver.estimate(), solver.hypotheses()
     p = dataset_figure(ds, r, fig_dir / f"{name}_robot{r}.png", history=h)
     paths.append(Path(p))
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 6))
     ax = draw_partition("edc", axes[0], probabilities=est.landmark, highlight=h.truth.state,
                         label_states=True)
-    w = est.landmark_weights
-    if est.landmark_samples.size and w.size:
+    w = hyp.landmark_weights
+    if hyp.landmark_samples.size and w.size:
         keep = w > w.max() * 1e-3
-        ax.scatter(*est.landmark_samples[keep].T, s=4 + 40 * w[keep] / w.max(), c="tab:blue",
+        ax.scatter(*hyp.landmark_samples[keep].T, s=4 + 40 * w[keep] / w.max(), c="tab:blue",
                    alpha=0.6, label="C hypotheses")
-    cs = est.camera_samples
+    cs = hyp.camera_samples
     if cs.size:
-        cw = est.camera_weights
+        cw = hyp.camera_weights
         for i in range(cs.shape[0]):
             sel = slice(None) if cw is None else cw[i] > cw[i].max() * 1e-3
             ax.scatter(*cs[i][sel][:, :2].T, s=3, alpha=0.3, label=f"camera {i + 1}")

@@ -357,37 +357,36 @@ def figures(figdir: Path, grid: list[dict], params: dict) -> list[Path]:
 def hypothesis_figure(history, path, *, method: str = "full", seed: int = 0, partition="edc"):
     """Hypotheses of one triplet after each view (the paper's Fig. res_example): camera
     hypotheses of every view so far (one colour per view, size ~ weight), C hypotheses (red), the
-    truth (stars and triangles), the estimate shading the partition. Views are added with
-    :func:`qfg.solvers.add_view`, so each panel is the incremental estimate."""
+    truth (stars and triangles), the estimate shading the partition. Views are added to a
+    :class:`qfg.solvers.TripletSolver`, so each panel is the incremental estimate."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     from qfg.harness.plotting import draw_partition
-    from qfg.solvers import add_view
+    from qfg.solvers import TripletSolver
 
     part = get_partition(partition)
     n = history.n_views
     fig, axes = plt.subplots(1, n, figsize=(4.6 * n, 5.2))
     axes = np.atleast_1d(axes)
-    est = solve_triplet(history.bearings[:1], method=method, partition=part,
-                        sigma_bearing=history.sigma_bearing, sigma_heading=history.sigma_heading,
-                        seed=seed)
+    solver = TripletSolver(method, partition=part, sigma_bearing=history.sigma_bearing,
+                           sigma_heading=history.sigma_heading, seed=seed)
     colors = plt.get_cmap("tab10")
     for i, ax in enumerate(axes):
-        if i:
-            est = add_view(est, history.bearings[i], history.headings[i - 1])
+        solver.add_view(history.bearings[i], history.headings[i - 1] if i else None)
+        est, hyp = solver.estimate(), solver.hypotheses()
         draw_partition(part, ax, probabilities=est.landmark, highlight=history.truth.state)
-        cw = est.camera_weights
+        cw = hyp.camera_weights
         for t in range(est.n_views):
-            w = cw[t] if cw is not None else np.ones(est.camera_samples.shape[1])
+            w = cw[t]
             keep = w > 0
             sz = 1 + 20 * w[keep] / max(w.max(), 1e-300)
-            ax.scatter(est.camera_samples[t, keep, 0], est.camera_samples[t, keep, 1], s=sz,
+            ax.scatter(hyp.camera_samples[t, keep, 0], hyp.camera_samples[t, keep, 1], s=sz,
                        color=colors(t), alpha=0.5, lw=0, label=f"camera {t + 1} hypotheses")
-        lw = est.landmark_weights
+        lw = hyp.landmark_weights
         keep = lw > 0
-        ax.scatter(est.landmark_samples[keep, 0], est.landmark_samples[keep, 1],
+        ax.scatter(hyp.landmark_samples[keep, 0], hyp.landmark_samples[keep, 1],
                    s=1 + 20 * lw[keep] / max(lw.max(), 1e-300), color="red", alpha=0.5, lw=0,
                    label="C hypotheses")
         tc = history.truth.C_ab
