@@ -56,7 +56,8 @@ def _frame(A, B):
     A = as_float_array("A", A, last_dim=2)
     B = as_float_array("B", B, last_dim=2)
     d = B - A
-    n2 = np.sum(d * d, axis=-1)
+    with np.errstate(over="ignore"):  # |d|^2 = inf (coordinates ~1e200) is still "not coincident"
+        n2 = np.sum(d * d, axis=-1)
     if np.any(n2 <= COINCIDENT_EPS):
         raise ValueError("A, B: A and B coincide, so they define no frame")
     return A, d, n2
@@ -71,22 +72,69 @@ def frame_rotation(A, B):
     return np.arctan2(d[..., 1], d[..., 0]) - np.pi / 2
 
 
+def _pow2_exponent(values):
+    """Exponent e (int array) with max |values| over the last axis in [2^(e-1), 2^e); 0 where all 0."""
+    peak = np.max(np.abs(values), axis=-1)
+    e = np.frexp(peak)[1]
+    return np.where(peak > 0, e, 0)
+
+
 def to_frame(points, A, B):
     """World points (..., 2) to the AB frame, where A = (0, 0) and B = (0, 1).
 
     The map is translate by -A, rotate so that B - A points along +y, scale by 1/|B - A|:
     ``p_AB = (cross(d, p - A), dot(d, p - A)) / |d|^2`` with ``d = B - A``.
 
+    The formula is scale-invariant, so where it would overflow it is evaluated on copies scaled
+    by powers of two (exact, hence the same bits as the plain formula where both work): first by
+    the largest coordinate, so that ``p - A`` cannot overflow, then by ``|d|``, so that ``|d|^2``
+    can neither overflow nor underflow. Any finite input (1e200, 1e-200) works. Raises ValueError if A and B coincide
+    (``|d|^2 <= COINCIDENT_EPS`` in the caller's units) or if the result itself is beyond float64
+    (``|p - A| / |d| > 1.8e308``).
+
     >>> to_frame([2.0, 1.0], [1.0, 1.0], [1.0, 3.0]).tolist()
     [0.5, 0.0]
+    >>> to_frame([0.0, 5e199], [1e200, 0.0], [1e200, 1e200]).tolist()
+    [-1.0, 0.5]
     """
     p = as_float_array("points", points, last_dim=2)
-    A, d, n2 = _frame(A, B)
-    q = p - A
-    # x axis of the frame is d rotated by -90 degrees: (dy, -dx)
-    x = (q[..., 0] * d[..., 1] - q[..., 1] * d[..., 0]) / n2
-    y = (q[..., 0] * d[..., 0] + q[..., 1] * d[..., 1]) / n2
-    return np.stack([x, y], axis=-1)
+    A = as_float_array("A", A, last_dim=2)
+    B = as_float_array("B", B, last_dim=2)
+    # Ordinary magnitudes: the formula as written (the scaled path below gives the same bits).
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        q = p - A
+        d = B - A
+        n2 = np.sum(d * d, axis=-1)
+        x = (q[..., 0] * d[..., 1] - q[..., 1] * d[..., 0]) / n2
+        y = (q[..., 0] * d[..., 0] + q[..., 1] * d[..., 1]) / n2
+    if np.all(np.isfinite(n2)):
+        if np.any(n2 <= COINCIDENT_EPS):
+            raise ValueError("A, B: A and B coincide, so they define no frame")
+        out = np.stack([x, y], axis=-1)
+        if np.all(np.isfinite(out)):
+            return out
+    e1 = _pow2_exponent(np.concatenate(np.broadcast_arrays(p, A, B), axis=-1))[..., None]
+    q = np.ldexp(p, -e1) - np.ldexp(A, -e1)
+    d = np.ldexp(B, -e1) - np.ldexp(A, -e1)
+    e2 = _pow2_exponent(d)[..., None]
+    d = np.ldexp(d, -e2)
+    # |q| / |d| above the float64 range is a true overflow of the answer (reported below).
+    with np.errstate(over="ignore", invalid="ignore"):
+        q = np.ldexp(q, -e2)
+        n2 = np.sum(d * d, axis=-1)
+        # x axis of the frame is d rotated by -90 degrees: (dy, -dx)
+        x = (q[..., 0] * d[..., 1] - q[..., 1] * d[..., 0]) / np.where(n2 > 0, n2, 1.0)
+        y = (q[..., 0] * d[..., 0] + q[..., 1] * d[..., 1]) / np.where(n2 > 0, n2, 1.0)
+    # |B - A|^2 in the caller's units is n2 * 4^(e1 + e2): compare in log2 to stay in range.
+    with np.errstate(divide="ignore"):
+        log2_n2 = np.log2(n2) + 2.0 * (e1[..., 0] + e2[..., 0])
+    if np.any(log2_n2 <= np.log2(COINCIDENT_EPS)):
+        raise ValueError("A, B: A and B coincide, so they define no frame")
+    out = np.stack([x, y], axis=-1)
+    if not np.all(np.isfinite(out)):
+        raise ValueError("points: the AB-frame coordinates overflow float64 (a point is more than "
+                         "1.8e308 times |B - A| away from A)")
+    return out
 
 
 def from_frame(points, A, B):

@@ -195,3 +195,18 @@ def test_wrap_angle_range():
     np.testing.assert_allclose(np.sin(w), np.sin(a), atol=1e-9)
     np.testing.assert_allclose(np.cos(w), np.cos(a), atol=1e-9)
     assert float(g.wrap_angle(-np.pi)) == pytest.approx(np.pi)
+
+
+def test_to_frame_with_huge_coordinates_and_its_overflow():
+    # Scale-invariant: 1e200-sized and 1.7e308-wide inputs give the unit-scale answer.
+    np.testing.assert_array_equal(g.to_frame([0.0, 5e199], [1e200, 0.0], [1e200, 1e200]),
+                                  [-1.0, 0.5])
+    # p - A = (3.4e308, 0) overflows as written; d = (0, 1.7e308): x = 2, y = 0.
+    np.testing.assert_allclose(g.to_frame([1.7e308, 0.0], [-1.7e308, 0.0], [-1.7e308, 1.7e308]),
+                               [2.0, 0.0], rtol=1e-15)
+    # A point 1e300 / 1e-8 = 1e308 units of |B - A| away still fits; 3.4e308 does not: named.
+    np.testing.assert_allclose(g.to_frame([1e300, 0.0], [0.0, 0.0], [0.0, 1e-8]), [1e308, 0.0])
+    with pytest.raises(ValueError, match="points: .*overflow"):
+        g.to_frame([1.7e308, 0.0], [-1.7e308, 0.0], [-1.7e308, 1.0])
+    with pytest.raises(ValueError, match="coincide"):
+        g.to_frame([1e300, 0.0], [1e300, 1e300], [1e300, 1e300])

@@ -130,3 +130,31 @@ def test_user_defined_partition_from_polygons():
                                 (-1, 1, -1, 1))
     with pytest.raises(ValueError, match="window"):
         Partition.from_polygons("bad2", halves, (1, -1, -1, 2))
+
+
+def test_state_of_triplet_with_huge_finite_coordinates():
+    # issue 12 item 4: |B - A|^2 overflowed to inf and the state was refused as "non-finite".
+    # A = (1e200, 0), B = (1e200, 1e200), C = (0, 5e199): in the AB frame C = (1, 0.5) (see
+    # geometry.to_frame's doctest), the same state as the unit-scale triplet.
+    want = state_of_triplet([1, 0], [1, 1], [0, 0.5])
+    assert state_of_triplet([1e200, 0], [1e200, 1e200], [0, 5e199]) == want
+    assert state_of_triplet([1e300, 0], [1e300, 1e300], [0, 5e299]) == want
+
+
+@given(st.integers(0, 2**32 - 1), st.integers(-900, 1000))
+@settings(max_examples=40, deadline=None)
+def test_state_of_triplet_is_invariant_under_any_power_of_two_scale(seed, exponent):
+    # Scaling by 2^k is exact in float64, so the state must not change for any k whose scaled
+    # points are still normal numbers and whose |B - A| is above the coincidence threshold.
+    rng = np.random.default_rng(seed)
+    A, B = rng.uniform(-3, 3, (2, 2))
+    if np.linalg.norm(A - B) < 0.05:
+        return
+    C = rng.uniform(-6, 6, (30, 2))
+    scale = 2.0 ** exponent
+    if np.linalg.norm(A - B) * scale <= 1e-8:  # A and B coincide at that scale: refused
+        with pytest.raises(ValueError, match="coincide"):
+            state_of_triplet(A * scale, B * scale, C * scale)
+        return
+    np.testing.assert_array_equal(state_of_triplet(A * scale, B * scale, C * scale),
+                                  state_of_triplet(A, B, C))
