@@ -125,3 +125,59 @@ def test_bad_input_names_the_argument(kwargs, match):
 def test_bad_tensor_rejected(T, match):
     with pytest.raises(ValueError, match=match):
         qc.marginal(T, np.ones(T.shape[0]), np.ones(T.shape[0]))
+
+
+# ------------------------------------------------------------------------------------------
+# numeric range (issue 12 items 1-3)
+
+
+@pytest.mark.parametrize("scale", [1e308, 1e200, 1e-200, 1e-300])
+def test_scaled_inputs_give_the_normalized_answer(scale):
+    # V and c V describe the same distribution: the answer must not depend on c (1e308 gave NaN,
+    # 1e-200 was flagged zero_mass). Reference: the same vectors normalized, by brute force.
+    rng = np.random.default_rng(5)
+    m = 5
+    T = _random_tensor(rng, m, density=0.6)
+    V = [rng.random(m) for _ in range(3)]
+    V[1][2] = 0.0
+    scaled = [v / v.max() * scale for v in V]
+    with np.errstate(all="raise"):
+        for role in (1, 2, 3):
+            r = qc.marginal(T, *scaled, role=role)
+            assert not bool(r.zero_mass)
+            np.testing.assert_allclose(r.p, _brute_marginal(T, V, role), rtol=1e-10, atol=1e-15)
+        J = qc.joint(T, *scaled)
+    want = np.einsum("i,j,k,ijk->ijk", *V, T)
+    assert not bool(J.zero_mass)
+    np.testing.assert_allclose(J.p, want / want.sum(), rtol=1e-10, atol=1e-15)
+
+
+def test_uniform_and_one_hot_extremes_of_the_issue():
+    T = np.ones((4, 4, 4)) / 64
+    for v in (np.full(4, 1e308), np.full(4, 1e-200)):
+        r = qc.marginal(T, v, v)
+        assert not bool(r.zero_mass) and np.allclose(r.p, 0.25)
+        J = qc.joint(T, v, v, v)
+        assert not bool(J.zero_mass) and np.allclose(J.p, 1 / 64)
+    one_hot = np.eye(4)[1] * 5e-324  # the smallest positive double
+    r = qc.marginal(T, one_hot, one_hot, one_hot)
+    assert not bool(r.zero_mass) and r.p.tolist() == [0.0, 1.0, 0.0, 0.0]
+    J = qc.joint(T, one_hot, one_hot, one_hot)
+    assert not bool(J.zero_mass) and J.p[1, 1, 1] == 1.0
+    # a table with tiny entries is rescaled too
+    r = qc.marginal(T * 1e-300, np.ones(4), np.ones(4))
+    assert not bool(r.zero_mass) and np.allclose(r.p, 0.25)
+
+
+def test_empty_batch_gives_empty_results():
+    T = np.ones((3, 3, 3)) / 27
+    r = qc.marginal(T, np.zeros((0, 3)), np.full(3, 1 / 3))
+    assert r.p.shape == (0, 3) and r.zero_mass.shape == (0,)
+    r = qc.marginal(T, np.zeros((0, 3)), np.ones((1, 3)), np.zeros((0, 3)), role=2)
+    assert r.p.shape == (0, 3)
+    J = qc.joint(T, np.zeros((0, 3)))
+    assert J.p.shape == (0, 3, 3, 3) and J.zero_mass.shape == (0,)
+    f = qc.feasible(T, np.zeros((0, 3), bool), np.ones(3, bool))
+    assert f.states.shape == (0, 3)
+    with pytest.raises(ValueError, match="V2"):  # 0 rows do not broadcast with 2 rows
+        qc.marginal(T, np.zeros((0, 3)), np.ones((2, 3)))

@@ -16,7 +16,14 @@ tensor ``T[i, j, k]`` (conventions.md, "Composition tensor") and per-triplet est
 
 Everything is batched over F factors: a vector argument is (m,) or (F, m), broadcast together;
 results are (F, m) (or (F, m, m, m) for the joint), squeezed back to (m,) when every input was a
-single vector. Inputs need not be normalized; they must be finite and non-negative.
+single vector; an empty batch (F = 0) gives (0, m). Inputs need not be normalized; they must be
+finite and non-negative.
+
+Scale. Every vector row (and the table) is divided by its maximum before any product, so the
+answer depends only on ratios within a row: ``V`` and ``c V`` give the same result for every
+``c > 0`` representable in float64 (``1e308``, ``1e-200``, a one-hot scaled to ``5e-324``), with
+no overflow to inf/NaN and no underflow to a false zero mass. What cannot be represented is an
+entry below about ``1e-308`` times its own row's maximum, which counts as zero.
 
 Zero mass. When the inputs are inconsistent with the tensor (e.g. one-hot vectors of a triple that
 the tensor calls infeasible), the unnormalized result is all zeros. Rather than dividing by zero,
@@ -110,6 +117,14 @@ def as_table(T) -> np.ndarray:
     return arr
 
 
+def _scaled_table(T, deterministic: bool) -> np.ndarray:
+    """The checked table divided by its maximum (or its 0/1 support), for overflow-free products."""
+    table = as_table(T)
+    if deterministic:
+        return (table > 0).astype(float)
+    return table / table.max()
+
+
 def _vectors(m: int, named: dict[str, object]) -> tuple[dict[str, np.ndarray | None], int, bool]:
     """Validate the V arguments: (m,) or (F, m), finite, >= 0; broadcast F. None stays None."""
     out: dict[str, np.ndarray | None] = {}
@@ -135,8 +150,18 @@ def _vectors(m: int, named: dict[str, object]) -> tuple[dict[str, np.ndarray | N
                 batch = a.shape[0]
             elif a.shape[0] not in (1, batch):
                 raise ValueError(f"{name}: {a.shape[0]} rows, but another vector has {batch}")
-        out[name] = a
+        out[name] = _unit_max(a)
     return out, (batch if batch is not None else 1), single
+
+
+def _unit_max(a: np.ndarray) -> np.ndarray:
+    """``a`` divided by the maximum of each row along the last axis (all-zero rows stay zero).
+
+    The results are ratios, so this changes nothing mathematically; it keeps every later product
+    within float64 whatever the scale of the input (1e308 would overflow, 1e-200 underflow).
+    """
+    peak = a.max(axis=-1, keepdims=True) if a.size else np.ones(a.shape[:-1] + (1,))
+    return a / np.where(peak > 0, peak, 1.0)
 
 
 def _role(role) -> int:
@@ -154,8 +179,9 @@ def _rows(a: np.ndarray | None, F: int, m: int) -> np.ndarray:
 def _normalize(unnorm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Normalize over all but the first axis; zero-mass rows become uniform and are flagged."""
     F = unnorm.shape[0]
-    total = unnorm.reshape(F, -1).sum(axis=1)
-    # Mass below the smallest normal double cannot be normalized without overflow: treat as zero.
+    total = unnorm.sum(axis=tuple(range(1, unnorm.ndim)))
+    # Inputs are scaled to a maximum of 1, so a consistent combination has mass far above this;
+    # mass below the smallest normal double has lost its precision: treat it as zero.
     zero = total <= np.finfo(float).tiny
     shape = (F,) + (1,) * (unnorm.ndim - 1)
     p = unnorm / np.where(zero, 1.0, total).reshape(shape)
@@ -190,9 +216,7 @@ def marginal(T, V1=None, V2=None, V3=None, *, role: int = 3, deterministic: bool
     [0.333, 0.333, 0.333]
     """
     role = _role(role)
-    table = as_table(T)
-    if deterministic:
-        table = (table > 0).astype(float)
+    table = _scaled_table(T, deterministic)
     m = table.shape[0]
     vecs, F, single = _vectors(m, {"V1": V1, "V2": V2, "V3": V3})
     names = ("V1", "V2", "V3")
@@ -232,9 +256,7 @@ def joint(T, V1=None, V2=None, V3=None, *, deterministic: bool = False) -> Joint
     >>> joint(T, [1, 1]).p[0, 1, 1].item()
     0.5
     """
-    table = as_table(T)
-    if deterministic:
-        table = (table > 0).astype(float)
+    table = _scaled_table(T, deterministic)
     m = table.shape[0]
     vecs, F, single = _vectors(m, {"V1": V1, "V2": V2, "V3": V3})
     v1, v2, v3 = (_rows(vecs[n], F, m) for n in ("V1", "V2", "V3"))
