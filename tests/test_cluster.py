@@ -83,7 +83,7 @@ def test_bad_address_is_a_clear_error():
 
 
 def test_cli_scheduler_option_runs_on_the_cluster(tmp_path, cluster, monkeypatch):
-    from qfg import cli
+    from qfg.harness import cli
 
     exp = tmp_path / "experiments"
     exp.mkdir()

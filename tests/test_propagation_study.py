@@ -160,7 +160,7 @@ def test_bad_params():
 
 # ----------------------------------------------------------------- qfg experiment all, results doc
 def test_experiment_all_runs_studies_and_rebuilds_results_doc(tmp_path, monkeypatch):
-    from qfg import results_doc
+    from qfg.harness import results_doc
     from qfg.harness.studies import _all
 
     exp = tmp_path / "experiments"
