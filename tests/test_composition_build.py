@@ -5,7 +5,7 @@ import zipfile
 import numpy as np
 import pytest
 import shapely
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from shapely.geometry import box
 
@@ -25,8 +25,17 @@ def _polys(name):
 @settings(max_examples=30, deadline=None)
 @given(name=st.sampled_from(["edc", "tpcc", "fdc"]), u=st.floats(0.01, 0.99),
        v=st.floats(0.01, 0.99))
+# Cases where the former reference (transform the partition's polygons, then intersect) raised
+# GEOSException (issue 11, item 6).
+@example(name="tpcc", u=0.7042503817755887, v=0.7833715312310431)
+@example(name="tpcc", u=0.6211448987508755, v=0.3799141629017853)
 def test_area_rows_and_columns_add_up_to_window_overlaps(name, u, v):
-    # sum_j area(BC_j cap AB_k) = area(AB_k cap BC window), computed directly with shapely.
+    # sum_j area(BC_j cap AB_k) = area(AB_k cap BC window) and
+    # sum_k area(BC_j cap AB_k) = area(BC_j cap AB window), computed directly with shapely.
+    # The reference only ever intersects the partition's own (valid) polygons with a rectangle
+    # mapped by the similarity, never a transformed partition polygon: rounding can make those
+    # invalid ("unable to assign free hole to a shell"), which the build repairs but a reference
+    # must not depend on. Areas scale by |BC|^2 from the BC frame to the AB frame.
     part = qp.get(name)
     x0, x1, y0, y1 = part.window
     C = np.array([x0 + u * (x1 - x0), y0 + v * (y1 - y0)])
@@ -37,8 +46,8 @@ def test_area_rows_and_columns_add_up_to_window_overlaps(name, u, v):
     bc_window = shapely.Polygon(from_frame(corners, B, C))  # the BC window in the AB frame
     want_k = shapely.area(shapely.intersection(_polys(name), bc_window))
     np.testing.assert_allclose(areas.sum(axis=0), want_k, rtol=1e-7, atol=1e-9)
-    want_j = shapely.area(shapely.intersection(shapely.transform(
-        _polys(name), lambda xy: from_frame(xy, B, C)), box(x0, y0, x1, y1)))
+    ab_window = shapely.Polygon(to_frame(corners, B, C))  # the AB window in the BC frame
+    want_j = shapely.area(shapely.intersection(_polys(name), ab_window)) * np.sum((C - B) ** 2)
     np.testing.assert_allclose(areas.sum(axis=1), want_j, rtol=1e-7, atol=1e-9)
 
 
@@ -219,6 +228,49 @@ def test_damaged_file_gives_clear_error(tmp_path, monkeypatch, small_lr, damage)
         np.savez(path, **data)
     msg = _err("lr", monkeypatch, tmp_path)
     assert str(path) in msg
+
+
+def test_float32_table_with_matching_checksum_is_rejected(tmp_path, monkeypatch, small_lr):
+    # issue 12 item 11: the checksum is of the float64 values, so a float32 copy whose checksum
+    # was recomputed after conversion passed every other check.
+    path = qc.save(tmp_path / "lr.npz", small_lr)
+    T32 = small_lr.table.astype(np.float32)
+    _rewrite(path, T=T32, sha256=np.asarray(qc.checksum(T32.astype(float))),
+             support=T32 > 0)
+    msg = _err("lr", monkeypatch, tmp_path)
+    assert str(path) in msg and "float32" in msg and "float64" in msg
+
+
+@pytest.mark.parametrize("content", [b"T = [[0.5, 0.5]]\n", b"", b"\x93NUMPY"])
+def test_non_npz_file_is_named_as_such(tmp_path, content):
+    # issue 12 item 11: a text file named .npz was reported as "contains pickled (object) data".
+    path = tmp_path / "lr.npz"
+    path.write_bytes(content)
+    msg = _err(path)
+    assert str(path) in msg and "not an npz archive" in msg and "pickle" not in msg
+
+
+def test_tensor_is_usable_as_an_array(small_lr):
+    t = small_lr
+    a = np.asarray(t)
+    assert a is t.table and t.T is t.table  # no copy; .T is the documented alias
+    assert (t.shape, t.ndim, t.dtype) == (a.shape, 3, np.float64)
+    c = np.array(t)  # np.array copies by default
+    assert c is not t.table and np.array_equal(c, t.table)
+    assert np.asarray(t, dtype=np.float32).dtype == np.float32
+    assert np.asarray(t, copy=True) is not t.table
+    with pytest.raises(ValueError, match="copy"):
+        np.asarray(t, dtype=np.float32, copy=False)
+    np.testing.assert_allclose(np.sum(t, axis=(0, 1)), t.table.sum(axis=(0, 1)))
+    # the online functions take the tensor, the array or the alias alike
+    v = np.ones(t.n_states)
+    np.testing.assert_array_equal(qc.marginal(t, v, v).p, qc.marginal(a, v, v).p)
+    # the constructor takes table= or its alias T=, once
+    kw = {f: getattr(t, f) for f in ("partition", "support", "window", "samples_per_state", "seed",
+                                     "quad_segs", "version", "sha256", "meta")}
+    assert qc.CompositionTensor(T=t.table, **kw).table is t.table
+    with pytest.raises(ValueError, match="table"):
+        qc.CompositionTensor(table=t.table, T=t.table, **kw)
 
 
 def test_tensor_env_override_and_cache(tmp_path, monkeypatch, small_lr):

@@ -39,7 +39,7 @@ Example (a quick, coarse tensor; the shipped ones use many more samples):
 
 >>> from qfg.composition.build import build
 >>> t = build("lr", samples=64, support_samples=0, progress=False)
->>> t.T.shape, t.nnz
+>>> t.shape, t.nnz
 ((2, 2, 2), 8)
 """
 
@@ -432,7 +432,7 @@ def build(partition, samples: int = 4096, *, seed: int = 0, support_samples: int
             "max_area": biggest.max(axis=0),
             "mirror_symmetry": sigma is not None, "workers": workers,
             "build_seconds": round(seconds, 3)}
-    return CompositionTensor(partition=part.name, T=T, support=support, window=part.window,
+    return CompositionTensor(partition=part.name, table=T, support=support, window=part.window,
                              samples_per_state=samples, seed=seed, quad_segs=part.quad_segs,
                              version=__version__, sha256=checksum(T), meta=meta)
 

@@ -101,10 +101,8 @@ def as_table(T) -> np.ndarray:
 
     Checks that it is cubic, finite, non-negative and has some mass.
     """
-    # A CompositionTensor carries the table as .T (an ndarray's .T is its transpose: not that).
-    arr = T.T if (not isinstance(T, np.ndarray) and hasattr(T, "support")) else T
     try:
-        arr = np.asarray(arr, dtype=float)
+        arr = np.asarray(T, dtype=float)  # a CompositionTensor converts to its table
     except (TypeError, ValueError):
         raise ValueError(f"T: expected an (m, m, m) array or a CompositionTensor, got "
                          f"{type(T).__name__}") from None

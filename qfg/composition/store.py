@@ -2,7 +2,8 @@
 
 A tensor file ``tensors/<partition>.npz`` holds (all plain arrays, loadable without pickle):
 
-* ``T`` (m, m, m) float64, sums to 1; ``support`` (m, m, m) bool, ``T > 0``;
+* ``T`` (m, m, m) float64 (other dtypes are rejected), sums to 1; ``support`` (m, m, m) bool,
+  ``T > 0``;
 * ``partition`` (name), ``window`` (xmin, xmax, ymin, ymax), ``samples_per_state``, ``seed``,
   ``quad_segs`` (polygon resolution: segments per quarter circle), ``version`` (qfg's),
   ``sha256`` (hex digest of ``T`` as C-ordered little-endian float64 bytes);
@@ -13,7 +14,7 @@ directory named by the environment variable ``QFG_TENSORS``.
 
 >>> from qfg.composition import tensor
 >>> T = tensor("fdc")                                   # doctest: +SKIP
->>> T.T.shape, round(float(T.T.sum()), 12)              # doctest: +SKIP
+>>> T.shape, round(float(np.asarray(T).sum()), 12)       # doctest: +SKIP
 ((6, 6, 6), 1.0)
 """
 
@@ -46,28 +47,38 @@ class TensorFileError(ValueError):
     """
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, init=False)
 class CompositionTensor:
-    """A composition tensor and how it was made.
+    """A composition tensor and how it was made; usable as the (m, m, m) array it holds.
 
-    ``T[i, j, k]`` with i = state of AB:C, j = state of BC:D, k = state of AB:D (0-based).
+    ``table[i, j, k]`` with i = state of AB:C, j = state of BC:D, k = state of AB:D (0-based).
+    ``np.asarray(t)`` is the table (read-only for a loaded file; ``np.array(t)`` copies), and
+    ``shape``, ``ndim`` and ``dtype`` are the table's, so a tensor can go wherever an array is
+    expected. ``t.T`` is an alias of ``t.table`` kept for existing callers (it is *not* a
+    transpose, unlike an ndarray's ``.T``); the constructor accepts ``T=`` in place of ``table=``.
 
     Attributes:
         partition: partition name (``"edc"``).
-        T: (m, m, m) float64, non-negative, sums to 1.
-        support: (m, m, m) bool, ``T > 0`` (the deterministic composition).
+        table: (m, m, m) float64, non-negative, sums to 1.
+        support: (m, m, m) bool, ``table > 0`` (the deterministic composition).
         window: (xmin, xmax, ymin, ymax) integration window, units of |AB|.
         samples_per_state: C samples per AB:C state that carry the weights.
         seed: seed of the build.
         quad_segs: segments per quarter circle of the polygons used.
         version: qfg version that built it.
-        sha256: checksum of T (see :func:`checksum`).
+        sha256: checksum of the table (see :func:`checksum`).
         meta: other build details (method, support samples, build time, ...).
         path: file it was loaded from (None if built in memory).
+
+    >>> import numpy as np
+    >>> T = np.full((2, 2, 2), 1 / 8)
+    >>> t = CompositionTensor("lr", T, T > 0, (-2.0, 2.0, -2.0, 3.0), 1, 0, 8, "doc", checksum(T), {})
+    >>> np.asarray(t).shape, t.shape, t.ndim, t.dtype, t.T is t.table
+    ((2, 2, 2), (2, 2, 2), 3, dtype('float64'), True)
     """
 
     partition: str
-    T: np.ndarray
+    table: np.ndarray
     support: np.ndarray
     window: tuple[float, float, float, float]
     samples_per_state: int
@@ -78,10 +89,51 @@ class CompositionTensor:
     meta: dict
     path: Path | None = None
 
+    def __init__(self, partition, table=None, support=None, window=None, samples_per_state=None,
+                 seed=None, quad_segs=None, version=None, sha256=None, meta=None, path=None, *,
+                 T=None):
+        if (table is None) == (T is None):
+            raise ValueError("table: give the (m, m, m) table once, as table= (or its alias T=)")
+        values = dict(partition=partition, table=table if T is None else T, support=support,
+                      window=window, samples_per_state=samples_per_state, seed=seed,
+                      quad_segs=quad_segs, version=version, sha256=sha256, meta=meta, path=path)
+        missing = [k for k, v in values.items() if v is None and k != "path"]
+        if missing:
+            raise ValueError(f"{missing[0]}: required")
+        for k, v in values.items():
+            object.__setattr__(self, k, v)
+
+    @property
+    def T(self) -> np.ndarray:
+        """Alias of :attr:`table` (the composition table, not a transpose)."""
+        return self.table
+
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        return self.table.shape
+
+    @property
+    def ndim(self) -> int:
+        return self.table.ndim
+
+    @property
+    def dtype(self) -> np.dtype:
+        return self.table.dtype
+
+    def __array__(self, dtype=None, copy=None):
+        """The table, for ``np.asarray``/``np.array`` (numpy 2 ``copy`` semantics)."""
+        arr = self.table
+        if dtype is not None and np.dtype(dtype) != arr.dtype:
+            if copy is False:
+                raise ValueError(f"dtype: converting the table to {np.dtype(dtype)} needs a copy, "
+                                 f"but copy=False")
+            return arr.astype(dtype)
+        return arr.copy() if copy else arr
+
     @property
     def n_states(self) -> int:
         """m, the number of states of the partition."""
-        return int(self.T.shape[0])
+        return int(self.table.shape[0])
 
     @property
     def nnz(self) -> int:
@@ -129,7 +181,7 @@ def save(path, tensor: CompositionTensor) -> Path:
     meta = {f"meta_{k}": np.asarray(v) for k, v in tensor.meta.items()}
     tmp = path.with_name(path.name + ".tmp.npz")
     np.savez_compressed(
-        tmp, T=np.ascontiguousarray(tensor.T, dtype="<f8"), support=tensor.support.astype(bool),
+        tmp, T=np.ascontiguousarray(tensor.table, dtype="<f8"), support=tensor.support.astype(bool),
         partition=np.asarray(tensor.partition), window=np.asarray(tensor.window, dtype=float),
         samples_per_state=np.asarray(tensor.samples_per_state), seed=np.asarray(tensor.seed),
         quad_segs=np.asarray(tensor.quad_segs), version=np.asarray(tensor.version),
@@ -154,6 +206,15 @@ def load(path, partition=None) -> CompositionTensor:
     if not path.is_file():
         raise _fail(path, name, "not found")
     try:
+        with open(path, "rb") as fh:
+            head = fh.read(4)
+    except OSError as exc:
+        raise _fail(path, name, f"cannot be read ({type(exc).__name__}: {exc})") from None
+    if head[:2] != b"PK":
+        # np.load would call anything that is neither zip nor .npy "pickled (object) data"
+        what = "an empty file" if not head else f"it starts with {head!r}, not a zip header"
+        raise _fail(path, name, f"not an npz archive ({what})")
+    try:
         with np.load(path, allow_pickle=False) as z:
             data = {k: z[k] for k in z.files}
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as exc:
@@ -169,6 +230,7 @@ def load(path, partition=None) -> CompositionTensor:
         quad_segs = int(data["quad_segs"])
         version = str(data["version"])
         sha = str(data["sha256"])
+        raw_dtype = np.asarray(data["T"]).dtype
         T = np.asarray(data["T"], dtype=float)
         support = np.asarray(data["support"])
     except (TypeError, ValueError) as exc:
@@ -182,6 +244,10 @@ def load(path, partition=None) -> CompositionTensor:
     if recorded != part.name:
         raise _fail(path, part.name, f"built for partition {recorded!r}, expected {part.name!r}")
     m = part.n_states
+    # The checksum is of the float64 values: a float32 table converted on load would match it
+    # while holding fewer digits than the build computed.
+    if raw_dtype.kind != "f" or raw_dtype.itemsize != 8:
+        raise _fail(path, part.name, f"T has dtype {raw_dtype}, expected float64")
     if T.shape != (m, m, m):
         raise _fail(path, part.name, f"T has shape {T.shape}, expected {(m, m, m)} for "
                                      f"{part.name} ({m} states)")
@@ -198,7 +264,7 @@ def load(path, partition=None) -> CompositionTensor:
             if k.startswith("meta_")}
     T.setflags(write=False)
     support.setflags(write=False)
-    return CompositionTensor(partition=part.name, T=T, support=support, window=window,
+    return CompositionTensor(partition=part.name, table=T, support=support, window=window,
                              samples_per_state=samples, seed=seed, quad_segs=quad_segs,
                              version=version, sha256=sha, meta=meta, path=path)
 
@@ -213,7 +279,7 @@ def tensor(name) -> CompositionTensor:
     path, size and modification time). Raises :class:`TensorFileError` if the file is missing,
     corrupt or does not match the partition.
 
-    >>> tensor("edc").T.shape                               # doctest: +SKIP
+    >>> tensor("edc").shape                                 # doctest: +SKIP
     (20, 20, 20)
     """
     part = _partitions.get(name)
