@@ -88,9 +88,9 @@ def to_frame(points, A, B):
     The formula is scale-invariant, so where it would overflow it is evaluated on copies scaled
     by powers of two (exact, hence the same bits as the plain formula where both work): first by
     the largest coordinate, so that ``p - A`` cannot overflow, then by ``|d|``, so that ``|d|^2``
-    can neither overflow nor underflow. Any finite input (1e200, 1e-200) works. Raises ValueError if A and B coincide
-    (``|d|^2 <= COINCIDENT_EPS`` in the caller's units) or if the result itself is beyond float64
-    (``|p - A| / |d| > 1.8e308``).
+    can neither overflow nor underflow. Any finite input (e.g. 1e200) works. Raises ValueError
+    if A and B coincide (``|d|^2 <= COINCIDENT_EPS`` in the caller's units) or if the result
+    itself is beyond float64 (``|p - A| / |d| > 1.8e308``).
 
     >>> to_frame([2.0, 1.0], [1.0, 1.0], [1.0, 3.0]).tolist()
     [0.5, 0.0]

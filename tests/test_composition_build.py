@@ -11,9 +11,9 @@ from shapely.geometry import box
 
 from qfg import composition as qc
 from qfg import partitions as qp
-from qfg.harness.cli import main as cli_main
 from qfg.composition import build as qb
 from qfg.geometry import from_frame, to_frame
+from qfg.harness.cli import main as cli_main
 
 B = np.array([0.0, 1.0])
 
