@@ -1,0 +1,368 @@
+"""Priors over AB-frame configurations ``[C, X_1, ..., X_n]`` (the points a triplet solver
+reasons about), as objects.
+
+Every prior has a ``name``, ``log_density(points)`` and ``sample(rng, n_cameras, size)``:
+
+* :class:`WorldBoxPrior` (``"world"``): exact for the simulator's world, every object (the three
+  landmarks and every camera position) i.i.d. uniform in a W x H box, every pair at least
+  ``d_min`` apart. Seen from the AB frame, the shared unknown scale and rotation of AB couple C
+  and the cameras; the density integrates them out (derivation: ``docs/priors.md``).
+* :class:`WindowPrior` (``"uniform"``): independent points uniform in an AB-frame window.
+* :class:`ProductPrior` (``"world-product"``): the former ``"world"`` prior, a product of
+  independent heavy-tailed per-point densities fitted to the world's AB-frame marginal. It is an
+  *approximation*: it ignores the coupling, which costs about 0.1 nats of log score (issue 10).
+* :class:`CallablePrior`: a user's own density (and optionally sampler).
+
+Camera headings are uniform in every prior here (a uniform world heading is uniform in any
+frame), so priors are densities over positions only. Units: AB-frame lengths (|AB| = 1).
+
+>>> import numpy as np
+>>> p = get("world")
+>>> x = p.sample(np.random.default_rng(0), n_cameras=2, size=4)
+>>> x.shape, bool(np.all(np.isfinite(p.log_density(x))))
+((4, 3, 2), True)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._validate import as_float_array, as_rng, non_negative, positive_int
+
+__all__ = ["Prior", "WorldBoxPrior", "WindowPrior", "ProductPrior", "CallablePrior", "get",
+           "NAMES", "DEFAULT_WINDOW"]
+
+#: Names :func:`get` accepts.
+NAMES = ("world", "world-product", "uniform")
+
+#: Default AB-frame window of :class:`WindowPrior` (the solvers' former ``prior_window``).
+DEFAULT_WINDOW = (-6.0, 6.0, -5.5, 6.5)
+
+# The simulator's defaults (qfg.simulation.SimulationConfig), repeated here so that this module
+# does not import the simulator at import time; a test checks that they agree.
+_SIM_WIDTH, _SIM_HEIGHT, _SIM_DMIN = 6.0, 7.0, 0.01
+
+#: Points per evaluation chunk of :meth:`WorldBoxPrior.log_density` (bounds memory to ~100 MB).
+_CHUNK_ELEMENTS = 4_000_000
+
+
+def _points(points) -> np.ndarray:
+    p = as_float_array("points", points, min_ndim=2, last_dim=2)
+    if p.shape[-2] < 1:
+        raise ValueError(f"points: expected at least one point (shape (..., k, 2), k >= 1), "
+                         f"got shape {p.shape}")
+    return p
+
+
+def _sample_args(n_cameras, size):
+    return positive_int("n_cameras", n_cameras, minimum=0), positive_int("size", size, minimum=0)
+
+
+class Prior:
+    """Base class: a prior over AB-frame configurations ``[C, X_1, ..., X_n]``.
+
+    Subclasses implement:
+
+    * ``log_density(points)``: points (..., k, 2), k = n + 1 >= 1, AB-frame positions in the order
+      [C, X_1, ..., X_n]; returns (...,) the log density up to an additive constant that depends
+      only on k. Finite wherever the density is positive; -inf only where it is truly 0.
+    * ``sample(rng, n_cameras, size)``: (size, 1 + n_cameras, 2) configurations drawn exactly from
+      the prior.
+    """
+
+    name: str = "prior"
+
+    def log_density(self, points) -> np.ndarray:  # pragma: no cover - interface
+        raise NotImplementedError
+
+    def sample(self, rng, n_cameras: int, size: int) -> np.ndarray:  # pragma: no cover
+        raise NotImplementedError
+
+    def __repr__(self):
+        return f"{type(self).__name__}(name={self.name!r})"
+
+
+class WorldBoxPrior(Prior):
+    """Exact AB-frame prior of the simulator's world: A, B and the k = n + 1 points C, X_1..X_n
+    i.i.d. uniform in a ``width`` x ``height`` box, conditioned on every pair being at least
+    ``d_min`` apart.
+
+    Writing world points as complex numbers ``P = t + z q`` (``q_A = 0``, ``q_B = i``, ``z = s
+    e^{i rho}``), ``dA dB dP_1..dP_k = s^(2k+1) dt ds drho dq_1..dq_k``, so
+
+        prior(q_1..q_k) = c_k ∫_0^π dρ ∫_{s0}^{s1} s^(2k+1) (W - s xr(ρ)) (H - s yr(ρ)) ds,
+
+    with xr, yr the x and y extents of {0, i, q_1..q_k} rotated by ρ, ``s1 = min(W/xr, H/yr)``
+    (the scaled, rotated configuration must fit in the box; the t-volume where it fits is the
+    product term) and ``s0 = d_min / delta`` (delta the least pairwise distance among A, B and the
+    q_j). The inner integral is done in closed form, the outer by the trapezoid rule on ``n_rho``
+    equally spaced angles (periodic, so the rule converges fast; ``n_rho`` must be even since
+    ``yr(ρ) = xr(ρ - π/2)``). With ``c_k = 2 / (W H)^(k+2)`` (ρ over [0, 2π) covers [0, π) twice)
+    the density is normalized up to the factor P(all pairs >= d_min) = 1 - O(k^2 d_min^2 / (W H)).
+
+    Exactness: the density is exact (up to the quadrature) for the joint-rejection model above,
+    which :meth:`sample` draws from. ``qfg.simulation.sample_positions`` redraws only the
+    offending points instead of the whole configuration; the two models differ by
+    O(k^2 π d_min^2 / (W H)) in total variation (about 1e-5 at the defaults). A triplet from a
+    scenario (``triplet_histories``) also has its views among other objects that keep d_min from
+    them, a coupling of the same negligible order. Evaluating the prior on a subset of the points
+    is, likewise, its marginal up to O(d_min^2).
+
+    >>> p = WorldBoxPrior()
+    >>> q = np.array([[[0.4, 0.5]], [[-0.4, 0.5]]])        # C and its mirror image
+    >>> a, b = p.log_density(q)
+    >>> bool(np.isclose(a, b))
+    True
+    """
+
+    name = "world"
+
+    def __init__(self, width: float = _SIM_WIDTH, height: float = _SIM_HEIGHT,
+                 d_min: float = _SIM_DMIN, n_rho: int = 128):
+        self.width = non_negative("width", width)
+        self.height = non_negative("height", height)
+        if self.width == 0 or self.height == 0:
+            raise ValueError(f"width, height: expected positive box sides, got {width}, {height}")
+        self.d_min = non_negative("d_min", d_min)
+        n_rho = positive_int("n_rho", n_rho, minimum=4)
+        if n_rho % 2:
+            raise ValueError(f"n_rho: expected an even number (yr(ρ) = xr(ρ - π/2)), got {n_rho}")
+        self.n_rho = n_rho
+        rho = np.pi * np.arange(n_rho) / n_rho
+        self._cos, self._sin = np.cos(rho), np.sin(rho)
+
+    def __repr__(self):
+        return (f"WorldBoxPrior(width={self.width:g}, height={self.height:g}, "
+                f"d_min={self.d_min:g}, n_rho={self.n_rho})")
+
+    def log_density(self, points) -> np.ndarray:
+        """Log prior of AB-frame configurations (..., k, 2) -> (...,), up to a constant of k.
+
+        -inf only where the density is 0: two points closer than d_min at every admissible scale
+        (coinciding points with d_min > 0), or a configuration too spread out to fit in the box
+        at a scale that keeps d_min.
+        """
+        p = _points(points)
+        lead, k = p.shape[:-2], p.shape[-2]
+        flat = p.reshape(-1, k, 2)
+        out = np.empty(flat.shape[0])
+        step = max(1, _CHUNK_ELEMENTS // (self.n_rho * (k + 2)))
+        for i in range(0, flat.shape[0], step):
+            out[i:i + step] = self._log_density_flat(flat[i:i + step])
+        return out.reshape(lead)
+
+    def _log_density_flat(self, q):
+        N, k = q.shape[:2]
+        W, H, M = self.width, self.height, self.n_rho
+        # the whole configuration {A, B, q_1..q_k} with A = 0, B = i
+        allp = np.concatenate([np.zeros((N, 1, 2)), np.tile([[[0.0, 1.0]]], (N, 1, 1)), q], axis=1)
+        # work on the configuration scaled by c >= 1 so that huge inputs cannot overflow; only
+        # s1 scales (s1 = s1' / c), the ratios alpha, beta, u0 below are scale-free
+        c = np.maximum(1.0, np.max(np.abs(q), axis=(1, 2)))
+        allp = allp / c[:, None, None]
+        # x coordinate after rotation by rho: x cos - y sin; extents over the points
+        proj = allp[:, None, :, 0] * self._cos[None, :, None] - \
+            allp[:, None, :, 1] * self._sin[None, :, None]           # (N, M, k + 2)
+        xr = proj.max(axis=-1) - proj.min(axis=-1)                    # (N, M)
+        yr = np.roll(xr, -M // 2, axis=1)                             # xr(rho + pi/2) = yr(rho)
+        with np.errstate(divide="ignore"):
+            s1 = np.minimum(np.where(xr > 0, W / np.where(xr > 0, xr, 1.0), np.inf),
+                            np.where(yr > 0, H / np.where(yr > 0, yr, 1.0), np.inf))
+        # least pairwise distance among A, B and the q_j (A-B is 1), in the scaled configuration
+        d = allp[:, :, None, :] - allp[:, None, :, :]
+        d2 = np.sum(d * d, axis=-1)
+        iu = np.triu_indices(k + 2, k=1)
+        delta = np.sqrt(np.min(d2[:, iu[0], iu[1]], axis=-1))        # (N,)
+        with np.errstate(divide="ignore"):
+            s0 = np.where(delta > 0, self.d_min / np.where(delta > 0, delta, 1.0),
+                          0.0 if self.d_min == 0 else np.inf)
+        # ∫_{s0}^{s1} s^a (W - s xr)(H - s yr) ds = s1^(a+1) W H ∫_{u0}^1 u^a (1 - αu)(1 - βu) du
+        # with u = s / s1, α = s1 xr / W <= 1, β = s1 yr / H <= 1, u0 = s0 / s1
+        a = 2 * k + 1
+        al, be = s1 * xr / W, s1 * yr / H
+        u0 = np.minimum(s0[:, None] / s1, 1.0)
+
+        def G(u):
+            return (u ** (a + 1) / (a + 1) - (al + be) * u ** (a + 2) / (a + 2)
+                    + al * be * u ** (a + 3) / (a + 3))
+
+        inner = np.maximum(G(1.0) - G(u0), 0.0)
+        with np.errstate(divide="ignore"):
+            terms = (a + 1) * (np.log(s1) - np.log(c)[:, None]) + np.log(inner)  # -inf: inner 0
+        mx = terms.max(axis=1)
+        ok = np.isfinite(mx)
+        ssum = np.exp(terms - np.where(ok, mx, 0.0)[:, None]).sum(axis=1)
+        # trapezoid weight pi / M; the joint density of the k + 2 world points is (W H)^-(k+2)
+        # and rho in [0, 2 pi) covers [0, pi) twice: normalized up to P(all pairs >= d_min)
+        const = np.log(2.0 * np.pi / M) + np.log(W * H) - (k + 2) * np.log(W * H)
+        with np.errstate(divide="ignore"):
+            return np.where(ok, mx + np.log(np.where(ok, ssum, 1.0)) + const, -np.inf)
+
+    def sample_world(self, rng, n_points: int, size: int) -> np.ndarray:
+        """(size, n_points, 2) world points i.i.d. uniform in [0, W] x [0, H], every pair of a
+        configuration at least d_min apart (whole configurations rejected and redrawn)."""
+        rng = as_rng(rng)
+        n_points = positive_int("n_points", n_points)
+        size = positive_int("size", size, minimum=0)
+        out = rng.uniform((0.0, 0.0), (self.width, self.height), size=(size, n_points, 2))
+        if self.d_min == 0 or n_points < 2:
+            return out
+        iu = np.triu_indices(n_points, k=1)
+        d2min = self.d_min ** 2
+        todo = np.arange(size)
+        for _ in range(10_000):
+            d = out[todo][:, iu[0]] - out[todo][:, iu[1]]
+            bad = np.any(np.sum(d * d, axis=-1) < d2min, axis=-1)
+            todo = todo[bad]
+            if todo.size == 0:
+                return out
+            out[todo] = rng.uniform((0.0, 0.0), (self.width, self.height),
+                                    size=(todo.size, n_points, 2))
+        raise ValueError(f"d_min: could not place {n_points} points {self.d_min} apart in a "
+                         f"{self.width} x {self.height} box")
+
+    def sample(self, rng, n_cameras: int, size: int) -> np.ndarray:
+        """Exact draws: simulate worlds [A, B, C, X_1..X_n] and map them to the AB frame."""
+        from .geometry import to_frame
+
+        n_cameras, size = _sample_args(n_cameras, size)
+        w = self.sample_world(rng, n_cameras + 3, size)
+        return to_frame(w[:, 2:], w[:, :1], w[:, 1:2])
+
+
+class WindowPrior(Prior):
+    """Independent points uniform in an AB-frame window ``(xmin, xmax, ymin, ymax)``.
+
+    ``log_density = -k log(area)`` inside (every point in the window), -inf outside.
+
+    >>> p = WindowPrior((-1.0, 1.0, 0.0, 2.0))
+    >>> p.log_density([[[0.0, 0.5]], [[3.0, 0.5]]]).tolist() == [-np.log(4.0), -np.inf]
+    True
+    """
+
+    name = "uniform"
+
+    def __init__(self, window=DEFAULT_WINDOW):
+        w = tuple(float(v) for v in as_float_array("window", window).ravel())
+        if len(w) != 4 or not (w[0] < w[1] and w[2] < w[3]):
+            raise ValueError(f"window: expected (xmin, xmax, ymin, ymax) with xmin < xmax and "
+                             f"ymin < ymax, got {window!r}")
+        self.window = w
+        self.area = (w[1] - w[0]) * (w[3] - w[2])
+
+    def __repr__(self):
+        return f"WindowPrior(window={self.window})"
+
+    def log_density(self, points) -> np.ndarray:
+        p = _points(points)
+        xmin, xmax, ymin, ymax = self.window
+        inside = np.all((p[..., 0] >= xmin) & (p[..., 0] <= xmax) & (p[..., 1] >= ymin)
+                        & (p[..., 1] <= ymax), axis=-1)
+        return np.where(inside, -p.shape[-2] * np.log(self.area), -np.inf)
+
+    def sample(self, rng, n_cameras: int, size: int) -> np.ndarray:
+        n_cameras, size = _sample_args(n_cameras, size)
+        xmin, xmax, ymin, ymax = self.window
+        return as_rng(rng).uniform((xmin, ymin), (xmax, ymax), size=(size, n_cameras + 1, 2))
+
+
+class ProductPrior(Prior):
+    """APPROXIMATE world prior: independent points, each with the heavy-tailed density
+
+        p(P) = (s^2 / π) (s^2 + |P - (0, 1/2)|^2)^-2,  i.e.  P(|P - (0, 1/2)| <= R) = R^2 / (s^2 + R^2),
+
+    fitted (s = 0.85) to the AB-frame marginal of one uniformly placed object. The exact joint
+    (:class:`WorldBoxPrior`) couples the points through AB's unknown scale and rotation; this
+    product ignores that and is kept only to reproduce earlier results.
+
+    >>> p = ProductPrior()
+    >>> bool(np.isclose(p.log_density([[[0.0, 0.5]]])[()], np.log(1 / (np.pi * 0.85**2))))
+    True
+    """
+
+    name = "world-product"
+    CENTRE = np.array([0.0, 0.5])
+
+    def __init__(self, scale: float = 0.85):
+        self.scale = non_negative("scale", scale)
+        if self.scale == 0:
+            raise ValueError("scale: expected a number > 0, got 0")
+
+    def __repr__(self):
+        return f"ProductPrior(scale={self.scale:g})"
+
+    def log_density(self, points) -> np.ndarray:
+        p = _points(points)
+        d = p - self.CENTRE
+        s2 = self.scale ** 2
+        return np.sum(np.log(s2 / np.pi) - 2.0 * np.log(s2 + np.sum(d * d, axis=-1)), axis=-1)
+
+    def sample(self, rng, n_cameras: int, size: int) -> np.ndarray:
+        n_cameras, size = _sample_args(n_cameras, size)
+        rng = as_rng(rng)
+        u = rng.random((size, n_cameras + 1))
+        r = self.scale * np.sqrt(u / (1.0 - u))          # inverse of R^2 / (s^2 + R^2)
+        th = rng.uniform(-np.pi, np.pi, size=u.shape)
+        return self.CENTRE + np.stack([r * np.cos(th), r * np.sin(th)], axis=-1)
+
+
+class CallablePrior(Prior):
+    """A user's prior: ``log_density_fn(points (..., k, 2)) -> (...,)`` and optionally
+    ``sample_fn(rng, n_cameras, size) -> (size, 1 + n_cameras, 2)``.
+
+    The log density may be unnormalized by a constant that depends only on k. Solvers need only
+    ``log_density``; ``sample`` (calibration checks, baselines drawing from the prior) raises a
+    ValueError naming ``sample_fn`` when none was given.
+
+    >>> gauss = CallablePrior(lambda x: -0.5 * np.sum(x**2, axis=(-2, -1)), name="gauss")
+    >>> float(gauss.log_density([[0.0, 1.0], [1.0, 1.0]]))
+    -1.5
+    """
+
+    def __init__(self, log_density_fn, sample_fn=None, name: str = "custom"):
+        if not callable(log_density_fn):
+            raise ValueError(f"log_density_fn: expected a callable, got {log_density_fn!r}")
+        if sample_fn is not None and not callable(sample_fn):
+            raise ValueError(f"sample_fn: expected a callable or None, got {sample_fn!r}")
+        self._ld, self._sample, self.name = log_density_fn, sample_fn, str(name)
+
+    def log_density(self, points) -> np.ndarray:
+        p = _points(points)
+        out = np.asarray(self._ld(p), dtype=float)
+        if out.shape != p.shape[:-2]:
+            raise ValueError(f"log_density_fn: returned shape {out.shape}, expected {p.shape[:-2]}")
+        if np.any(np.isnan(out)) or np.any(out == np.inf):
+            raise ValueError("log_density_fn: returned NaN or +inf")
+        return out
+
+    def sample(self, rng, n_cameras: int, size: int) -> np.ndarray:
+        n_cameras, size = _sample_args(n_cameras, size)
+        if self._sample is None:
+            raise ValueError(f"sample_fn: prior {self.name!r} was built without a sampler")
+        out = as_float_array("sample_fn", self._sample(as_rng(rng), n_cameras, size))
+        if out.shape != (size, n_cameras + 1, 2):
+            raise ValueError(f"sample_fn: returned shape {out.shape}, expected "
+                             f"{(size, n_cameras + 1, 2)}")
+        return out
+
+
+def get(prior) -> Prior:
+    """A :class:`Prior` from a Prior (returned as is) or a name: ``"world"`` (the exact
+    :class:`WorldBoxPrior` of the simulator's box), ``"world-product"`` (:class:`ProductPrior`,
+    approximate), ``"uniform"`` (:class:`WindowPrior` on :data:`DEFAULT_WINDOW`).
+
+    ``"arc"`` (the solvers' former "uniform in the angle along each locus arc") is not a density
+    over configurations (it depends on the measurements), so it is not a prior here.
+
+    >>> get("uniform").window
+    (-6.0, 6.0, -5.5, 6.5)
+    """
+    if isinstance(prior, Prior):
+        return prior
+    if prior == "world":
+        return WorldBoxPrior()
+    if prior == "world-product":
+        return ProductPrior()
+    if prior == "uniform":
+        return WindowPrior()
+    raise ValueError(f"prior: expected a qfg.priors.Prior or one of {NAMES}, got {prior!r}")

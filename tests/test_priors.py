@@ -1,0 +1,195 @@
+"""Priors against simulated worlds (histograms), closed forms and symmetries."""
+
+import numpy as np
+import pytest
+from scipy import stats
+from scipy.stats import qmc
+
+from qfg import priors
+from qfg.simulation import SimulationConfig, random_triplet_history
+
+MID = np.array([0.0, 0.5])
+
+
+def test_defaults_match_the_simulator():
+    cfg = SimulationConfig()
+    p = priors.get("world")
+    assert isinstance(p, priors.WorldBoxPrior)
+    assert p.width == cfg.xlim[1] - cfg.xlim[0] and p.height == cfg.ylim[1] - cfg.ylim[0]
+    assert p.d_min == cfg.min_distance
+
+
+def test_k1_marginal_matches_histogram_of_simulated_worlds():
+    # 8 x 8 cells on [-2, 2] x [-1.5, 2.5]; expected cell masses by a 16 x 16 midpoint rule of the
+    # density (its error is far below the counting noise: 1e-4 relative, measured with 64 x 64)
+    p = priors.get("world")
+    x = p.sample(np.random.default_rng(11), n_cameras=0, size=200_000)[:, 0]
+    edges_x, edges_y = np.linspace(-2, 2, 9), np.linspace(-1.5, 2.5, 9)
+    obs, _, _ = np.histogram2d(x[:, 0], x[:, 1], bins=(edges_x, edges_y))
+    f = 16
+    gx = edges_x[0] + (np.arange(8 * f) + 0.5) * (4 / (8 * f))
+    gy = edges_y[0] + (np.arange(8 * f) + 0.5) * (4 / (8 * f))
+    G = np.stack(np.meshgrid(gx, gy, indexing="ij"), axis=-1)[:, :, None, :]
+    dens = np.exp(p.log_density(G)) * (4 / (8 * f)) ** 2
+    E = dens.reshape(8, f, 8, f).sum(axis=(1, 3))
+    n = obs.sum()
+    # the density is normalized: the cells' mass equals the fraction of draws that fall in them
+    assert E.sum() == pytest.approx(n / x.shape[0], rel=0.01)
+    Eexp = E / E.sum() * n
+    chi2 = float(np.sum((obs - Eexp) ** 2 / Eexp))
+    assert chi2 < stats.chi2.ppf(1 - 1e-3, 63), chi2
+    # the approximate product prior (a fit of this marginal) is rejected on the same data
+    Pd = np.exp(priors.ProductPrior().log_density(G)).reshape(8, f, 8, f).sum(axis=(1, 3))
+    Pexp = Pd / Pd.sum() * n
+    assert float(np.sum((obs - Pexp) ** 2 / Pexp)) > stats.chi2.ppf(1 - 1e-9, 63)
+
+
+def _cells(x, R=2.0):
+    r = np.linalg.norm(x - MID, axis=-1)
+    inside = np.all(r < R, axis=-1)
+    rb = np.minimum((r / R * 3).astype(int), 2)
+    same = (np.sign(x[..., 0, 0]) == np.sign(x[..., 1, 0])).astype(int)
+    return inside, rb[..., 0] * 6 + rb[..., 1] * 2 + same
+
+
+def _expected_cells(prior, seeds, m=2**13, R=2.0):
+    """Cell masses of the joint (C, X) in the disk pair, by scrambled Sobol quadrature; one
+    estimate per seed so that their spread gives the quadrature's standard error."""
+    est = []
+    for s in seeds:
+        u = qmc.Sobol(4, seed=s).random(m)
+        r, th = R * np.sqrt(u[:, :2]), 2 * np.pi * u[:, 2:]
+        X = MID + np.stack([r * np.cos(th), r * np.sin(th)], axis=-1)
+        w = np.exp(prior.log_density(X))
+        _, c = _cells(X, R)
+        e = np.bincount(c, weights=w, minlength=18)
+        est.append(e / e.sum())
+    est = np.array(est)
+    return est.mean(axis=0), est.std(axis=0, ddof=1) / np.sqrt(len(seeds))
+
+
+def test_k2_joint_matches_histogram_of_simulated_worlds():
+    # C and one camera: cells = radial bin of each (3 x 3) x same side of AB or not. The coupling
+    # through AB's scale is what the product prior misses.
+    p = priors.get("world")
+    S = p.sample(np.random.default_rng(12), n_cameras=1, size=200_000)
+    inside, c = _cells(S)
+    obs = np.bincount(c[inside], minlength=18)
+    n = obs.sum()
+    E, se = _expected_cells(p, seeds=range(6))
+    z = (obs / n - E) / np.sqrt(E * (1 - E) / n + se**2)
+    assert np.max(np.abs(z)) < 4.0, z          # 18 cells: P(max |z| > 4) ~ 1e-3
+    Ep, sep = _expected_cells(priors.ProductPrior(), seeds=range(6))
+    zp = (obs / n - Ep) / np.sqrt(Ep * (1 - Ep) / n + sep**2)
+    assert np.max(np.abs(zp)) > 20
+
+
+@pytest.mark.parametrize("k", [1, 2])
+def test_normalized(k):
+    # E_q[p / q] = 1 for the proposal q = the product prior (same |x|^-4 tails, bounded ratio)
+    q = priors.ProductPrior()
+    x = q.sample(np.random.default_rng(k), n_cameras=k - 1, size=40_000)
+    w = np.exp(priors.get("world").log_density(x) - q.log_density(x))
+    se = w.std() / np.sqrt(w.size)
+    assert abs(w.mean() - 1) < 4 * se + 1e-3, (w.mean(), se)
+
+
+def test_triplet_histories_come_from_the_prior():
+    # the simulator's own triplets vs the prior's sampler, compared on the log density statistic
+    p = priors.get("world")
+    rng = np.random.default_rng(13)
+    hist = [random_triplet_history(rng, n_views=2) for _ in range(1500)]
+    conf = np.array([np.vstack([h.truth.C_ab, h.truth.poses_ab[:, :2]]) for h in hist])
+    ref = p.sample(np.random.default_rng(14), n_cameras=2, size=4000)
+    for stat in (lambda a: p.log_density(a), lambda a: np.linalg.norm(a[:, 0] - a[:, 1], axis=-1)):
+        assert stats.ks_2samp(stat(conf), stat(ref)).pvalue > 1e-3
+
+
+def test_symmetries_and_exchangeability():
+    p = priors.get("world")
+    x = p.sample(np.random.default_rng(3), n_cameras=3, size=200)
+    ref = p.log_density(x)
+    mirror = x * [-1, 1]                          # reflection in line AB
+    swap = np.array([0.0, 1.0]) - x * [1, 1]      # A <-> B: point reflection about (0, 1/2)
+    swap_mirror = x * [1, -1] + [0.0, 1.0]        # reflection in the perpendicular bisector
+    perm = x[:, ::-1]
+    for y in (mirror, swap, swap_mirror, perm):
+        np.testing.assert_allclose(p.log_density(y), ref, rtol=0, atol=1e-9)
+
+
+def test_quadrature_and_chunking():
+    x = priors.get("world").sample(np.random.default_rng(4), n_cameras=2, size=300)
+    a = priors.WorldBoxPrior(n_rho=128).log_density(x)
+    b = priors.WorldBoxPrior(n_rho=2048).log_density(x)
+    assert np.max(np.abs(a - b)) < 3e-3
+    old = priors._CHUNK_ELEMENTS
+    try:
+        priors._CHUNK_ELEMENTS = 1000
+        np.testing.assert_array_equal(priors.WorldBoxPrior(n_rho=128).log_density(x), a)
+    finally:
+        priors._CHUNK_ELEMENTS = old
+    assert priors.WorldBoxPrior().log_density(x.reshape(3, 100, 3, 2)).shape == (3, 100)
+
+
+def test_zero_density_only_where_truly_zero():
+    p = priors.get("world")
+    with np.errstate(over="raise", invalid="raise"):
+        v = p.log_density(np.array([[[1e6, 1e6]], [[0.0, 0.0]], [[0.0, 1.0 + 1e-4]],
+                                    [[0.0, 300.0]], [[0.0, 0.5]], [[0.0, -3.0]]]))
+    # too spread to fit in the box at a scale that keeps d_min / closer than d_min to A or B at
+    # any admissible scale / collinear with AB but fine
+    assert np.isneginf(v[:3]).all() and np.isfinite(v[3:]).all()
+    free = priors.WorldBoxPrior(d_min=0.0)
+    with np.errstate(over="raise", invalid="raise"):
+        w = free.log_density(np.array([[[1e8, -1e8], [0.0, 0.0]], [[0.3, 0.3], [0.3, 0.3]]]))
+    assert np.isfinite(w).all()
+    assert not np.isnan(p.log_density(np.full((2, 2), 1e300))).any()
+
+
+def test_window_and_product_priors():
+    rng = np.random.default_rng(5)
+    wp = priors.WindowPrior((-1.0, 2.0, 0.0, 1.0))
+    s = wp.sample(rng, 2, 1000)
+    assert s.shape == (1000, 3, 2) and np.all(np.isfinite(wp.log_density(s)))
+    assert wp.log_density(s)[0] == pytest.approx(-3 * np.log(3.0))
+    pp = priors.ProductPrior(scale=0.85)
+    r = np.linalg.norm(pp.sample(rng, 0, 20_000)[:, 0] - MID, axis=-1)
+    assert stats.kstest(r, lambda t: t**2 / (0.85**2 + t**2)).pvalue > 1e-3
+    # the density integrates to 1 (polar: 2 pi r p(r) dr)
+    t = np.linspace(0, 2000, 400_001)
+    d = np.exp(pp.log_density(np.stack([np.zeros_like(t), 0.5 + t], -1)[:, None, :]))
+    assert np.trapezoid(2 * np.pi * t * d, t) == pytest.approx(1.0, abs=1e-3)
+
+
+def test_get_and_custom_prior():
+    assert priors.get("world-product").name == "world-product"
+    assert priors.get("uniform").window == priors.DEFAULT_WINDOW
+    p = priors.WorldBoxPrior(width=10, height=10)
+    assert priors.get(p) is p
+    for bad in ("arc", "nope", 3):
+        with pytest.raises(ValueError, match="prior"):
+            priors.get(bad)
+    c = priors.CallablePrior(lambda x: -np.sum(x**2, axis=(-2, -1)))
+    assert c.log_density(np.zeros((4, 2, 2))).shape == (4,)
+    with pytest.raises(ValueError, match="sample_fn"):
+        c.sample(np.random.default_rng(0), 1, 3)
+    bad_shape = priors.CallablePrior(lambda x: np.zeros(3))
+    with pytest.raises(ValueError, match="log_density_fn"):
+        bad_shape.log_density(np.zeros((4, 2, 2)))
+    ok = priors.CallablePrior(lambda x: np.zeros(x.shape[:-2]),
+                              lambda rng, n, size: rng.random((size, n + 1, 2)))
+    assert ok.sample(np.random.default_rng(0), 2, 5).shape == (5, 3, 2)
+
+
+def test_bad_input():
+    p = priors.get("world")
+    with pytest.raises(ValueError, match="points"):
+        p.log_density(np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="points"):
+        p.log_density([[np.nan, 0.0]])
+    with pytest.raises(ValueError, match="n_rho"):
+        priors.WorldBoxPrior(n_rho=127)
+    with pytest.raises(ValueError, match="window"):
+        priors.WindowPrior((1.0, 0.0, 0.0, 1.0))
+    with pytest.raises(ValueError, match="n_cameras"):
+        p.sample(np.random.default_rng(0), -1, 3)
