@@ -8,9 +8,10 @@ the composition tensor). Factors:
   the map, the tensor ``T[a, b, c]`` over the states of those three triplets, in that order
   (t1 = AB:C, t2 = BC:D, t3 = AB:D with A, B, C, D = i, j, k, s).
 
-The joint is the normalized product of all factors; :func:`qfg.propagation.exact_marginals` computes
-its marginals (GTSAM elimination or einsum contraction), :func:`qfg.propagation.propagate` the
-paper's label-correcting Algorithm 2, :func:`qfg.propagation.loopy_bp` sum-product.
+The joint is the normalized product of all factors. Inference is a layer above this module (the
+graph imports none of it): :func:`qfg.inference.exact_marginals` (one junction-tree calibration),
+:func:`qfg.inference.map_assignment`, :func:`qfg.propagation.propagate` (the paper's
+label-correcting Algorithm 2), :func:`qfg.propagation.loopy_bp` (sum-product).
 
 Key scheme. Triplet ``(i, j, k)`` is the GTSAM DiscreteKey ``(triplet_key(i, j, k), m)`` with
 ``triplet_key(i, j, k) = (i << 40) | (j << 20) | k`` (:data:`KEY_BITS` = 20 bits per landmark id,
@@ -23,7 +24,7 @@ in lexicographic ``(i, j, k, s)`` order, so the same calls give the same graph.
 >>> import numpy as np
 >>> rng = np.random.default_rng(0)
 >>> T = rng.random((3, 3, 3))
->>> g = full_map(4, tensor=T)
+>>> g = full_map(4, partition=None, tensor=T)        # None: an unlabelled 3-state tensor
 >>> g.n_triplets, g.n_factors
 (24, 24)
 >>> g.to_gtsam().size()
@@ -47,12 +48,16 @@ _MAX_ID = 1 << KEY_BITS
 
 
 def triplet_key(i: int, j: int, k: int) -> int:
-    """GTSAM key of triplet ``(i, j, k)``: ``(i << 40) | (j << 20) | k`` (ids in [0, 2**20)).
+    """GTSAM key of triplet ``(i, j, k)``: ``(i << 40) | (j << 20) | k``.
+
+    The ids must be distinct integers in ``[0, 2**20)`` (ValueError naming ``triplet``
+    otherwise): outside that range two triplets would share a key.
 
     >>> triplet_key(0, 1, 2) == (1 << 20) + 2
     True
     """
-    return (int(i) << (2 * KEY_BITS)) | (int(j) << KEY_BITS) | int(k)
+    i, j, k = _as_triplet((i, j, k))
+    return (i << (2 * KEY_BITS)) | (j << KEY_BITS) | k
 
 
 def _as_triplet(triplet) -> tuple[int, int, int]:
@@ -91,20 +96,65 @@ def _as_prior(prior, m: int) -> np.ndarray | None:
         raise ValueError("prior: non-finite values (NaN or inf)")
     if np.any(p < 0):
         raise ValueError("prior: expected non-negative values")
-    total = p.sum()
-    if not total > 0:
+    top = p.max() if p.size else 0.0
+    if not top > 0:
         raise ValueError("prior: all zero, cannot be normalized")
-    return p / total
+    # divide by the largest entry first: the sum of entries near 1e308 would overflow to inf
+    p = p / top
+    return p / p.sum()
+
+
+def _check_partition(partition, tensor) -> str | None:
+    """The lower-cased partition name (one :func:`qfg.partitions.available` knows), or None for
+    an unlabelled model (then ``tensor`` is required)."""
+    if partition is None:
+        if tensor is None:
+            raise ValueError("partition: None (an unlabelled model) needs a tensor")
+        return None
+    from .partitions import available
+
+    if not isinstance(partition, str) or partition.lower() not in available():
+        raise ValueError(f"partition: unknown name {partition!r}; known: "
+                         f"{', '.join(available())} (or None for an unlabelled tensor)")
+    return partition.lower()
+
+
+def _check_tensor(tensor, partition) -> np.ndarray:
+    """(m, m, m) table of ``tensor``; with a partition name, m must be its number of states and
+    a CompositionTensor must be that partition's."""
+    name = getattr(tensor, "partition", None)
+    if partition is not None and isinstance(name, str) and name.lower() != partition:
+        raise ValueError(f"tensor: a {name!r} composition tensor, but the graph's partition is "
+                         f"{partition!r}")
+    try:
+        T = as_table(tensor)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"tensor: expected an (m, m, m) table or a CompositionTensor ({exc})"
+                         ) from None
+    if T.ndim != 3 or len(set(T.shape)) != 1 or T.shape[0] < 1:
+        raise ValueError(f"tensor: expected shape (m, m, m), got {T.shape}")
+    if not np.all(np.isfinite(T)) or np.any(T < 0) or not T.max() > 0:
+        raise ValueError("tensor: expected finite non-negative entries, not all zero")
+    if partition is not None:
+        from .partitions import get
+
+        m = len(get(partition).labels)
+        if T.shape[0] != m:
+            raise ValueError(f"tensor: shape {T.shape}, but partition {partition!r} has {m} "
+                             f"states (pass partition=None for an unlabelled tensor)")
+    return T
 
 
 class QualitativeFactorGraph:
     """A qualitative map as a discrete factor graph.
 
     Args:
-        partition: partition name (``"edc"``, ``"fdc"``, ``"lr"``, ``"tpcc"``); labels the states
-            and names the shipped tensor.
-        tensor: (m, m, m) composition tensor or a :class:`~qfg.composition.CompositionTensor`;
-            None loads ``qfg.composition.tensor(partition)`` on first use.
+        partition: partition name (``"edc"``, ``"fdc"``, ``"lr"``, ``"tpcc"`` or a registered
+            one; ValueError naming it otherwise); labels the states and names the shipped
+            tensor. None: an unlabelled model over any ``tensor`` (tests, custom models).
+        tensor: (m, m, m) composition tensor or a :class:`~qfg.composition.CompositionTensor`,
+            m = the partition's number of states; None loads
+            ``qfg.composition.tensor(partition)`` on first use.
 
     Attributes (read-only views):
         triplets: list of ``(i, j, k)`` in insertion order (variable index v).
@@ -113,7 +163,7 @@ class QualitativeFactorGraph:
             of variable indices (t1, t2, t3) = ((i,j,k), (j,k,s), (i,j,s)).
 
     >>> import numpy as np
-    >>> g = QualitativeFactorGraph("lr", tensor=np.ones((2, 2, 2)) / 8)
+    >>> g = QualitativeFactorGraph("lr", tensor=np.ones((2, 2, 2)) / 8)     # LR: 2 states
     >>> for t in [(0, 1, 2), (1, 2, 3), (0, 1, 3)]:
     ...     _ = g.add_triplet(t, prior=[0.9, 0.1] if t != (0, 1, 3) else None)
     >>> g.discover_compositions()
@@ -122,11 +172,9 @@ class QualitativeFactorGraph:
     ([(0, 1, 2, 3)], [True, True, False])
     """
 
-    def __init__(self, partition: str = "edc", tensor=None):
-        if not isinstance(partition, str) or not partition:
-            raise ValueError(f"partition: expected a partition name, got {partition!r}")
-        self.partition = partition.lower()
-        self._table = None if tensor is None else as_table(tensor)
+    def __init__(self, partition: str | None = "edc", tensor=None):
+        self.partition = _check_partition(partition, tensor)
+        self._table = None if tensor is None else _check_tensor(tensor, self.partition)
         self._triplets: list[tuple[int, int, int]] = []
         self._index: dict[tuple[int, int, int], int] = {}
         self._priors: list[np.ndarray | None] = []
@@ -142,7 +190,7 @@ class QualitativeFactorGraph:
         """The (m, m, m) composition tensor (loaded lazily from the partition name)."""
         if self._table is None:
             from .composition import tensor as load_tensor
-            self._table = as_table(load_tensor(self.partition))
+            self._table = _check_tensor(load_tensor(self.partition), self.partition)
         return self._table
 
     @property
@@ -326,38 +374,12 @@ class QualitativeFactorGraph:
                 G.add_edge(("c",) + key, ("v",) + self._triplets[v], role=role)
         return G
 
-    # ------------------------------------------------------------ inference
-    def exact_marginals(self, engine: str = "contract", **kwargs) -> np.ndarray:
-        """(n, m) exact marginals; see :func:`qfg.propagation.exact_marginals`."""
-        from .propagation import exact_marginals
-        return exact_marginals(self, engine=engine, **kwargs)
-
-    def propagate(self, **kwargs):
-        """Algorithm 2; see :func:`qfg.propagation.propagate`."""
-        from .propagation import propagate
-        return propagate(self, **kwargs)
-
-    def topology_scores(self, alpha: float = 0.5, seen_score=None, **kwargs):
-        """Algorithm 3; see :func:`qfg.propagation.topology_scores`."""
-        from .propagation import topology_scores
-        return topology_scores(self, alpha=alpha, seen_score=seen_score, **kwargs)
-
-    def composition_levels(self, **kwargs):
-        """Composition levels; see :func:`qfg.propagation.composition_levels`."""
-        from .propagation import composition_levels
-        return composition_levels(self, **kwargs)
-
-    def loopy_bp(self, **kwargs):
-        """Sum-product; see :func:`qfg.propagation.loopy_bp`."""
-        from .propagation import loopy_bp
-        return loopy_bp(self, **kwargs)
-
     def __repr__(self) -> str:
         return (f"QualitativeFactorGraph(partition={self.partition!r}, triplets={self.n_triplets}, "
                 f"seen={int(self.seen.sum())}, factors={self.n_factors})")
 
 
-def full_map(n_landmarks: int, partition: str = "edc", tensor=None, priors: Mapping | None = None
+def full_map(n_landmarks: int, partition: str | None = "edc", tensor=None, priors: Mapping | None = None
              ) -> QualitativeFactorGraph:
     """Every ordered triplet of landmarks ``0..n_landmarks-1`` and every composition factor.
 

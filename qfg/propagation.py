@@ -1,13 +1,17 @@
 """Inference on a :class:`~qfg.graph.QualitativeFactorGraph` (paper section 5c, 06f).
 
-Plain functions over the graph object (networkx style):
+Plain functions over the graph object (networkx style); the graph module imports none of this:
 
-* :func:`exact_marginals`: marginals of the normalized product of all factors, by GTSAM elimination
-  (``engine="gtsam"``) or einsum contraction with an opt_einsum order (``engine="contract"``).
+* :func:`exact_marginals` (re-exported from :mod:`qfg.inference`): marginals of the normalized
+  product of all factors, one junction-tree calibration (or GTSAM / per-variable contraction).
 * :func:`propagate`: the paper's label-correcting Algorithm 2.
 * :func:`topology_scores`: Algorithm 3 with the information decay model (eqs. decay1, decay2).
 * :func:`composition_levels`: eqs. cl1, cl2 and the normalized cl3.
 * :func:`loopy_bp`: damped synchronous sum-product on the same factors.
+
+:func:`propagate`, :func:`loopy_bp` and :func:`exact_marginals` return one labelled type,
+:class:`qfg.inference.Marginals` (``res[(i, j, k)]``, ``np.asarray(res)``; engine extras such as
+``isc``, ``reached``, ``converged`` in ``res.info`` and as attributes).
 
 Algorithms 2 and 3 and the composition levels share one label-correcting engine: seen triplets are
 sources (updated); a composition factor is *open* while it touches both updated and non-updated
@@ -38,46 +42,20 @@ import numpy as np
 from .composition import marginal as compose_marginal
 from .metrics import information_score
 
+from .inference.exact import elimination_estimate, exact_marginals
+from .inference.junction import MAX_TABLE
+from .inference.results import GraphTooLargeError, Marginals, ZeroMassError
+
 __all__ = [
-    "GraphTooLargeError", "ZeroMassError", "PropagationResult", "ScoreResult", "LevelResult", "BPResult",
-    "exact_marginals", "elimination_estimate", "propagate", "topology_scores",
-    "composition_levels", "loopy_bp", "compare_unseen",
+    "GraphTooLargeError", "ZeroMassError", "Marginals", "PropagationResult", "ScoreResult",
+    "LevelResult", "BPResult", "exact_marginals", "elimination_estimate", "propagate",
+    "topology_scores", "composition_levels", "loopy_bp", "compare_unseen",
 ]
 
-#: Default limit on the largest table (entries) an exact engine may build.
-MAX_TABLE = 2 ** 26
-
-
-class GraphTooLargeError(ValueError):
-    """Raised when exact inference would build a table above the limit."""
-
-
-class ZeroMassError(ValueError):
-    """Raised when the product of a graph's factors is zero everywhere (the priors contradict the
-    tensor's support): the exact marginals are undefined."""
-
-
-# ----------------------------------------------------------------------------- results
-@dataclass(frozen=True)
-class PropagationResult:
-    """Result of :func:`propagate` (Algorithm 2).
-
-    Attributes:
-        marginals: (n, m) per triplet: the prior for seen triplets, the kept composition marginal
-            for reached ones, uniform for unreachable ones.
-        isc: (n,) information score of each row of ``marginals``.
-        order: (u,) variable indices of the non-seen triplets in the order they were updated.
-        updated_by: (n,) factor index that updated each triplet (-1: seen or unreachable).
-        reached: (n,) bool, True for seen triplets and those updated by propagation.
-        seen: (n,) bool.
-    """
-
-    marginals: np.ndarray
-    isc: np.ndarray
-    order: np.ndarray
-    updated_by: np.ndarray
-    reached: np.ndarray
-    seen: np.ndarray
+#: The result types of :func:`propagate` and :func:`loopy_bp` (formerly their own dataclasses)
+#: are :class:`~qfg.inference.Marginals`; the old names stay importable.
+PropagationResult = Marginals
+BPResult = Marginals
 
 
 @dataclass(frozen=True)
@@ -105,174 +83,12 @@ class LevelResult:
     reached: np.ndarray
 
 
-@dataclass(frozen=True)
-class BPResult:
-    """Result of :func:`loopy_bp`: ``marginals`` (n, m), ``converged`` bool, ``iterations`` run,
-    ``max_change`` last largest absolute change of a factor-to-variable message."""
-
-    marginals: np.ndarray
-    converged: bool
-    iterations: int
-    max_change: float
-
-
 # ----------------------------------------------------------------------------- helpers
-def _components(n: int, fvars: np.ndarray) -> list[np.ndarray]:
-    """Connected components of variables linked by composition factors (arrays of indices)."""
-    parent = np.arange(n)
-
-    def find(a):
-        while parent[a] != a:
-            parent[a] = parent[parent[a]]
-            a = parent[a]
-        return a
-
-    for a, b, c in fvars:
-        ra, rb, rc = find(a), find(b), find(c)
-        parent[rb] = ra
-        parent[find(rc)] = ra
-    roots = np.array([find(a) for a in range(n)])
-    return [np.flatnonzero(roots == r) for r in np.unique(roots)]
-
-
-def elimination_estimate(g) -> tuple[int, int]:
-    """(clique size w, table entries m**w) of the largest table variable elimination would build,
-    with a min-fill elimination order on the triplet interaction graph (an upper-bound heuristic).
-
-    >>> import numpy as np
-    >>> from qfg.graph import full_map
-    >>> elimination_estimate(full_map(3, tensor=np.ones((2, 2, 2))))
-    (1, 2)
-    """
-    import networkx as nx
-    from networkx.algorithms.approximation import treewidth_min_fill_in
-
-    G = nx.Graph()
-    G.add_nodes_from(range(g.n_triplets))
-    for a, b, c in g.factor_vars:
-        G.add_edges_from([(a, b), (b, c), (a, c)])
-    width = 0
-    for comp in nx.connected_components(G):
-        if len(comp) == 1:
-            width = max(width, 1)
-            continue
-        tw, _ = treewidth_min_fill_in(G.subgraph(comp))
-        width = max(width, tw + 1)
-    return width, int(g.m) ** width
-
-
 def _normalize_rows(a: np.ndarray) -> np.ndarray:
     s = a.sum(axis=-1, keepdims=True)
     m = a.shape[-1]
     ok = s > np.finfo(float).tiny
     return np.where(ok, a / np.where(ok, s, 1.0), 1.0 / m)
-
-
-# ----------------------------------------------------------------------------- exact
-def exact_marginals(g, engine: str = "contract", max_table: int = MAX_TABLE) -> np.ndarray:
-    """(n, m) exact marginals ``P(S_v) = sum over the other variables of prod(factors) / Z``.
-
-    The product runs over the unary priors and the composition factors ``T[s_t1, s_t2, s_t3]``.
-    Triplets without any factor are uniform.
-
-    Args:
-        g: a :class:`~qfg.graph.QualitativeFactorGraph`.
-        engine: ``"gtsam"``: ``gtsam.DiscreteMarginals`` (elimination to a Bayes tree), or
-            ``"contract"``: one einsum contraction per variable on its connected component, with
-            the contraction order of ``opt_einsum`` (factors rescaled to max 1 against underflow).
-        max_table: largest table (entries) allowed; above it a :class:`GraphTooLargeError` tells
-            the estimated size (min-fill elimination width for gtsam, opt_einsum's largest
-            intermediate for contract).
-
-    Raises :class:`ZeroMassError` (contract engine) when the product of the factors is zero
-    everywhere on a component.
-
-    >>> import numpy as np
-    >>> from qfg.graph import QualitativeFactorGraph
-    >>> g = QualitativeFactorGraph("lr", tensor=np.eye(2)[:, :, None] * np.eye(2)[None])  # all equal
-    >>> for t, p in [((0, 1, 2), [0.8, 0.2]), ((1, 2, 3), None), ((0, 1, 3), None)]:
-    ...     _ = g.add_triplet(t, p)
-    >>> _ = g.discover_compositions()
-    >>> exact_marginals(g).round(3).tolist()
-    [[0.8, 0.2], [0.8, 0.2], [0.8, 0.2]]
-    """
-    if engine not in ("gtsam", "contract"):
-        raise ValueError(f"engine: expected 'gtsam' or 'contract', got {engine!r}")
-    n, m = g.n_triplets, g.m
-    out = np.full((n, m), 1.0 / m)
-    if n == 0:
-        return out
-    if engine == "gtsam":
-        return _exact_gtsam(g, out, max_table)
-    return _exact_contract(g, out, max_table)
-
-
-def _exact_gtsam(g, out, max_table):
-    import gtsam
-
-    from .graph import triplet_key
-
-    width, size = elimination_estimate(g)
-    if size > max_table:
-        raise GraphTooLargeError(
-            f"g: exact elimination would build a table over {width} triplets of {g.m} states "
-            f"(about {size:.3g} entries, min-fill estimate) > max_table={max_table}; use "
-            f"propagate() or loopy_bp(), or a smaller graph")
-    graph = g.to_gtsam()
-    if graph.size() == 0:
-        return out
-    marg = gtsam.DiscreteMarginals(graph)
-    seen = g.seen
-    touched = np.zeros(g.n_triplets, dtype=bool)
-    fv = g.factor_vars
-    touched[fv.ravel()] = True
-    touched |= seen
-    for v in np.flatnonzero(touched):
-        key = (triplet_key(*g.triplets[v]), g.m)
-        out[v] = np.asarray(marg.marginalProbabilities(key), dtype=float)
-    return out
-
-
-def _exact_contract(g, out, max_table):
-    import opt_einsum as oe
-
-    T = g.table
-    T = T / T.max()
-    P = g.prior_matrix()
-    seen = g.seen
-    fvars = g.factor_vars
-    for comp in _components(g.n_triplets, fvars):
-        in_comp = np.zeros(g.n_triplets, dtype=bool)
-        in_comp[comp] = True
-        fs = np.flatnonzero(in_comp[fvars[:, 0]]) if len(fvars) else np.array([], dtype=int)
-        if len(fs) == 0:
-            v = comp[0]
-            out[v] = P[v]  # prior, or uniform for an unseen triplet without factors
-            continue
-        sym = {int(v): oe.get_symbol(i) for i, v in enumerate(comp)}
-        terms, ops = [], []
-        for v in comp:
-            if seen[v]:
-                terms.append(sym[int(v)])
-                ops.append(P[v] / P[v].max())
-        for f in fs:
-            terms.append("".join(sym[int(v)] for v in fvars[f]))
-            ops.append(T)
-        lhs = ",".join(terms)
-        for v in comp:
-            eq = f"{lhs}->{sym[int(v)]}"
-            path, info = oe.contract_path(eq, *ops, optimize="auto")
-            if info.largest_intermediate > max_table:
-                raise GraphTooLargeError(
-                    f"g: contraction would build an intermediate of about "
-                    f"{float(info.largest_intermediate):.3g} entries > max_table={max_table}")
-            r = oe.contract(eq, *ops, optimize=path)
-            s = r.sum()
-            if not s > 0:
-                raise ZeroMassError("g: the product of the factors has no mass (priors "
-                                    "inconsistent with the tensor's support, or underflow)")
-            out[v] = r / s
-    return out
 
 
 # ----------------------------------------------------------------------------- label correcting
@@ -330,8 +146,14 @@ def _label_correcting(g, sources_value, propose, close_used=False):
     return values, np.array(order, dtype=np.intp), updated_by, updated
 
 
-def propagate(g, close_used: bool = False) -> PropagationResult:
+def propagate(g, close_used: bool = False) -> Marginals:
     """Algorithm 2 (label-correcting propagation by composition).
+
+    Returns a :class:`~qfg.inference.Marginals` (``method="label_correcting"``): ``marginals``
+    (n, m) -- the prior for seen triplets, the kept composition marginal for reached ones,
+    uniform for unreachable ones -- and in ``info`` (also attributes): ``isc`` (n,) information
+    score of each row, ``order`` (u,) non-seen triplets in update order, ``updated_by`` (n,)
+    factor that updated each triplet (-1: seen or unreachable), ``reached`` (n,) bool, ``seen``.
 
     Sources: the seen triplets (their priors, ISC = information score). Proposal of an open factor
     for a non-updated triplet: the marginal composition (eq. marginalComposition,
@@ -383,8 +205,9 @@ def propagate(g, close_used: bool = False) -> PropagationResult:
 
     values, order, updated_by, reached = _label_correcting(g, priors, propose, close_used)
     marg = np.array([np.full(m, 1.0 / m) if v is None else v for v in values]).reshape(-1, m)
-    return PropagationResult(marginals=marg, isc=information_score(marg), order=order,
-                             updated_by=updated_by, reached=reached, seen=g.seen)
+    return Marginals(tuple(g.triplets), g.partition, marg, "label_correcting",
+                     {"isc": information_score(marg), "order": order, "updated_by": updated_by,
+                      "reached": reached, "seen": g.seen, "close_used": bool(close_used)})
 
 
 def _scalar_engine(g, init, one_known, two_known, maximize=True, close_used=False):
@@ -489,17 +312,26 @@ def composition_levels(g, close_used: bool = False) -> LevelResult:
 
 
 # ----------------------------------------------------------------------------- loopy BP
-_EINSUM_TO = ("abc,fb,fc->fa", "abc,fa,fc->fb", "abc,fa,fb->fc")
+def _role_matrices(T: np.ndarray) -> list[np.ndarray]:
+    """Per role r, T with axis r first, flattened to (m, m*m) over the other two (in order):
+    the factor-to-variable message of role r is ``(q_x outer q_y) @ M_r.T``, one matrix product
+    for all factors."""
+    m = T.shape[0]
+    return [np.ascontiguousarray(np.moveaxis(T, r, 0).reshape(m, m * m)) for r in range(3)]
 
 
-def loopy_bp(g, damping: float = 0.0, max_iters: int = 100, tol: float = 1e-9) -> BPResult:
+def loopy_bp(g, damping: float = 0.0, max_iters: int = 100, tol: float = 1e-9) -> Marginals:
     """Damped synchronous sum-product on the priors and composition factors.
 
     Messages (all normalized): variable -> factor ``q_{v->f} propto prior_v prod_{f' != f}
     r_{f'->v}``; factor -> variable ``r_{f->v}(s) propto sum over the other two states of
-    T(...) q q``, then ``r <- (1 - damping) r_new + damping r_old``. Stops when the largest change of
-    an ``r`` is below ``tol`` (converged) or after ``max_iters``. Beliefs: ``prior prod r``.
-    Exact on trees (once the iterations exceed the tree's diameter).
+    T(...) q q`` (per role one (F, m^2) x (m^2, m) matrix product), then
+    ``r <- (1 - damping) r_new + damping r_old``. Stops when the largest change of an ``r`` is
+    below ``tol`` (converged) or after ``max_iters``. Beliefs: ``prior prod r``. Exact on trees
+    (once the iterations exceed the tree's diameter).
+
+    Returns a :class:`~qfg.inference.Marginals` (``method="loopy_bp"``; ``info``: ``converged``,
+    ``iterations``, ``max_change`` (last largest message change), ``damping``).
 
     >>> import numpy as np
     >>> from qfg.graph import QualitativeFactorGraph
@@ -522,6 +354,7 @@ def loopy_bp(g, damping: float = 0.0, max_iters: int = 100, tol: float = 1e-9) -
         raise ValueError(f"tol: expected a positive number, got {tol!r}")
     T = g.table
     T = T / T.max()
+    mats = _role_matrices(T)
     m = g.m
     fv = g.factor_vars
     F = len(fv)
@@ -530,36 +363,38 @@ def loopy_bp(g, damping: float = 0.0, max_iters: int = 100, tol: float = 1e-9) -
     tiny = 1e-300
     converged, it, change = F == 0, 0, 0.0
     flat_v = fv.ravel()
+    others = ((1, 2), (0, 2), (0, 1))
 
     def beliefs(r):
         lb = logp.copy()
         np.add.at(lb, flat_v, np.log(np.maximum(r, tiny)).reshape(-1, m))
         return lb
 
+    new = np.empty_like(r)
     while not converged and it < max_iters:
         it += 1
         lb = beliefs(r)
         lq = lb[fv] - np.log(np.maximum(r, tiny))        # (F, 3, m): exclude own message
         q = np.exp(lq - lq.max(axis=-1, keepdims=True))
         q = _normalize_rows(q)
-        new = np.empty_like(r)
-        for role, eq in enumerate(_EINSUM_TO):
-            others = [q[:, o] for o in range(3) if o != role]
-            new[:, role] = np.einsum(eq, T, *others)
-        new = _normalize_rows(new)
+        for role, (x, y) in enumerate(others):
+            outer = (q[:, x, :, None] * q[:, y, None, :]).reshape(F, m * m)
+            np.matmul(outer, mats[role].T, out=new[:, role])
+        msg = _normalize_rows(new)
         if damping:
-            new = (1 - damping) * new + damping * r
-        change = float(np.abs(new - r).max())
-        r = new
+            msg = (1 - damping) * msg + damping * r
+        change = float(np.abs(msg - r).max())
+        r = msg
         converged = change < tol
     lb = beliefs(r)
     b = np.exp(lb - lb.max(axis=-1, keepdims=True))
-    return BPResult(marginals=_normalize_rows(b), converged=bool(converged), iterations=it,
-                    max_change=change)
+    return Marginals(tuple(g.triplets), g.partition, _normalize_rows(b), "loopy_bp",
+                     {"converged": bool(converged), "iterations": it, "max_change": change,
+                      "damping": damping})
 
 
 # ----------------------------------------------------------------------------- reporting
-def compare_unseen(g, truth=None, engine: str = "contract", max_table: int = MAX_TABLE
+def compare_unseen(g, truth=None, engine: str = "junction", max_table: int = MAX_TABLE
                    ) -> list[dict]:
     """For each unseen triplet: the Algorithm 2 estimate, the exact marginal and the truth.
 

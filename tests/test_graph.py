@@ -25,16 +25,16 @@ def rand_T(rng, m):
 def test_key_scheme_injective_and_independent_of_map():
     keys = {triplet_key(*t) for t in itertools.permutations(range(7), 3)}
     assert len(keys) == 7 * 6 * 5
-    g1 = full_map(4, tensor=np.ones((2, 2, 2)))
+    g1 = full_map(4, partition=None, tensor=np.ones((2, 2, 2)))
     g2 = QualitativeFactorGraph("lr", tensor=np.ones((2, 2, 2)))
     g2.add_triplet((3, 2, 1))
     g2.add_triplet((0, 1, 2))
     assert g1.key((0, 1, 2)) == g2.key((0, 1, 2)) == triplet_key(0, 1, 2)
-    assert triplet_key(1, 0, 0) > triplet_key(0, 2**20 - 1, 2**20 - 1)
+    assert triplet_key(1, 0, 2) > triplet_key(0, 2**20 - 1, 2**20 - 2)
 
 
 def test_full_map_counts_and_speed_scale():
-    g = full_map(15, tensor=np.ones((2, 2, 2)))
+    g = full_map(15, partition=None, tensor=np.ones((2, 2, 2)))
     assert g.n_triplets == 2730 and g.n_factors == 32760
     # every factor's triplets are in the documented roles
     fv = g.factor_vars
@@ -69,7 +69,7 @@ def test_table_order_matches_numpy_product():
     rng = np.random.default_rng(1)
     m = 3
     T = rand_T(rng, m)
-    g = QualitativeFactorGraph("x", tensor=T)
+    g = QualitativeFactorGraph(None, tensor=T)
     ps = [rng.dirichlet(np.ones(m)) for _ in range(3)]
     for t, p in zip([(0, 1, 2), (1, 2, 3), (0, 1, 3)], ps, strict=True):
         g.add_triplet(t, p)
@@ -120,7 +120,8 @@ def test_prior_accepts_estimate_like_object_and_normalizes():
 
 def test_map_from_triplets_seen_plus_unseen():
     seen = {(0, 1, 2): [0.5, 0.5], (1, 2, 3): [0.2, 0.8]}
-    g = map_from_triplets(seen, unseen=[(0, 1, 3), (1, 2, 3)], tensor=np.ones((2, 2, 2)))
+    g = map_from_triplets(seen, unseen=[(0, 1, 3), (1, 2, 3)], partition=None,
+                          tensor=np.ones((2, 2, 2)))
     assert g.triplets == [(0, 1, 2), (1, 2, 3), (0, 1, 3)]
     assert g.seen.tolist() == [True, True, False] and g.factors == [(0, 1, 2, 3)]
 
@@ -143,8 +144,8 @@ def test_bad_input(triplet, prior, match):
 
 
 def test_bad_constructor_and_composition():
-    with pytest.raises(ValueError, match="T"):
-        QualitativeFactorGraph("edc", tensor=np.ones((2, 3, 2)))
+    with pytest.raises(ValueError, match="tensor"):
+        QualitativeFactorGraph(None, tensor=np.ones((2, 3, 2)))
     with pytest.raises(ValueError, match="partition"):
         QualitativeFactorGraph("")
     g = QualitativeFactorGraph("lr", tensor=np.ones((2, 2, 2)))
@@ -154,7 +155,7 @@ def test_bad_constructor_and_composition():
     with pytest.raises(ValueError, match="triplet: .* not in the map"):
         g.index((5, 6, 7))
     with pytest.raises(ValueError, match="n_landmarks"):
-        full_map(2, tensor=np.ones((2, 2, 2)))
+        full_map(2, partition=None, tensor=np.ones((2, 2, 2)))
 
 
 def test_tensor_none_loads_the_shipped_tensor_lazily(tmp_path, monkeypatch):
@@ -193,3 +194,75 @@ def test_map_from_histories_uses_solver_estimates():
     for h, e in zip(hs, ests, strict=True):
         np.testing.assert_allclose(g.priors[g.index(h.landmarks)], e.landmark / e.landmark.sum())
     assert g.factors == brute_force_compositions(g.triplets)
+
+
+# ------------------------------------------------------------------ validation (issues 11, 12)
+def test_partition_name_is_checked():
+    """Issue 11 item 4: an unknown partition name was accepted."""
+    with pytest.raises(ValueError, match="partition: unknown name 'nonsense'"):
+        QualitativeFactorGraph("nonsense")
+    with pytest.raises(ValueError, match="partition"):
+        QualitativeFactorGraph(None)          # unlabelled needs a tensor
+    assert QualitativeFactorGraph("EDC").partition == "edc"
+
+
+def test_tensor_must_match_the_partition():
+    """Issue 11 item 4: ("lr", tensor=<20x20x20>) was accepted."""
+    with pytest.raises(ValueError, match="tensor: shape .*'lr' has 2 states"):
+        QualitativeFactorGraph("lr", tensor=np.ones((20, 20, 20)))
+    with pytest.raises(ValueError, match="tensor"):
+        QualitativeFactorGraph("lr", tensor=-np.ones((2, 2, 2)))
+
+    class Fake:                                 # a CompositionTensor of another partition
+        partition = "fdc"
+        T = np.ones((2, 2, 2))
+
+    with pytest.raises(ValueError, match="tensor: a 'fdc' composition tensor"):
+        QualitativeFactorGraph("lr", tensor=Fake())
+    g = QualitativeFactorGraph(None, tensor=np.ones((3, 3, 3)))
+    assert g.partition is None and g.m == 3
+
+
+@pytest.mark.parametrize("ids", [(0, 1, 2**20), (-1, 1, 2), (0, 0, 1), (0, 1, 2.0), (True, 1, 2)])
+def test_triplet_key_validates_ids(ids):
+    """Issue 12 item 5: triplet_key(0, 1, 2**20) == triplet_key(0, 1, 0); negative keys."""
+    with pytest.raises(ValueError, match="triplet"):
+        triplet_key(*ids)
+
+
+def test_triplet_key_injective_at_the_edges_of_the_range():
+    top = 2**20 - 1
+    ts = [(0, 1, top), (top, 0, 1), (1, top, 0), (top - 1, top, 0), (0, 1, 2)]
+    keys = [triplet_key(*t) for t in ts]
+    assert len(set(keys)) == len(ts) and min(keys) >= 0
+    for t, k in zip(ts, keys, strict=True):               # decodes back to the ids
+        assert (k >> 40, (k >> 20) & top, k & top) == t
+
+
+@pytest.mark.parametrize("prior, expect", [
+    ([1e308, 1e308], [0.5, 0.5]),                  # the sum overflows to inf
+    ([1e308, 0.5e308], [2 / 3, 1 / 3]),
+    ([1e200, 3e200], [0.25, 0.75]),
+    ([1e-300, 3e-300], [0.25, 0.75]),
+    ([0.0, 5e-324], [0.0, 1.0]),                   # subnormal
+])
+def test_prior_normalizes_without_overflow(prior, expect):
+    """Issue 12 item 6: a prior of 1e308 entries was stored as all zeros."""
+    g = QualitativeFactorGraph("lr", tensor=np.ones((2, 2, 2)))
+    v = g.add_triplet((0, 1, 2), prior)
+    p = g.priors[v]
+    assert np.all(np.isfinite(p)) and p.sum() == pytest.approx(1.0)
+    np.testing.assert_allclose(p, expect, rtol=1e-12)
+
+
+def test_graph_module_does_not_import_inference():
+    """The graph -> propagation -> graph cycle is gone: graph.py imports no inference module."""
+    import ast
+    import inspect
+
+    import qfg.graph
+
+    tree = ast.parse(inspect.getsource(qfg.graph))
+    mods = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.module}
+    mods |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+    assert not any("propagation" in m or "inference" in m for m in mods), mods

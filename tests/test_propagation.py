@@ -49,7 +49,7 @@ def brute_marginals(g):
 
 
 def one_factor_graph(T, p1, p2, p3=None):
-    g = QualitativeFactorGraph("x", tensor=T)
+    g = QualitativeFactorGraph(None, tensor=T)
     g.add_triplet((0, 1, 2), p1)
     g.add_triplet((1, 2, 3), p2)
     g.add_triplet((0, 1, 3), p3)
@@ -58,7 +58,7 @@ def one_factor_graph(T, p1, p2, p3=None):
 
 
 def random_graph(rng, T, n_land=5, frac=0.3, seen_frac=0.5):
-    g = QualitativeFactorGraph("x", tensor=T)
+    g = QualitativeFactorGraph(None, tensor=T)
     m = T.shape[0]
     for t in itertools.permutations(range(n_land), 3):
         if rng.random() < frac:
@@ -72,7 +72,7 @@ def random_graph(rng, T, n_land=5, frac=0.3, seen_frac=0.5):
 def test_gtsam_and_contract_agree_on_random_loopy_graphs(seed):
     rng = np.random.default_rng(seed)
     T = rand_T(rng, 3)
-    g = QualitativeFactorGraph("x", tensor=T)
+    g = QualitativeFactorGraph(None, tensor=T)
     # triplets of landmarks 0..3, enough to form loops; a random subset of them seen
     # factors (0,1,2,3) and (0,1,3,2) share (0,1,2) and (0,1,3): a loop
     core = [(0, 1, 2), (0, 1, 3), (0, 2, 1), (1, 2, 3), (1, 3, 2)]
@@ -105,7 +105,7 @@ def test_exact_unreachable_and_isolated_are_uniform_and_seen_isolated_keeps_prio
     g = one_factor_graph(T, [0.2, 0.3, 0.5], None)  # no seen triplet touches (1,2,3)/(0,1,3) but f
     g.add_triplet((7, 8, 9))                          # isolated unseen
     g.add_triplet((7, 9, 8), [0.1, 0.1, 0.8])         # isolated seen
-    for engine in ("gtsam", "contract"):
+    for engine in ("junction", "gtsam", "contract"):
         M = exact_marginals(g, engine=engine)
         np.testing.assert_allclose(M[3], np.full(3, 1 / 3))
         np.testing.assert_allclose(M[4], [0.1, 0.1, 0.8])
@@ -113,8 +113,9 @@ def test_exact_unreachable_and_isolated_are_uniform_and_seen_isolated_keeps_prio
 
 def test_exact_too_big_raises_with_size():
     g = full_map(6, tensor=np.ones((20, 20, 20)))
-    with pytest.raises(GraphTooLargeError, match="entries"):
-        exact_marginals(g, engine="gtsam")
+    for engine in ("junction", "gtsam", "contract"):
+        with pytest.raises(GraphTooLargeError, match="entries"):
+            exact_marginals(g, engine=engine)
     with pytest.raises(GraphTooLargeError, match="entries"):
         exact_marginals(g, engine="contract", max_table=10**4)
     with pytest.raises(ValueError, match="engine"):
@@ -228,7 +229,7 @@ def test_propagate_deterministic_and_seen_kept():
 def chain_graph():
     """Hand-worked graph: seen a=(0,1,2); f0 = (0,1,2,3): (0,1,2), (1,2,3), (0,1,3);
     f1 = (1,2,3,4): (1,2,3), (2,3,4), (1,2,4)."""
-    g = QualitativeFactorGraph("x", tensor=np.ones((2, 2, 2)))
+    g = QualitativeFactorGraph(None, tensor=np.ones((2, 2, 2)))
     g.add_triplet((0, 1, 2), [0.9, 0.1])
     for t in [(1, 2, 3), (0, 1, 3), (2, 3, 4), (1, 2, 4)]:
         g.add_triplet(t)
@@ -285,7 +286,7 @@ def test_loopy_bp_exact_on_trees(seed):
     rng = np.random.default_rng(20 + seed)
     m = 3
     T = rand_T(rng, m)
-    g = QualitativeFactorGraph("x", tensor=T)
+    g = QualitativeFactorGraph(None, tensor=T)
     for t in [(0, 1, 2), (1, 2, 3), (0, 1, 3), (2, 3, 4), (1, 2, 4), (1, 3, 4), (0, 1, 4)]:
         g.add_triplet(t, rng.dirichlet(np.ones(m)) if rng.random() < 0.6 else None)
     # f0 and f1 share (1,2,3); f2 = (0,1,3,4) shares only (0,1,3) with f0: a tree

@@ -1,0 +1,22 @@
+"""Inference on qualitative factor graphs: exact marginals (one junction-tree calibration), MAP and
+K-best joint assignments, the labelled result types, and the UAI model format.
+
+Label-correcting propagation (Algorithms 2 and 3) and loopy BP live in :mod:`qfg.propagation`
+and return the same :class:`Marginals` type.
+
+>>> import numpy as np
+>>> from qfg.graph import full_map
+>>> g = full_map(4, partition=None, tensor=np.ones((2, 2, 2)))
+>>> exact_marginals(g)[(0, 1, 2)].tolist()
+[0.5, 0.5]
+"""
+
+from .exact import ENGINES, elimination_estimate, exact_marginals, k_best, map_assignment
+from .junction import MAX_TABLE, FactorModel, JunctionTree, SizeEstimate, size_estimate
+from .results import Assignment, GraphTooLargeError, Marginals, ZeroMassError
+from .uai import read_uai, read_uai_graph, write_uai
+
+__all__ = ["exact_marginals", "map_assignment", "k_best", "elimination_estimate", "ENGINES",
+           "FactorModel", "JunctionTree", "SizeEstimate", "size_estimate", "MAX_TABLE",
+           "Marginals", "Assignment", "GraphTooLargeError", "ZeroMassError",
+           "write_uai", "read_uai", "read_uai_graph"]

@@ -1,0 +1,651 @@
+"""Exact inference by a junction tree over a greedy min-fill elimination order.
+
+A discrete factor model ``p(x) = prod_f phi_f(x_f) / Z`` (:class:`FactorModel`; a
+:class:`~qfg.graph.QualitativeFactorGraph` converts with :meth:`FactorModel.from_graph`) is
+compiled once (:class:`JunctionTree`, plain numpy, nothing per graph is generated or compiled):
+
+1. **Order.** Greedy min-fill elimination on the interaction graph (ties: fewer neighbours, then the
+   smaller index). Eliminating ``v`` with current neighbours ``N_v`` makes the clique
+   ``C_v = {v} u N_v``; its parent is the clique of the first-eliminated variable of ``N_v``
+   (the elimination tree, a junction tree: running intersection holds by construction). Every
+   variable owns one clique, so every marginal is read from a table that holds it.
+2. **Size first.** Before any table is built, :func:`size_estimate` bounds the largest clique
+   table: a lower bound from the degeneracy of the interaction graph (treewidth >= degeneracy, so
+   *every* elimination order builds a table over at least ``degeneracy + 1`` variables), then the
+   min-fill plan itself, abandoned as soon as one of its cliques exceeds ``max_table``. Too large
+   -> :class:`~qfg.inference.results.GraphTooLargeError` naming the estimate, in milliseconds even
+   for the full 15-landmark map.
+3. **Calibrate once** (Hugin): upward ``psi_v = prod(assigned factors) prod(child messages)``,
+   ``mu_v = sum_{x_v} psi_v`` (rescaled to max 1, the scale kept in ``log Z``); downward
+   ``beta_v = psi_v * delta_v``, ``delta_c = sum_{C_v \\ N_c} beta_v / mu_c`` (0/0 = 0: where
+   ``mu_c`` is zero the clique belief is zero too). Marginal of ``v``: ``beta_v`` summed over
+   ``N_v``, normalized. Cost: two passes over the clique tables.
+4. **Underflow.** Factors are rescaled to max 1. If a clique's product falls below 1e-250 (or to
+   zero) in linear arithmetic, the whole calibration is repeated in the log domain (sums become
+   log-sum-exp), so products of many tiny factors (1e-200 each) keep full relative precision; a
+   component whose log-domain mass is ``-inf`` has no mass:
+   :class:`~qfg.inference.results.ZeroMassError`.
+5. **MAP / K-best.** Max-product (log domain) up the same tree, then decoding down it
+   (:meth:`JunctionTree.map_assignment`); the K best by Lawler-Murty partitioning of the
+   assignment space (the scheme of Nilsson's algorithm; each subproblem is one max-product pass
+   with some states clamped or excluded) (:meth:`JunctionTree.k_best`).
+
+>>> import numpy as np
+>>> T = np.array([[0.9, 0.1], [0.2, 0.8]])                     # p(x0, x1), a single factor
+>>> model = FactorModel(cards=[2, 2], scopes=[(0, 1)], tables=[T])
+>>> JunctionTree(model).marginals().round(3).tolist()
+[[1.0, 0.0], [0.55, 0.45]]
+>>> (JunctionTree(model).marginals() @ [1, 0]).round(3).tolist()     # P(x0 = 0), P(x1 = 0)
+[1.0, 0.55]
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .results import GraphTooLargeError, ZeroMassError
+
+__all__ = ["FactorModel", "SizeEstimate", "JunctionTree", "size_estimate", "MAX_TABLE"]
+
+#: Default limit on the largest table (entries) an exact engine may build (2**26: 512 MiB).
+MAX_TABLE = 2 ** 26
+
+#: Below this clique mass (factors rescaled to max 1) the calibration is redone in the log domain.
+_LINEAR_FLOOR = 1e-250
+
+
+def check_max_table(max_table) -> int:
+    """``max_table`` as a positive int (ValueError naming it otherwise)."""
+    if isinstance(max_table, bool) or not isinstance(max_table, (int, np.integer)) or max_table < 1:
+        raise ValueError(f"max_table: expected a positive integer (table entries), got "
+                         f"{max_table!r}")
+    return int(max_table)
+
+
+# ----------------------------------------------------------------------------- the model
+@dataclass(frozen=True)
+class FactorModel:
+    """A discrete factor model: variables ``0..n-1`` with ``cards[v]`` states, factors
+    ``tables[f]`` over ``scopes[f]`` (axes in scope order, C order as in the UAI format).
+
+    ``names``: optional row labels (for a factor graph, the triplets); ``partition``: state label.
+    """
+
+    cards: tuple
+    scopes: tuple
+    tables: tuple
+    names: tuple = ()
+    partition: str | None = None
+
+    def __post_init__(self):
+        cards = tuple(int(c) for c in self.cards)
+        if any(c < 1 for c in cards):
+            raise ValueError(f"cards: expected positive cardinalities, got {cards}")
+        scopes = tuple(tuple(int(v) for v in s) for s in self.scopes)
+        if len(scopes) != len(self.tables):
+            raise ValueError(f"tables: expected {len(scopes)} tables (one per scope), got "
+                             f"{len(self.tables)}")
+        tables = []
+        checked: dict[int, np.ndarray] = {}  # a table shared by many factors is checked once
+        for f, (s, t) in enumerate(zip(scopes, self.tables, strict=True)):
+            if len(set(s)) != len(s) or any(not 0 <= v < len(cards) for v in s):
+                raise ValueError(f"scopes: factor {f} has scope {s} (expected distinct "
+                                 f"variables in [0, {len(cards)}))")
+            want = tuple(cards[v] for v in s)
+            if id(t) in checked and checked[id(t)].shape == want:
+                tables.append(checked[id(t)])
+                continue
+            key = id(t)
+            t = np.asarray(t, dtype=float)
+            if t.shape != want:
+                if t.size != math.prod(want):
+                    raise ValueError(f"tables: factor {f} has {t.size} entries, its scope "
+                                     f"{s} needs {want}")
+                t = t.reshape(want)
+            if not np.all(np.isfinite(t)) or np.any(t < 0):
+                raise ValueError(f"tables: factor {f} has negative or non-finite entries")
+            checked[key] = t
+            tables.append(t)
+        object.__setattr__(self, "cards", cards)
+        object.__setattr__(self, "scopes", scopes)
+        object.__setattr__(self, "tables", tuple(tables))
+        object.__setattr__(self, "names", tuple(self.names))
+
+    @property
+    def n(self) -> int:
+        return len(self.cards)
+
+    @classmethod
+    def from_graph(cls, g) -> FactorModel:
+        """The factors of a :class:`~qfg.graph.QualitativeFactorGraph`: one unary table per seen
+        triplet (its normalized prior), then one ``T`` per composition factor over
+        ``(t1, t2, t3)`` (all sharing one array)."""
+        T = g.table
+        P = g.priors
+        scopes, tables = [], []
+        for v, p in enumerate(P):
+            if p is not None:
+                scopes.append((v,))
+                tables.append(p)
+        for vs in g.factor_vars.tolist():
+            scopes.append(tuple(vs))
+            tables.append(T)
+        return cls(cards=(g.m,) * g.n_triplets, scopes=scopes, tables=tables,
+                   names=tuple(g.triplets), partition=getattr(g, "partition", None))
+
+    def log_value(self, states) -> np.ndarray:
+        """(K,) ``log prod_f phi_f(x_f)`` of (K, n) joint assignments (unnormalized)."""
+        X = np.atleast_2d(np.asarray(states, dtype=np.intp))
+        out = np.zeros(len(X))
+        with np.errstate(divide="ignore"):
+            for s, t in zip(self.scopes, self.tables, strict=True):
+                out += np.log(t[tuple(X[:, v] for v in s)])
+        return out
+
+
+# ----------------------------------------------------------------------------- planning
+def _adjacency(model: FactorModel) -> list[set]:
+    adj = [set() for _ in range(model.n)]
+    for s in model.scopes:
+        for a in s:
+            adj[a].update(s)
+    for v, nb in enumerate(adj):
+        nb.discard(v)
+    return adj
+
+
+def _degeneracy(adj) -> int:
+    """Largest k such that the graph has a k-core (Batagelj-Zaversnik bucket algorithm, O(E))."""
+    n = len(adj)
+    if n == 0:
+        return 0
+    deg = [len(a) for a in adj]
+    maxd = max(deg)
+    buckets = [[] for _ in range(maxd + 1)]
+    for v, d in enumerate(deg):
+        buckets[d].append(v)
+    removed = [False] * n
+    k = 0
+    d = 0
+    left = n
+    while left:
+        while d <= maxd and not buckets[d]:
+            d += 1
+        v = buckets[d].pop()
+        if removed[v] or deg[v] != d:
+            continue  # stale bucket entry
+        removed[v] = True
+        left -= 1
+        k = max(k, d)
+        for u in adj[v]:
+            if not removed[u]:
+                deg[u] -= 1
+                buckets[deg[u]].append(u)
+                if deg[u] < d:
+                    d = deg[u]
+    return k
+
+
+@dataclass(frozen=True)
+class SizeEstimate:
+    """Largest clique table of the min-fill junction tree.
+
+    ``width``: variables in the largest clique; ``entries``: its table size (float, exact below
+    2**53); ``lower_bound``: entries of the smallest largest-table any elimination order could
+    reach by the degeneracy bound; ``complete``: False when planning stopped at ``max_table``
+    (``width``/``entries`` are then those of the first clique over the limit)."""
+
+    width: int
+    entries: float
+    lower_bound: float
+    complete: bool
+    order: tuple = ()
+
+
+def _log_entries(cards, vs) -> float:
+    return float(sum(math.log(cards[v]) for v in vs))
+
+
+def _plan(model: FactorModel, max_table: int | None):
+    """(SizeEstimate, order, neighbour lists at elimination) -- order empty when refused."""
+    cards = model.cards
+    n = model.n
+    adj = _adjacency(model)
+    log_limit = math.inf if max_table is None else math.log(max_table) * (1 + 1e-12)
+    # Lower bound: degeneracy k => some clique has >= k + 1 variables under every order. With
+    # unequal cardinalities, use the k + 1 smallest cards (a valid, weaker bound).
+    k = _degeneracy(adj)
+    smallest = sorted(cards)[:k + 1] if n else []
+    lb_log = float(sum(math.log(c) for c in smallest))
+    if lb_log > log_limit:
+        est = SizeEstimate(width=k + 1, entries=math.exp(min(lb_log, 709.0)), lower_bound=math.exp(
+            min(lb_log, 709.0)), complete=False)
+        return est, (), ()
+    adj = [set(a) for a in adj]
+    alive = [True] * n
+
+    def fill(u):
+        nb = adj[u]
+        d = len(nb)
+        if d < 2:
+            return 0
+        links = sum(len(adj[a] & nb) for a in nb) // 2
+        return d * (d - 1) // 2 - links
+
+    cur = [fill(v) for v in range(n)]
+    heap = [(cur[v], len(adj[v]), v) for v in range(n)]
+    heapq.heapify(heap)
+    order, nbrs = [], []
+    best_log, best_w = 0.0, 0
+    while heap:
+        f_, d_, v = heapq.heappop(heap)
+        if not alive[v] or f_ != cur[v] or d_ != len(adj[v]):
+            continue  # stale
+        nb = adj[v]
+        clog = _log_entries(cards, nb) + math.log(cards[v])
+        if clog > best_log or not order:
+            best_log, best_w = clog, len(nb) + 1
+        if clog > log_limit:
+            est = SizeEstimate(width=len(nb) + 1, entries=math.exp(min(clog, 709.0)),
+                               lower_bound=math.exp(min(lb_log, 709.0)), complete=False)
+            return est, (), ()
+        alive[v] = False
+        order.append(v)
+        nbrs.append(tuple(sorted(nb)))
+        nl = list(nb)
+        for a in nl:
+            adj[a].discard(v)
+            adj[a].update(x for x in nl if x != a)
+        adj[v] = set()
+        touched = set(nl)
+        for a in nl:
+            touched |= adj[a]
+        for u in touched:
+            if alive[u]:
+                cur[u] = fill(u)
+                heapq.heappush(heap, (cur[u], len(adj[u]), u))
+    est = SizeEstimate(width=best_w, entries=math.exp(min(best_log, 709.0)),
+                       lower_bound=math.exp(min(lb_log, 709.0)), complete=True, order=tuple(order))
+    return est, tuple(order), tuple(nbrs)
+
+
+def size_estimate(model, max_table: int | None = None) -> SizeEstimate:
+    """Largest table of the junction tree of ``model`` (a :class:`FactorModel` or a factor graph).
+
+    With ``max_table``, planning stops at the first clique above it (``complete=False``), so a
+    too-large graph is recognised in milliseconds.
+
+    >>> from qfg.graph import full_map
+    >>> e = size_estimate(full_map(15, tensor=np.ones((20, 20, 20))), max_table=2 ** 26)
+    >>> e.complete, e.lower_bound > 1e80
+    (False, True)
+    """
+    if not isinstance(model, FactorModel):
+        model = FactorModel.from_graph(model)
+    if max_table is not None:
+        max_table = check_max_table(max_table)
+    return _plan(model, max_table)[0]
+
+
+def _too_large(est: SizeEstimate, max_table: int, what: str = "junction tree") -> GraphTooLargeError:
+    if est.lower_bound > max_table:
+        how = (f"every elimination order builds a table over at least {est.width} variables "
+               f"(degeneracy bound): at least {est.lower_bound:.3g} entries")
+    else:
+        how = (f"the min-fill {what} has a table over {est.width} variables "
+               f"(about {est.entries:.3g} entries)")
+    return GraphTooLargeError(
+        f"g: exact inference refused before any work: {how} > max_table={max_table}; use "
+        f"propagate() or loopy_bp(), or a smaller graph", entries=est.entries, width=est.width,
+        max_table=max_table)
+
+
+# ----------------------------------------------------------------------------- tree
+def _expander(scope, target, cards):
+    """(perm, shape): ``table.transpose(perm).reshape(shape)`` broadcasts a table over ``scope``
+    against a clique table over ``target``."""
+    where = {x: i for i, x in enumerate(target)}
+    pos = [where[x] for x in scope]
+    perm = tuple(sorted(range(len(pos)), key=pos.__getitem__))
+    shape = [1] * len(target)
+    for x in scope:
+        shape[where[x]] = cards[x]
+    return perm, tuple(shape)
+
+
+def _expand(table, ex):
+    perm, shape = ex
+    if perm != tuple(range(len(perm))):
+        table = table.transpose(perm)
+    return table.reshape(shape)
+
+
+class JunctionTree:
+    """The compiled junction tree of a :class:`FactorModel` (or a factor graph).
+
+    Args:
+        model: a :class:`FactorModel` or a :class:`~qfg.graph.QualitativeFactorGraph`.
+        max_table: refuse (:class:`GraphTooLargeError`, before any table is built) when the
+            largest clique table would exceed this many entries.
+
+    Attributes: ``estimate`` (:class:`SizeEstimate`), ``order`` (elimination order),
+    ``cliques`` (per variable v: the clique variables, v first), ``parent`` (per v: parent
+    clique/variable or -1).
+    """
+
+    def __init__(self, model, max_table: int = MAX_TABLE):
+        max_table = check_max_table(max_table)
+        if not isinstance(model, FactorModel):
+            model = FactorModel.from_graph(model)
+        self.model = model
+        est, order, nbrs = _plan(model, max_table)
+        self.estimate = est
+        if not est.complete:
+            raise _too_large(est, max_table)
+        n, cards = model.n, model.cards
+        self.order = np.asarray(order, dtype=np.intp)
+        pos = np.empty(n, dtype=np.intp)
+        pos[self.order] = np.arange(n)
+        self.cliques = [()] * n
+        self.parent = np.full(n, -1, dtype=np.intp)
+        self.children = [[] for _ in range(n)]
+        for v, nb in zip(order, nbrs, strict=True):
+            self.cliques[v] = (v,) + nb
+            if nb:
+                p = min(nb, key=lambda u: pos[u])
+                self.parent[v] = p
+                self.children[p].append(v)
+        # every factor to the clique of its first-eliminated variable (holds its whole scope)
+        self.assigned = [[] for _ in range(n)]
+        for f, s in enumerate(model.scopes):
+            if s:
+                v = min(s, key=lambda u: pos[u])
+                self.assigned[v].append(f)
+        self.empty_factors = [f for f, s in enumerate(model.scopes) if not s]
+        sc = model.scopes
+        self._fac_ex = [[(f, _expander(sc[f], self.cliques[v], cards)) for f in self.assigned[v]]
+                        for v in range(n)]
+        self._child_ex = [[(c, _expander(self.cliques[c][1:], self.cliques[v], cards))
+                           for c in self.children[v]] for v in range(n)]
+        self._shape = [tuple(cards[x] for x in self.cliques[v]) for v in range(n)]
+        # downward: sum beta_v over C_v \ N_c, then reorder to N_c's order in the child
+        self._down = {}
+        for v in range(n):
+            C = self.cliques[v]
+            for c in self.children[v]:
+                Nc = self.cliques[c][1:]
+                keep = [x for x in C if x in set(Nc)]
+                axes = tuple(i for i, x in enumerate(C) if x not in set(Nc))
+                perm = tuple(keep.index(x) for x in Nc)
+                self._down[c] = (axes, perm)
+        self._comp = self._components()
+
+    # ------------------------------------------------------------------ helpers
+    def _components(self):
+        root = np.empty(self.model.n, dtype=np.intp)
+        for v in self.order[::-1]:
+            p = self.parent[v]
+            root[v] = v if p < 0 else root[p]
+        return root
+
+    def _scaled_tables(self, log: bool):
+        """Factor tables rescaled to max 1 (linear) or their logs minus the max; and the total
+        log of the scales removed."""
+        tabs, scale = [], 0.0
+        cache = {}
+        for t in self.model.tables:
+            key = id(t)
+            if key not in cache:
+                mx = float(t.max())
+                if not mx > 0:
+                    cache[key] = (np.full(t.shape, -np.inf) if log else np.zeros(t.shape), 0.0)
+                else:
+                    with np.errstate(divide="ignore"):
+                        cache[key] = ((np.log(t) - math.log(mx)) if log else t / mx, math.log(mx))
+            tt, s = cache[key]
+            tabs.append(tt)
+            scale += s
+        return tabs, scale
+
+    def _zero_mass(self, v):
+        comp = np.flatnonzero(self._comp == self._comp[v])
+        names = self.model.names
+        trip = [names[u] for u in comp] if names else [int(u) for u in comp]
+        local = []
+        unary = {s[0]: t for s, t in zip(self.model.scopes, self.model.tables, strict=True)
+                 if len(s) == 1}
+        for s, t in zip(self.model.scopes, self.model.tables, strict=True):
+            if len(s) < 2 or not set(s) <= set(comp.tolist()):
+                continue
+            w = t
+            for ax, u in enumerate(s):
+                if u in unary:
+                    shp = [1] * len(s)
+                    shp[ax] = -1
+                    w = w * unary[u].reshape(shp)
+            if not w.max() > 0:
+                local.append(tuple(names[u] for u in s) if names else s)
+        why = (f"{len(local)} factor(s) contradict the priors of their own triplets, e.g. "
+               f"{local[0]}" if local else
+               "no single factor contradicts its priors: the contradiction runs through a loop "
+               "or a chain of factors")
+        return ZeroMassError(
+            f"g: the product of the factors has no mass on the connected component of "
+            f"{len(comp)} variable(s) containing {trip[0] if trip else v}: the priors contradict "
+            f"the tensor's support ({why})", triplets=trip, local_factors=local)
+
+    # ------------------------------------------------------------------ sum-product
+    def _calibrate(self, log: bool, mask=None):
+        """Returns (marginals (n, card_max) padded, log Z) or None if linear arithmetic lost the
+        mass (caller retries in the log domain)."""
+        model = self.model
+        n = model.n
+        tabs, log_scale = self._scaled_tables(log)
+        if mask is not None:
+            mtabs = [np.where(mask[v, :model.cards[v]], 0.0 if log else 1.0,
+                              -np.inf if log else 0.0) for v in range(n)]
+        psi_store = [None] * n
+        up = [None] * n
+        logz = log_scale
+        for v in self.order.tolist():
+            shape = self._shape[v]
+            psi = None
+            parts = [_expand(tabs[f], ex) for f, ex in self._fac_ex[v]]
+            parts += [_expand(up[c], ex) for c, ex in self._child_ex[v]]
+            if mask is not None:
+                parts.append(mtabs[v].reshape((-1,) + (1,) * (len(shape) - 1)))
+            if len(parts) >= 2:  # the first product allocates; the rest are in place
+                psi = parts[0] + parts[1] if log else parts[0] * parts[1]
+                parts = parts[2:]
+            for t in parts:
+                if psi is None:
+                    psi = t.copy() if t.shape == shape else np.broadcast_to(t, shape).copy()
+                elif log:
+                    psi = psi + t if psi.shape != shape else np.add(psi, t, out=psi)
+                else:
+                    psi = psi * t if psi.shape != shape else np.multiply(psi, t, out=psi)
+            if psi is None:
+                psi = np.zeros(shape) if log else np.ones(shape)
+            elif psi.shape != shape:
+                psi = np.broadcast_to(psi, shape).copy()
+            mx = float(psi.max())
+            if log:
+                if mx == -np.inf:
+                    raise self._zero_mass(v)
+                psi -= mx
+                logz += mx
+                with np.errstate(divide="ignore"):
+                    u = np.log(np.exp(psi).sum(axis=0))
+                umx = float(u.max())
+                u -= umx
+            else:
+                if not mx > _LINEAR_FLOOR:
+                    return None
+                u = psi.sum(axis=0)
+                umx = float(u.max())
+                u /= umx
+            logz += math.log(umx) if not log else umx
+            psi_store[v] = psi
+            up[v] = u
+        P = np.zeros((n, max(model.cards) if n else 0))
+        down = [None] * n
+        for v in self.order[::-1].tolist():
+            beta = psi_store[v]
+            psi_store[v] = None
+            if self.parent[v] >= 0:
+                d = down[v].reshape(self._shape[v][1:])[None]
+                if log:
+                    beta += d
+                else:
+                    beta *= d
+                down[v] = None
+            other = tuple(range(1, beta.ndim))
+            if log:
+                # relative to the clique's largest entry: what underflows here is < 1e-308 of it
+                mv = np.exp(beta - beta.max()).sum(axis=other)
+            else:
+                mv = beta.sum(axis=other) if other else beta.copy()
+            s = mv.sum()
+            if not s > 0:
+                raise self._zero_mass(v)
+            P[v, :len(mv)] = mv / s
+            for c in self.children[v]:
+                axes, perm = self._down[c]
+                if log:
+                    bm = beta.max(axis=axes, keepdims=True)
+                    bm = np.where(np.isfinite(bm), bm, 0.0)
+                    with np.errstate(divide="ignore"):
+                        red = np.log(np.exp(beta - bm).sum(axis=axes)) + bm.squeeze(axes)
+                    red = red.transpose(perm) if perm != tuple(range(len(perm))) else red
+                    uc = up[c]
+                    dc = np.where(uc > -np.inf, red - np.where(uc > -np.inf, uc, 0.0), -np.inf)
+                    dm = dc.max()
+                    down[c] = dc - dm if dm > -np.inf else dc
+                else:
+                    red = beta.sum(axis=axes)
+                    red = red.transpose(perm) if perm != tuple(range(len(perm))) else red
+                    uc = up[c]
+                    dc = np.divide(red, uc, out=np.zeros_like(red), where=uc > 0)
+                    dm = dc.max()
+                    down[c] = dc / dm if dm > 0 else dc
+        return P, logz
+
+    def marginals(self, log_domain: bool = False) -> np.ndarray:
+        """(n, max card) marginal of every variable, one calibration (rows padded with zeros
+        when cardinalities differ). ``log_domain=True`` skips the linear attempt."""
+        return self.calibrate(log_domain)[0]
+
+    def calibrate(self, log_domain: bool = False):
+        """(marginals, log Z, domain used: "linear" or "log")."""
+        if not log_domain:
+            out = self._calibrate(log=False)
+            if out is not None:
+                return out[0], out[1], "linear"
+        P, logz = self._calibrate(log=True)
+        return P, logz, "log"
+
+    def log_partition(self) -> float:
+        """``log Z``, the log of the sum over all joint assignments of the factor product."""
+        return self.calibrate()[1]
+
+    # ------------------------------------------------------------------ max-product
+    def _max_product(self, tabs, mask=None):
+        """(assignment (n,), unnormalized log value) or (None, -inf) if no assignment has mass."""
+        model = self.model
+        n = model.n
+        store = [None] * n
+        up = [None] * n
+        total = 0.0
+        for v in self.order.tolist():
+            shape = self._shape[v]
+            psi = np.zeros(shape)
+            for f, ex in self._fac_ex[v]:
+                psi += _expand(tabs[f], ex)
+            for c, ex in self._child_ex[v]:
+                psi += _expand(up[c], ex)
+            if mask is not None:
+                psi += np.where(mask[v, :shape[0]], 0.0, -np.inf).reshape(
+                    (-1,) + (1,) * (len(shape) - 1))
+            u = psi.max(axis=0)
+            mx = float(u.max())
+            if mx == -np.inf:
+                return None, -np.inf
+            store[v] = psi
+            up[v] = u - mx
+            total += mx
+        x = np.zeros(n, dtype=np.intp)
+        for v in self.order[::-1].tolist():
+            C = self.cliques[v]
+            col = store[v][(slice(None),) + tuple(int(x[u]) for u in C[1:])]
+            x[v] = int(np.argmax(col))
+        return x, total
+
+    def _log_tables(self):
+        tabs = []
+        cache = {}
+        with np.errstate(divide="ignore"):
+            for t in self.model.tables:
+                if id(t) not in cache:
+                    cache[id(t)] = np.log(t)
+                tabs.append(cache[id(t)])
+        return tabs
+
+    def map_assignment(self):
+        """(x (n,) most probable joint assignment, log p(x) under the normalized joint).
+
+        Ties are broken towards the lower state of the variable decoded first."""
+        X, lp = self.k_best(1)
+        return X[0], float(lp[0])
+
+    def k_best(self, k: int):
+        """The ``k`` most probable joint assignments: ((K, n) states, (K,) log probabilities),
+        best first, K <= k (fewer when fewer assignments have non-zero probability).
+
+        Lawler-Murty partitioning: after the best assignment ``x`` of a subspace (states allowed
+        per variable), the rest of that subspace splits into the subspaces "first i - 1 variables
+        as in x, variable i not as in x" (variables in elimination order reversed), each solved by
+        one max-product pass; a heap yields the next best."""
+        from .._validate import positive_int
+
+        k = positive_int("k", k)
+        model = self.model
+        n = model.n
+        logz = self.log_partition()
+        tabs = self._log_tables()
+        if n == 0:
+            return np.zeros((1, 0), dtype=np.intp), np.array([0.0 - logz])
+        cmax = max(model.cards)
+        mask0 = np.zeros((n, cmax), dtype=bool)
+        for v, c in enumerate(model.cards):
+            mask0[v, :c] = True
+        x, val = self._max_product(tabs, None)
+        if x is None:
+            raise self._zero_mass(0)
+        heap = [(-val, 0, x, mask0)]
+        counter = 1
+        seq = self.order[::-1].tolist()
+        out_x, out_v = [], []
+        while heap and len(out_x) < k:
+            negv, _, x, mask = heapq.heappop(heap)
+            out_x.append(x)
+            out_v.append(-negv)
+            if len(out_x) == k:
+                break
+            m = mask.copy()
+            for v in seq:
+                child = m.copy()
+                child[v, x[v]] = False
+                if child[v].any():
+                    y, yv = self._max_product(tabs, child)
+                    if y is not None:
+                        heapq.heappush(heap, (-yv, counter, y, child))
+                        counter += 1
+                m[v] = False
+                m[v, x[v]] = True
+        X = np.array(out_x, dtype=np.intp).reshape(-1, n)
+        # exact log values from the original tables (not the running max-product sums)
+        return X, model.log_value(X) - logz

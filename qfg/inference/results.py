@@ -1,0 +1,221 @@
+"""Labelled inference results and the errors of the exact engines.
+
+Every engine (exact junction tree, per-variable contraction, GTSAM, Algorithm 2, loopy BP) returns
+a :class:`Marginals`: the triplets, the partition name and the (n, m) array, so a result can be
+read without the (mutable) graph that produced it. Rows follow ``triplets`` (the graph's variable
+order at the time of the call); lookups go by triplet, ``res[(0, 1, 3)]``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+
+import numpy as np
+
+__all__ = ["Marginals", "Assignment", "GraphTooLargeError", "ZeroMassError"]
+
+
+class GraphTooLargeError(ValueError):
+    """Raised before any work when exact inference would build a table above ``max_table``.
+
+    Attributes: ``entries`` (estimated largest table, a float: may exceed any int a table could
+    hold), ``width`` (number of triplets in that table), ``max_table``.
+    """
+
+    def __init__(self, message: str, *, entries: float = float("nan"), width: int = 0,
+                 max_table: int = 0):
+        super().__init__(message)
+        self.entries = entries
+        self.width = width
+        self.max_table = max_table
+
+
+class ZeroMassError(ValueError):
+    """Raised when the product of a graph's factors is zero everywhere (the priors contradict the
+    tensor's support): the exact marginals are undefined.
+
+    Attributes: ``triplets`` (the variables of the connected component without mass) and
+    ``local_factors`` (composition factors ``(i, j, k, s)`` whose own table has no mass under the
+    priors of their seen triplets: a contradiction visible at one factor; empty when only the
+    combination of several factors contradicts the priors).
+    """
+
+    def __init__(self, message: str, *, triplets=(), local_factors=()):
+        super().__init__(message)
+        self.triplets = tuple(triplets)
+        self.local_factors = tuple(local_factors)
+
+
+def _frozen_array(a) -> np.ndarray:
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True)
+class Marginals:
+    """(n, m) marginal distributions labelled by triplet.
+
+    Attributes:
+        triplets: tuple of ``(i, j, k)``, the row labels.
+        partition: partition name of the states (columns), or None for an unlabelled tensor.
+        probabilities: (n, m) float array, rows sum to 1 (read-only).
+        method: which engine made it (``"junction"``, ``"contract"``, ``"gtsam"``,
+            ``"label_correcting"``, ``"loopy_bp"``).
+        info: read-only mapping of engine-specific extras (e.g. ``log_partition``,
+            ``largest_table``, ``converged``, ``iterations``, ``isc``, ``reached``).
+
+    ``res[(i, j, k)]`` is that triplet's (m,) row; ``res[v]`` with an int, slice, mask or index
+    array indexes rows as a numpy array would (for code written against the old bare arrays).
+    ``len(res)``, ``iter(res)`` (triplets), ``(i, j, k) in res``, ``res.to_dict()``,
+    ``np.asarray(res)``. Extras are also attributes: ``res.converged`` = ``res.info["converged"]``.
+
+    >>> r = Marginals(((0, 1, 2), (1, 2, 3)), "lr", [[0.9, 0.1], [0.5, 0.5]], "exact")
+    >>> r[(1, 2, 3)].tolist(), len(r), np.asarray(r).shape, list(r)
+    ([0.5, 0.5], 2, (2, 2), [(0, 1, 2), (1, 2, 3)])
+    """
+
+    triplets: tuple
+    partition: str | None
+    probabilities: np.ndarray
+    method: str = ""
+    info: Mapping = field(default_factory=dict)
+
+    def __post_init__(self):
+        ts = tuple(tuple(int(x) for x in t) for t in self.triplets)
+        P = _frozen_array(self.probabilities)
+        if P.ndim != 2 or P.shape[0] != len(ts):
+            raise ValueError(f"probabilities: expected ({len(ts)}, m) rows for {len(ts)} triplets, "
+                             f"got shape {P.shape}")
+        object.__setattr__(self, "triplets", ts)
+        object.__setattr__(self, "probabilities", P)
+        info = {}
+        for k, v in dict(self.info).items():
+            if isinstance(v, np.ndarray):
+                v = v.copy()
+                v.setflags(write=False)
+            info[k] = v
+        object.__setattr__(self, "info", MappingProxyType(info))
+        object.__setattr__(self, "_rows", {t: v for v, t in enumerate(ts)})
+
+    # ------------------------------------------------------------- mapping-like
+    def row(self, triplet) -> int:
+        """Row index of ``triplet`` (ValueError naming it when absent)."""
+        try:
+            return self._rows[tuple(int(x) for x in triplet)]
+        except (KeyError, TypeError, ValueError):
+            raise ValueError(f"triplet: {triplet!r} is not in this result") from None
+
+    def __getitem__(self, key):
+        if isinstance(key, tuple) and len(key) == 3 and all(
+                isinstance(x, (int, np.integer)) and not isinstance(x, bool) for x in key):
+            return self.probabilities[self.row(key)]
+        return self.probabilities[key]
+
+    def __contains__(self, triplet) -> bool:
+        try:
+            return tuple(int(x) for x in triplet) in self._rows
+        except (TypeError, ValueError):
+            return False
+
+    def __len__(self) -> int:
+        return len(self.triplets)
+
+    def __iter__(self):
+        return iter(self.triplets)
+
+    def __array__(self, dtype=None, copy=None):
+        a = self.probabilities
+        if dtype is not None:
+            a = a.astype(dtype)
+        return a.copy() if copy else a
+
+    def to_dict(self) -> dict:
+        """``{triplet: (m,) row}`` (copies)."""
+        return {t: self.probabilities[v].copy() for v, t in enumerate(self.triplets)}
+
+    # ------------------------------------------------------------- compatibility
+    @property
+    def marginals(self) -> np.ndarray:
+        """The (n, m) array (the field name of the old result types)."""
+        return self.probabilities
+
+    @property
+    def shape(self) -> tuple:
+        return self.probabilities.shape
+
+    @property
+    def m(self) -> int:
+        return int(self.probabilities.shape[1])
+
+    def __getattr__(self, name):
+        # extras of the engines (converged, isc, order, ...) read as attributes
+        if name.startswith("_"):
+            raise AttributeError(name)
+        info = object.__getattribute__(self, "info")
+        if name in info:
+            return info[name]
+        raise AttributeError(f"{type(self).__name__} has no attribute {name!r} "
+                             f"(extras: {sorted(info)})")
+
+    def __repr__(self) -> str:
+        return (f"Marginals(method={self.method!r}, partition={self.partition!r}, "
+                f"n={len(self)}, m={self.probabilities.shape[1]}, info={sorted(self.info)})")
+
+
+@dataclass(frozen=True)
+class Assignment:
+    """Joint assignments of all triplet states with their probabilities (MAP and K-best).
+
+    Attributes:
+        triplets: tuple of ``(i, j, k)`` (column labels of ``states``).
+        partition: partition name, or None.
+        states: (K, n) int: row r is the r-th most probable joint assignment.
+        probabilities: (K,) their probabilities under the normalized joint (non-increasing).
+        log_probabilities: (K,) natural logs of ``probabilities`` (finite even when those
+            underflow to 0).
+
+    ``res[(i, j, k)]`` is that triplet's column (K,); ``res.best`` the best assignment as a dict.
+
+    >>> a = Assignment(((0, 1, 2),), "lr", [[1], [0]], [0.7, 0.3], np.log([0.7, 0.3]))
+    >>> a[(0, 1, 2)].tolist(), a.best, len(a)
+    ([1, 0], {(0, 1, 2): 1}, 2)
+    """
+
+    triplets: tuple
+    partition: str | None
+    states: np.ndarray
+    probabilities: np.ndarray
+    log_probabilities: np.ndarray
+
+    def __post_init__(self):
+        ts = tuple(tuple(int(x) for x in t) for t in self.triplets)
+        S = np.array(self.states, dtype=np.intp).reshape(-1, len(ts))
+        S.setflags(write=False)
+        object.__setattr__(self, "triplets", ts)
+        object.__setattr__(self, "states", S)
+        object.__setattr__(self, "probabilities", _frozen_array(self.probabilities))
+        object.__setattr__(self, "log_probabilities", _frozen_array(self.log_probabilities))
+        if self.probabilities.shape != (len(S),) or self.log_probabilities.shape != (len(S),):
+            raise ValueError(f"probabilities: expected ({len(S)},) values for {len(S)} assignments")
+
+    def __getitem__(self, triplet) -> np.ndarray:
+        try:
+            v = self.triplets.index(tuple(int(x) for x in triplet))
+        except (ValueError, TypeError):
+            raise ValueError(f"triplet: {triplet!r} is not in this result") from None
+        return self.states[:, v]
+
+    def __len__(self) -> int:
+        return len(self.states)
+
+    @property
+    def best(self) -> dict:
+        """The most probable assignment as ``{triplet: state}``."""
+        return {t: int(s) for t, s in zip(self.triplets, self.states[0], strict=True)}
+
+    def to_dicts(self) -> list[dict]:
+        """One ``{triplet: state}`` dict per assignment, best first."""
+        return [{t: int(s) for t, s in zip(self.triplets, row, strict=True)} for row in self.states]

@@ -1,0 +1,218 @@
+"""The UAI model format (the format of the UAI inference competitions), with the triplet mapping
+in a sidecar file.
+
+A ``.uai`` file is whitespace-separated text::
+
+    MARKOV                 (or BAYES: tables are then conditional probabilities, same product)
+    n                      number of variables
+    c_0 c_1 ... c_{n-1}    cardinalities
+    F                      number of factors
+    k v_1 ... v_k          per factor: scope size and variables (F lines)
+    t                      per factor, in the same order: number of entries,
+    x_1 ... x_t            then the table, the LAST scope variable changing fastest (C order)
+
+A factor graph is written as one unary factor per seen triplet (its normalized prior) and one
+factor per composition ``(t1, t2, t3)`` with ``T.ravel()``. Variables are numbered as the graph
+numbers them (``g.triplets``). The sidecar ``<file>.json`` records what the format cannot: the
+partition name, each variable's triplet and each factor's role (prior of variable v, or
+composition ``(i, j, k, s)``). Numbers are written with 17 significant digits, so a round trip is
+exact.
+
+>>> import numpy as np, tempfile, os
+>>> from qfg.graph import QualitativeFactorGraph
+>>> g = QualitativeFactorGraph(None, tensor=np.full((2, 2, 2), 0.125))
+>>> for t, p in [((0, 1, 2), [0.9, 0.1]), ((1, 2, 3), None), ((0, 1, 3), None)]:
+...     _ = g.add_triplet(t, p)
+>>> _ = g.discover_compositions()
+>>> d = tempfile.mkdtemp(); path = os.path.join(d, "g.uai")
+>>> write_uai(g, path)
+>>> h = read_uai_graph(path)
+>>> h.triplets == g.triplets, h.factors == g.factors
+(True, True)
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .junction import FactorModel
+
+__all__ = ["write_uai", "read_uai", "read_uai_graph", "sidecar_path"]
+
+_SIDECAR = "qfg-uai-sidecar"
+
+
+def sidecar_path(path) -> Path:
+    """``model.uai`` -> ``model.uai.json``."""
+    p = Path(path)
+    return p.with_name(p.name + ".json")
+
+
+def _fmt(x: float) -> str:
+    return format(float(x), ".17g")
+
+
+def write_uai(g, path, *, sidecar: bool = True) -> None:
+    """Write a :class:`~qfg.graph.QualitativeFactorGraph` (or a
+    :class:`~qfg.inference.junction.FactorModel`) as a UAI MARKOV file, and the sidecar JSON with
+    the triplets (``sidecar=False``: the ``.uai`` only)."""
+    path = Path(path)
+    if isinstance(g, FactorModel):
+        model, roles, partition, names = g, None, g.partition, list(g.names)
+    else:
+        model = FactorModel.from_graph(g)
+        seen = np.flatnonzero(g.seen).tolist()
+        roles = ([{"prior": int(v)} for v in seen]
+                 + [{"composition": list(f)} for f in g.factors])
+        partition, names = g.partition, [list(t) for t in g.triplets]
+    lines = ["MARKOV", str(model.n), " ".join(str(c) for c in model.cards), str(len(model.scopes))]
+    lines += [" ".join([str(len(s))] + [str(v) for v in s]) for s in model.scopes]
+    lines.append("")
+    cache: dict[int, str] = {}
+    for t in model.tables:
+        if id(t) not in cache:  # the shared composition tensor is formatted once
+            cache[id(t)] = " ".join(_fmt(x) for x in np.asarray(t, dtype=float).ravel())
+        lines += [str(t.size), cache[id(t)], ""]
+    path.write_text("\n".join(lines))
+    if sidecar:
+        meta = {"format": _SIDECAR, "version": 1, "uai": path.name, "partition": partition,
+                "triplets": [list(t) for t in names] if names else None, "factors": roles}
+        sidecar_path(path).write_text(json.dumps(meta, indent=1) + "\n")
+
+
+def _tokens(path: Path) -> list[str]:
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"path: cannot read {path}: {exc}") from None
+    return text.split()
+
+
+def read_uai(path) -> FactorModel:
+    """Read a UAI MARKOV/BAYES file as a :class:`~qfg.inference.junction.FactorModel` (names and
+    partition from the sidecar when present). Malformed files -> ValueError naming the file."""
+    path = Path(path)
+    tok = _tokens(path)
+    pos = 0
+
+    def take(what):
+        nonlocal pos
+        if pos >= len(tok):
+            raise ValueError(f"path: {path}: file ends before {what}")
+        pos += 1
+        return tok[pos - 1]
+
+    def integer(what, minimum=0):
+        s = take(what)
+        try:
+            v = int(s)
+        except ValueError:
+            raise ValueError(f"path: {path}: expected an integer for {what}, got {s!r}") from None
+        if v < minimum:
+            raise ValueError(f"path: {path}: {what} must be >= {minimum}, got {v}")
+        return v
+
+    kind = take("the header").upper()
+    if kind not in ("MARKOV", "BAYES"):
+        raise ValueError(f"path: {path}: expected MARKOV or BAYES, got {kind!r}")
+    n = integer("the number of variables")
+    cards = [integer(f"the cardinality of variable {v}", 1) for v in range(n)]
+    F = integer("the number of factors")
+    scopes = []
+    for f in range(F):
+        k = integer(f"the scope size of factor {f}")
+        s = tuple(integer(f"a variable of factor {f}") for _ in range(k))
+        if any(v >= n for v in s) or len(set(s)) != k:
+            raise ValueError(f"path: {path}: factor {f} has scope {s} (expected distinct "
+                             f"variables below {n})")
+        scopes.append(s)
+    tables = []
+    for f, s in enumerate(scopes):
+        size = integer(f"the table size of factor {f}")
+        want = int(np.prod([cards[v] for v in s])) if s else 1
+        if size != want:
+            raise ValueError(f"path: {path}: factor {f} declares {size} entries, its scope needs "
+                             f"{want}")
+        vals = [take(f"entry {i} of factor {f}") for i in range(size)]
+        try:
+            t = np.array(vals, dtype=float)
+        except ValueError:
+            raise ValueError(f"path: {path}: factor {f} has a non-numeric entry") from None
+        if not np.all(np.isfinite(t)) or np.any(t < 0):
+            raise ValueError(f"path: {path}: factor {f} has negative or non-finite entries")
+        tables.append(t.reshape([cards[v] for v in s]))
+    if pos != len(tok):
+        raise ValueError(f"path: {path}: {len(tok) - pos} unexpected token(s) after the tables")
+    names, partition = (), None
+    meta = _sidecar(path)
+    if meta is not None:
+        if meta.get("triplets") is not None:
+            if len(meta["triplets"]) != n:
+                raise ValueError(f"path: {sidecar_path(path)} lists {len(meta['triplets'])} "
+                                 f"triplets for {n} variables")
+            names = tuple(tuple(t) for t in meta["triplets"])
+        partition = meta.get("partition")
+    return FactorModel(cards=cards, scopes=scopes, tables=tables, names=names,
+                       partition=partition)
+
+
+def _sidecar(path: Path):
+    sp = sidecar_path(path)
+    if not sp.exists():
+        return None
+    try:
+        meta = json.loads(sp.read_text())
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"path: sidecar {sp} is not readable JSON: {exc}") from None
+    if not isinstance(meta, dict) or meta.get("format") != _SIDECAR:
+        raise ValueError(f"path: sidecar {sp} is not a {_SIDECAR} file")
+    return meta
+
+
+def read_uai_graph(path):
+    """Read a UAI file written by :func:`write_uai` back into a
+    :class:`~qfg.graph.QualitativeFactorGraph` (needs the sidecar: the triplets and factor roles;
+    every composition factor must carry the same table, the graph's tensor)."""
+    from ..graph import QualitativeFactorGraph
+
+    path = Path(path)
+    model = read_uai(path)
+    meta = _sidecar(path)
+    if meta is None or meta.get("triplets") is None or meta.get("factors") is None:
+        raise ValueError(f"path: {path} has no sidecar {sidecar_path(path).name} with the "
+                         f"triplets and factor roles; read it with read_uai() instead")
+    roles = meta["factors"]
+    if len(roles) != len(model.scopes):
+        raise ValueError(f"path: sidecar lists {len(roles)} factor roles for "
+                         f"{len(model.scopes)} factors")
+    T = None
+    priors: dict[int, np.ndarray] = {}
+    comps = []
+    for f, (role, s, t) in enumerate(zip(roles, model.scopes, model.tables, strict=True)):
+        if "prior" in role:
+            if s != (int(role["prior"]),):
+                raise ValueError(f"path: factor {f} is a prior of {role['prior']} but has scope {s}")
+            priors[s[0]] = t
+        elif "composition" in role:
+            i, j, k, q = (int(x) for x in role["composition"])
+            want = tuple(model.names.index(x) for x in ((i, j, k), (j, k, q), (i, j, q)))
+            if s != want:
+                raise ValueError(f"path: factor {f} is composition {(i, j, k, q)} but has scope {s}")
+            if T is None:
+                T = t
+            elif not np.array_equal(T, t):
+                raise ValueError(f"path: composition factor {f} has a different table than the "
+                                 f"first one (a factor graph has one tensor)")
+            comps.append((i, j, k, q))
+        else:
+            raise ValueError(f"path: sidecar factor role {role!r} is neither prior nor composition")
+    m = model.cards[0] if model.n else 0
+    g = QualitativeFactorGraph(model.partition, tensor=T if T is not None else np.ones((m,) * 3))
+    for v, t in enumerate(model.names):
+        g.add_triplet(t, priors.get(v))
+    for c in comps:
+        g.add_composition(c)
+    return g
