@@ -23,7 +23,7 @@ import importlib
 from ._version import __version__
 
 _MODULES = ("geometry", "partitions", "simulation", "datasets", "solvers", "composition", "graph",
-            "propagation", "metrics")
+            "inference", "propagation", "metrics")
 
 #: top-level name -> module that defines it
 _NAMES = {
@@ -44,6 +44,12 @@ _NAMES = {
     "compare_unseen": "propagation",
     "GraphTooLargeError": "propagation",
     "ZeroMassError": "propagation",
+    "Marginals": "inference",
+    "Assignment": "inference",
+    "map_assignment": "inference",
+    "k_best": "inference",
+    "write_uai": "inference",
+    "read_uai": "inference",
     "TripletHistory": "simulation",
     "random_triplet_history": "simulation",
     "random_scenario": "simulation",
