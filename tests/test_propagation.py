@@ -310,20 +310,6 @@ def test_loopy_bp_reports_non_convergence_and_damping_runs():
     assert np.all(d.marginals >= 0)
 
 
-# ------------------------------------------------------------------ study smoke test
-def test_exact_vs_approx_study_runs_and_exact_rows_are_zero(tmp_path):
-    from qfg.harness.runner import load_presets, run_study
-    from qfg.harness.studies.exact_vs_approx import STUDY
-
-    assert {"quick", "paper"} <= set(load_presets("exact-vs-approx"))
-    rows = run_study(STUDY, {"n_scenarios": 2, "random_tensor_states": 20}, tmp_path,
-                     seed=1, progress=False)
-    assert rows and {r["method"] for r in rows} == {"exact", "label_correcting", "loopy_bp"}
-    assert all(r["tv"] == 0.0 and r["kl"] == 0.0 for r in rows if r["method"] == "exact")
-    assert all(0.0 <= r["tv"] <= 1.0 + 1e-12 for r in rows)
-    assert (tmp_path / "table.md").exists() and (tmp_path / "exact_vs_approx.png").exists()
-
-
 def test_isc_hand_worked_on_copy_tensor():
     """T[a, b, c] = 1 iff a = b = c: composition copies the state. Prior (0.9, 0.1) on (0,1,2):
     (1,2,3) gets (0.9, 0.1) from one known (ISC = 1 - H(0.9)/ln 2 = 0.531004...), then (0,1,3)

@@ -1,223 +1,322 @@
-"""Exact versus approximate inference on small qualitative factor graphs (issue 5).
+"""Exact versus approximate inference on the propagation study's graphs (issue 13, item 4).
 
-Each scenario: a random trajectory among ``n_landmarks`` landmarks (:func:`qfg.simulation.
-random_scenario`), the triplets it saw solved by a single-triplet solver (priors), and a random
-connected set of composition factors over the map of those landmarks grown until it holds at most
-``max_triplets`` triplets; with probability ``loop_probability`` the growth prefers factors that
-close a loop (the ``has_loop`` column says whether the graph has one).
-The seen triplets of the graph keep their solver priors with probability ``coverage``; the rest are
-unseen. A graph whose priors contradict the tensor's support (zero total mass: no exact answer)
-is drawn again (``zero_mass_redraws`` counts them). For each graph: exact marginals (einsum
-contraction), label-correcting propagation (Algorithm 2) and loopy BP; per non-seen triplet and
-method: total variation and KL(exact || method) to the exact marginals, DMSE to the ground-truth
-state, information score, time of the method on the whole graph.
+Each scenario is one graph of the propagation study, drawn by :func:`qfg.random_graphs.
+propagation_graph` from the same random stream: ``qfg experiment exact-vs-approx --preset paper
+--seed S`` sees exactly the 5400 graphs of ``qfg experiment propagation --preset paper --seed S``
+(6 landmarks, 5-40 composition factors, the best of 10 candidates by connectivity score, half the
+triplets seen with fast-solver priors). For every graph:
+
+* exact marginals, one junction-tree calibration (:func:`qfg.inference.exact_marginals`); a graph
+  whose priors contradict the tensor's support has none (``zero_mass``; ``zero_mass_local`` = how
+  many single factors contradict their own triplets' priors -- 0 means only a loop or chain of
+  factors does);
+* Algorithm 2 in both readings of closing (:func:`qfg.propagation.propagate`, ``alg2``:
+  membership, ``alg2c``: ``close_used=True``);
+* loopy BP without and with damping (``bp``: damping 0, ``bpd``: ``bp_damping``);
+* the topology score (Algorithm 3, seen triplets at their prior's ISC: ``tsc``; at 1: ``tsc1``).
+
+Rows: one per non-seen triplet, with per method ``<method>_tv`` and ``<method>_kl`` (KL(exact ||
+method), natural log) to exact, ``<method>_logscore`` (log of the probability given to the true
+state), ``<method>_dmse`` (to the true state), ``<method>_isc``; graph columns (``n_v``, ``n_fc``,
+``n_seen``, ``width`` (largest clique of the junction tree, triplets), ``has_loop``, BP
+convergence) and per-graph times ``time_<method>`` (seconds, timings.csv).
 
 Run: ``qfg experiment exact-vs-approx --preset quick --output out/exact_vs_approx``.
 """
 
 from __future__ import annotations
 
-import itertools
+import csv
 import json
 import time
 from pathlib import Path
 
 import numpy as np
 
-from qfg.graph import QualitativeFactorGraph, truth_states
-from qfg.metrics import dmse, information_score
-from qfg.propagation import ZeroMassError, exact_marginals, loopy_bp, propagate
+from qfg.graph import truth_states
 from qfg.harness.runner import Study
-from qfg.simulation import random_scenario, triplet_histories
+from qfg.inference import ZeroMassError, exact_marginals
+from qfg.metrics import dmse, information_score
+from qfg.propagation import loopy_bp, propagate, topology_scores
+from qfg.random_graphs import propagation_graph
 
-METHODS = ("exact", "label_correcting", "loopy_bp")
+#: approximate methods: name -> label
+APPROX = {"alg2": "Algorithm 2 (membership closing)", "alg2c": "Algorithm 2 (close used)",
+          "bp": "loopy BP", "bpd": "loopy BP, damped"}
+METHODS = ("exact", *APPROX)
 
 DEFAULTS = {
-    "n_scenarios": 20, "n_landmarks": 5, "n_poses": 6, "landmarks_per_view": 4,
-    "max_triplets": 8, "max_factors": 5, "coverage": 0.5, "sigma_bearing": 0.02,
-    "sigma_heading": 0.05, "solver": "fast", "partition": "edc", "bp_damping": 0.0,
-    "bp_max_iters": 200, "bp_tol": 1e-9, "loop_probability": 0.5,
-    # Tests only: a seeded random tensor of this many states instead of the shipped tensor.
-    "random_tensor_states": 0,
+    # the propagation study's graph parameters (its paper preset)
+    "n_graphs": 20, "n_landmarks": 6, "n_fc_min": 5, "n_fc_max": 40, "n_candidates": 10,
+    "coverage_rate": 0.5, "alpha": 0.5, "n_views": 3, "sigma_bearing_deg": 2.0,
+    "sigma_heading_deg": 5.0, "solver": "fast", "partition": "edc", "n_bins": 10,
+    # the approximate methods
+    "bp_damping": 0.5, "bp_max_iters": 200, "bp_tol": 1e-9,
+    # Tests only: a seeded random tensor (m = 20) instead of tensors/<partition>.npz.
+    "random_tensor": False,
 }
+
+_GRAPH_KEYS = ("n_landmarks", "n_fc_min", "n_fc_max", "n_candidates", "coverage_rate", "n_views",
+               "sigma_bearing_deg", "sigma_heading_deg", "solver", "partition", "n_bins")
 
 
 def tasks(params: dict) -> list[dict]:
-    p = {**DEFAULTS, **params}
     unknown = set(params) - set(DEFAULTS)
     if unknown:
         raise ValueError(f"params: unknown keys {sorted(unknown)}")
-    return [{"index": i, **{k: v for k, v in p.items() if k != "n_scenarios"}}
-            for i in range(int(p["n_scenarios"]))]
+    p = {**DEFAULTS, **params}
+    n = p["n_graphs"]
+    if isinstance(n, bool) or not isinstance(n, int) or n < 0:
+        raise ValueError(f"n_graphs: expected an integer >= 0, got {n!r}")
+    if not 0.0 <= float(p["bp_damping"]) < 1.0:
+        raise ValueError(f"bp_damping: expected 0 <= damping < 1, got {p['bp_damping']!r}")
+    return [{"index": i, **{k: v for k, v in p.items() if k != "n_graphs"}} for i in range(n)]
 
 
 def _tensor(task):
-    m = int(task["random_tensor_states"])
-    if m:
+    if task["random_tensor"]:
+        # the propagation study's test tensor, so both studies draw the same graphs in tests too
         rng = np.random.default_rng(12345)
-        return rng.random((m, m, m)) * (rng.random((m, m, m)) < 0.3) + 1e-6
+        return rng.random((20, 20, 20)) * (rng.random((20, 20, 20)) < 0.3) + 1e-6
     from qfg.composition import tensor
     return tensor(task["partition"])
 
 
-def _grow_factors(rng, seen_set, n_land, max_triplets, max_factors, prefer_loops=False):
-    """Random connected factor set, starting at a factor touching a seen triplet.
+def _tv_kl(p, q):
+    eps = 1e-300
+    tv = 0.5 * np.abs(p - q).sum(axis=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        kl = np.where(p > 0, p * (np.log(np.maximum(p, eps)) - np.log(np.maximum(q, eps))), 0.0)
+    return tv, np.maximum(kl.sum(axis=-1), 0.0)  # KL >= 0; rounding can give -1e-17
 
-    ``prefer_loops``: when some candidate factor shares two or more triplets with the set (adding
-    it closes a loop), draw among those only."""
-    factors = [(i, j, k, s) for i, j, k, s in itertools.permutations(range(n_land), 4)]
-    trip = {f: {(f[0], f[1], f[2]), (f[1], f[2], f[3]), (f[0], f[1], f[3])} for f in factors}
-    starts = [f for f in factors if trip[f] & seen_set]
-    if not starts:
-        return [], set()
-    chosen = [starts[rng.integers(len(starts))]]
-    ts = set(trip[chosen[0]])
-    target = int(rng.integers(1, max_factors + 1))
-    while len(chosen) < target:
-        cands = [f for f in factors if f not in chosen and trip[f] & ts
-                 and len(ts | trip[f]) <= max_triplets]
-        if not cands:
-            break
-        if prefer_loops:
-            loops = [f for f in cands if len(trip[f] & ts) >= 2]
-            cands = loops or cands
-        f = cands[rng.integers(len(cands))]
-        chosen.append(f)
-        ts |= trip[f]
-    return chosen, ts
+
+def _timed(fn):
+    t = time.perf_counter()
+    out = fn()
+    return out, time.perf_counter() - t
 
 
 def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
-    import networkx as nx
+    from qfg.inference import size_estimate
 
-    from qfg.solvers import solve_triplet
-
-    T = _tensor(task)
-    zero_mass_redraws = 0
-    for _ in range(100):
-        sc = random_scenario(rng, task["n_landmarks"], task["n_poses"], task["landmarks_per_view"],
-                             sigma_bearing=task["sigma_bearing"],
-                             sigma_heading=task["sigma_heading"])
-        hists = {h.landmarks: h for h in triplet_histories(sc, partition=task["partition"])}
-        chosen, ts = _grow_factors(rng, set(hists), task["n_landmarks"], task["max_triplets"],
-                                   task["max_factors"],
-                                   prefer_loops=bool(rng.random() < task["loop_probability"]))
-        cands = sorted(t for t in ts if t in hists)
-        seen = [t for t in cands if rng.random() < task["coverage"]]
-        if not (chosen and seen and len(seen) < len(ts)):
+    drawn = propagation_graph(rng, _tensor(task), **{k: task[k] for k in _GRAPH_KEYS})
+    g, L = drawn.graph, drawn.landmarks
+    truth = truth_states(g.triplets, L, task["partition"])
+    est = size_estimate(g)
+    zero_mass, zero_local, why = False, 0, ""
+    try:
+        ex, t_ex = _timed(lambda: exact_marginals(g))
+        E = np.asarray(ex)
+    except ZeroMassError as exc:
+        zero_mass, zero_local, why = True, len(exc.local_factors), str(exc)
+        E, t_ex = None, float("nan")
+    res, times = {}, {"exact": t_ex}
+    res["alg2"], times["alg2"] = _timed(lambda: propagate(g))
+    res["alg2c"], times["alg2c"] = _timed(lambda: propagate(g, close_used=True))
+    bp_kw = {"max_iters": int(task["bp_max_iters"]), "tol": float(task["bp_tol"])}
+    res["bp"], times["bp"] = _timed(lambda: loopy_bp(g, damping=0.0, **bp_kw))
+    res["bpd"], times["bpd"] = _timed(lambda: loopy_bp(g, damping=float(task["bp_damping"]),
+                                                       **bp_kw))
+    tsc = topology_scores(g, alpha=float(task["alpha"])).scores
+    tsc1 = topology_scores(g, alpha=float(task["alpha"]), seen_score=1.0).scores
+    unseen = np.flatnonzero(~g.seen)
+    truth_u = truth[unseen]
+    cols = {}
+    mats = {"exact": E, **{k: np.asarray(r) for k, r in res.items()}}
+    for name, M in mats.items():
+        if M is None:
+            for c in ("tv", "kl", "logscore", "dmse", "isc"):
+                cols[f"{name}_{c}"] = [None] * len(unseen)
             continue
-        g = QualitativeFactorGraph(task["partition"], tensor=T)
-        for t in sorted(ts):
-            prior = None
-            if t in seen:
-                prior = solve_triplet(hists[t], method=task["solver"],
-                                      partition=task["partition"], seed=rng)
-            g.add_triplet(t, prior)
-        for f in chosen:
-            g.add_composition(f)
-        t0 = time.perf_counter()
-        try:
-            ex = exact_marginals(g, engine="contract")
-            t1 = time.perf_counter()
-        except ZeroMassError:
-            # the solver priors contradict the tensor's support: no exact answer; draw again
-            zero_mass_redraws += 1
-            continue
-        break
-    else:
-        raise RuntimeError("no usable graph (seen and unseen triplets, non-zero mass) in 100 draws")
-    has_loop = len(nx.cycle_basis(g.to_networkx())) > 0
-    t2s = time.perf_counter()
-    lc = propagate(g)
-    t2 = time.perf_counter()
-    bp = loopy_bp(g, damping=task["bp_damping"], max_iters=task["bp_max_iters"], tol=task["bp_tol"])
-    t3 = time.perf_counter()
-    results = {"exact": (ex, t1 - t0), "label_correcting": (lc.marginals, t2 - t2s),
-               "loopy_bp": (bp.marginals, t3 - t2)}
-    truth = truth_states(g.triplets, sc.landmarks, task["partition"])
+        Q = M[unseen]
+        q_true = Q[np.arange(len(unseen)), truth_u]
+        with np.errstate(divide="ignore"):
+            cols[f"{name}_logscore"] = np.maximum(np.log(q_true), -1e3).tolist()  # floor: -inf
+        cols[f"{name}_dmse"] = dmse(Q, truth_u).tolist()
+        cols[f"{name}_isc"] = information_score(Q).tolist()
+        if E is None or name == "exact":
+            cols[f"{name}_tv"] = [None if E is None else 0.0] * len(unseen)
+            cols[f"{name}_kl"] = [None if E is None else 0.0] * len(unseen)
+        else:
+            tv, kl = _tv_kl(E[unseen], Q)
+            cols[f"{name}_tv"], cols[f"{name}_kl"] = tv.tolist(), kl.tolist()
+    F, n = g.n_factors, g.n_triplets
+    # bipartite factor graph (compositions only): a cycle iff edges > nodes - components
+    from qfg.inference.exact import _components
+    n_comp = len(_components(n, g.factor_vars))
+    has_loop = 3 * F > (n + F) - n_comp
+    graph = {"n_v": n, "n_fc": F, "n_seen": int(g.seen.sum()), "width": est.width,
+             "has_loop": bool(has_loop), "connectivity": drawn.connectivity,
+             "zero_mass": zero_mass, "zero_mass_local": zero_local,
+             "bp_converged": bool(res["bp"].converged), "bp_iterations": res["bp"].iterations,
+             "bpd_converged": bool(res["bpd"].converged),
+             "bpd_iterations": res["bpd"].iterations,
+             **{f"time_{k}": v for k, v in times.items()}}
     rows = []
-    eps = 1e-300
-    for v, t in enumerate(g.triplets):
-        if g.seen[v]:
-            continue
-        for name, (M, dt) in results.items():
-            p, q = ex[v], M[v]
-            rows.append({
-                "triplet": "-".join(map(str, t)), "method": name,
-                "tv": float(0.5 * np.abs(p - q).sum()),
-                "kl": float(np.sum(np.where(p > 0, p * (np.log(np.maximum(p, eps))
-                                                        - np.log(np.maximum(q, eps))), 0.0))),
-                "dmse": float(dmse(q / q.sum(), truth[v])),
-                "isc": float(information_score(q / q.sum())),
-                "reached": bool(lc.reached[v]),
-                "has_loop": has_loop, "n_triplets": g.n_triplets, "n_factors": g.n_factors,
-                "n_seen": int(g.seen.sum()), "bp_converged": bp.converged,
-                "bp_iterations": bp.iterations, "zero_mass_redraws": zero_mass_redraws,
-                "time_s": dt,
-            })
+    for r, v in enumerate(unseen):
+        row = {"triplet": "-".join(map(str, g.triplets[v])), "truth": int(truth[v]),
+               "reached": bool(res["alg2"].reached[v]), "tsc": float(tsc[v]),
+               "tsc1": float(tsc1[v]), **{k: c[r] for k, c in cols.items()}, **graph}
+        if r == 0 and zero_mass:
+            row["zero_mass_why"] = why
+        rows.append(row)
+    if not rows:  # every triplet seen: keep the graph's zero-mass / timing record anyway
+        rows.append({"triplet": "", **graph})
     return rows
 
 
-def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
-    import csv
+# ------------------------------------------------------------------------------ summary
+def _spearman(x, y):
+    from scipy import stats
 
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    if len(x) < 3 or np.ptp(x) == 0 or np.ptp(y) == 0:
+        return None
+    return float(stats.spearmanr(x, y).statistic)
+
+
+def _pearson(x, y):
+    from scipy import stats
+
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    if len(x) < 3 or np.ptp(x) == 0 or np.ptp(y) == 0:
+        return None
+    return float(stats.pearsonr(x, y).statistic)
+
+
+def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
     outdir = Path(outdir)
-    groups = {}
+    rows = [r for r in rows if r.get("triplet")]
+    graphs = {}
     for r in rows:
-        for loop in ("all", "loopy" if r["has_loop"] else "tree"):
-            groups.setdefault((r["method"], loop), []).append(r)
+        graphs.setdefault(r["scenario"], r)
+    g_rows = list(graphs.values())
+    ok = [r for r in rows if not r["zero_mass"]]
+
+    def col(rs, k):
+        return np.array([np.nan if r.get(k) is None else float(r[k]) for r in rs], dtype=float)
+
     table = []
-    for (method, loop), rs in sorted(groups.items()):
-        def col(k, rs=rs):
-            return np.array([x[k] for x in rs], dtype=float)
-        table.append({"method": method, "graphs": loop, "triplets": len(rs),
-                      "tv_mean": col("tv").mean(), "tv_median": float(np.median(col("tv"))),
-                      "kl_mean": col("kl").mean(), "dmse_mean": col("dmse").mean(),
-                      "isc_mean": col("isc").mean(),
-                      "time_ms_median": 1e3 * float(np.median(col("time_s")))})
-    if table:
-        with open(outdir / "table.csv", "w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=list(table[0]))
-            w.writeheader()
-            w.writerows(table)
-        lines = ["| method | graphs | unseen triplets | TV mean | TV median | KL mean | DMSE mean "
-                 "| ISC mean | time median (ms) |", "|---|---|---|---|---|---|---|---|---|"]
-        for t in table:
-            lines.append(f"| {t['method']} | {t['graphs']} | {t['triplets']} | {t['tv_mean']:.3f} "
-                         f"| {t['tv_median']:.3f} | {t['kl_mean']:.3f} | {t['dmse_mean']:.3f} "
-                         f"| {t['isc_mean']:.3f} | {t['time_ms_median']:.2f} |")
-        (outdir / "table.md").write_text("\n".join(lines) + "\n")
-    bp_rows = [r for r in rows if r["method"] == "loopy_bp"]
-    summary = {"rows": len(rows), "table": table,
-               "bp_converged_fraction": float(np.mean([r["bp_converged"] for r in bp_rows]))
-               if bp_rows else None}
-    (outdir / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
+    for sub_name, sub in (("all", ok), ("tree", [r for r in ok if not r["has_loop"]]),
+                          ("loopy", [r for r in ok if r["has_loop"]])):
+        gsub = {r["scenario"]: r for r in sub}.values()
+        for m in METHODS:
+            if not sub:
+                continue
+            tv, kl = col(sub, f"{m}_tv"), col(sub, f"{m}_kl")
+            table.append({
+                "graphs": sub_name, "method": m, "n_graphs": len(gsub), "n_triplets": len(sub),
+                "tv_mean": float(np.mean(tv)), "tv_median": float(np.median(tv)),
+                "tv_p90": float(np.percentile(tv, 90)), "kl_mean": float(np.mean(kl)),
+                "logscore_mean": float(np.mean(col(sub, f"{m}_logscore"))),
+                "dmse_mean": float(np.mean(col(sub, f"{m}_dmse"))),
+                "isc_mean": float(np.mean(col(sub, f"{m}_isc"))),
+                "time_ms_median": 1e3 * float(np.median(col(list(gsub), f"time_{m}"))),
+                "time_ms_p90": 1e3 * float(np.percentile(col(list(gsub), f"time_{m}"), 90)),
+            })
+    with open(outdir / "table.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(table[0]) if table else ["graphs"],
+                           lineterminator="\n")
+        w.writeheader()
+        w.writerows(table)
+    lines = ["| graphs | method | graphs (n) | unseen triplets | TV mean | TV median | TV p90 | "
+             "KL mean | log score mean | DMSE mean | ISC mean | time median (ms) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for t in table:
+        lines.append(f"| {t['graphs']} | {t['method']} | {t['n_graphs']} | {t['n_triplets']} | "
+                     f"{t['tv_mean']:.4f} | {t['tv_median']:.4f} | {t['tv_p90']:.4f} | "
+                     f"{t['kl_mean']:.4f} | {t['logscore_mean']:.3f} | {t['dmse_mean']:.4f} | "
+                     f"{t['isc_mean']:.4f} | {t['time_ms_median']:.2f} |")
+    (outdir / "table.md").write_text("\n".join(lines) + "\n")
+    # does the topology score predict the exact ISC better than Algorithm 2's ISC?
+    pred = {}
+    reached_ok = [r for r in ok if r["reached"]]
+    for sname, sub in (("unseen", ok), ("unseen_reached", reached_ok)):
+        for score in ("tsc", "tsc1"):
+            x = col(sub, score)
+            for target in ("exact", "alg2", "alg2c", "bp"):
+                y = col(sub, f"{target}_isc")
+                pred[f"{sname}/spearman_{score}_{target}_isc"] = _spearman(x, y)
+                pred[f"{sname}/pearson_{score}_{target}_isc"] = _pearson(x, y)
+    zm = [r for r in g_rows if r["zero_mass"]]
+    summary = {
+        "n_graphs": len(g_rows), "n_unseen_triplets": len(rows),
+        "zero_mass_graphs": len(zm),
+        "zero_mass_local": sum(1 for r in zm if r["zero_mass_local"] > 0),
+        "zero_mass_loop_only": sum(1 for r in zm if r["zero_mass_local"] == 0),
+        "zero_mass_scenarios": sorted(r["scenario"] for r in zm),
+        "width_counts": {str(w): int(c) for w, c in zip(*np.unique(
+            [r["width"] for r in g_rows], return_counts=True), strict=True)} if g_rows else {},
+        "loopy_graphs": sum(1 for r in g_rows if r["has_loop"]),
+        "bp_converged_fraction": float(np.mean([r["bp_converged"] for r in g_rows]))
+        if g_rows else None,
+        "bpd_converged_fraction": float(np.mean([r["bpd_converged"] for r in g_rows]))
+        if g_rows else None,
+        "exact_time_s_total": float(np.nansum(col(g_rows, "time_exact"))),
+        "table": table, "predictors": pred, "params": {**DEFAULTS, **params},
+    }
+    run = {}
+    if (outdir / "run.json").exists():
+        run = json.loads((outdir / "run.json").read_text())
+    summary["command"], summary["seed"] = run.get("command"), run.get("seed")
+    (outdir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    _figures(outdir, ok, col)
+
+
+def _figures(outdir, ok, col):
     try:
         import matplotlib
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
     except ImportError:  # pragma: no cover
         return
-    fig, axes = plt.subplots(1, 2, figsize=(9, 3.5))
+    if not ok:
+        return
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
+    approx = list(APPROX)
     for ax, key, label in ((axes[0], "tv", "total variation to exact"),
-                           (axes[1], "dmse", "DMSE to ground truth")):
-        data, labels = [], []
-        for method in METHODS:
-            for loop in (False, True):
-                vals = [r[key] for r in rows if r["method"] == method and r["has_loop"] == loop]
-                if vals:
-                    data.append(vals)
-                    short = {"exact": "exact", "label_correcting": "Alg. 2",
-                             "loopy_bp": "loopy BP"}[method]
-                    labels.append(f"{short}\n{'loopy' if loop else 'tree'}")
-        if data:
-            ax.boxplot(data)
-            ax.set_xticks(range(1, len(labels) + 1), labels, fontsize=7)
+                           (axes[1], "kl", "KL(exact || method) (nats)")):
+        data = [np.clip(col(ok, f"{m}_{key}"), 1e-16, None) for m in approx]
+        ax.boxplot(data, whis=(5, 95), showfliers=False)
+        ax.set_xticks(range(1, len(approx) + 1), approx)
+        ax.set_yscale("log")
         ax.set_ylabel(label)
+        ax.set_xlabel("method (whiskers 5-95 %)")
+    ax = axes[2]
+    for m, c in zip(METHODS, ("k", "C0", "C1", "C2", "C3"), strict=True):
+        x = np.sort(col(ok, f"{m}_dmse"))
+        ax.plot(x, np.arange(1, len(x) + 1) / len(x), color=c, label=m)
+    ax.set_xlabel("DMSE to the true state")
+    ax.set_ylabel("fraction of unseen triplets")
+    ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(outdir / "exact_vs_approx.png", dpi=120)
+    plt.close(fig)
+    # topology score against exact and Algorithm 2 ISC (binned medians, quartile bands)
+    fig, ax = plt.subplots(figsize=(5, 4))
+    x = col(ok, "tsc")
+    b = np.clip((x * 10).astype(int), 0, 9)
+    for m, c in (("exact", "k"), ("alg2", "C0"), ("bp", "C2")):
+        y = col(ok, f"{m}_isc")
+        ctr, med, lo, hi = [], [], [], []
+        for k in range(10):
+            sel = y[b == k]
+            if sel.size:
+                q = np.percentile(sel, [25, 50, 75])
+                ctr.append((k + 0.5) / 10)
+                lo.append(q[0])
+                med.append(q[1])
+                hi.append(q[2])
+        ax.fill_between(ctr, lo, hi, color=c, alpha=0.2)
+        ax.plot(ctr, med, "o-", color=c, label=f"ISC of {m}")
+    ax.set_xlabel("topology score (seen at their ISC), bin centre")
+    ax.set_ylabel("information score (25/50/75 %)")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(outdir / "tsc_vs_isc.png", dpi=120)
     plt.close(fig)
 
 
 STUDY = Study("exact-vs-approx", tasks, run_task, summarize,
-              "exact marginals vs label-correcting (Alg. 2) vs loopy BP on small graphs")
+              "exact marginals vs Algorithm 2 (both closings), loopy BP (damped or not) and the "
+              "topology score on the propagation study's graphs")
