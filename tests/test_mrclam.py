@@ -17,10 +17,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import shared_data_dir
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from conftest import shared_data_dir
 
 from qfg.datasets import mrclam
 from qfg.datasets.mrclam import DataFormatError, integrate_odometry

@@ -57,12 +57,30 @@ class Column:
 _CHUNK = 1 << 16
 
 
+def _inflate_until_error(data: bytes, good: int) -> bytes:
+    """What a fresh decompressor yields from ``data`` before it fails, knowing ``data[:good]`` is
+    fine: the rest is fed byte by byte, so no output decoded before the error is lost."""
+    d = zlib.decompressobj(wbits=16 + zlib.MAX_WBITS)
+    out = [d.decompress(data[:good])]
+    try:
+        for k in range(good, len(data)):
+            out.append(d.decompress(data[k:k + 1]))
+            if d.eof:
+                break
+        out.append(d.flush())
+    except zlib.error:
+        pass
+    return b"".join(out)
+
+
 def _gunzip(path: Path, raw: bytes) -> bytes:
     """Inflate every gzip member of ``raw``; DataFormatError at the line where decoding broke."""
-    out: list[bytes] = []
+    done = b""  # the members inflated so far
     data = raw
     while True:
         d = zlib.decompressobj(wbits=16 + zlib.MAX_WBITS)
+        out: list[bytes] = []
+        k = 0
         try:
             for k in range(0, len(data), _CHUNK):
                 out.append(d.decompress(data[k:k + _CHUNK]))
@@ -70,16 +88,17 @@ def _gunzip(path: Path, raw: bytes) -> bytes:
                     break
             out.append(d.flush())
         except zlib.error as exc:
-            n = sum(c.count(b"\n") for c in out)
+            n = done.count(b"\n") + _inflate_until_error(data, k).count(b"\n")
             raise DataFormatError(path, n + 1, f"corrupt gzip data at or after this line ({n} line(s) "
                                                f"decoded before it): {exc}") from None
+        done += b"".join(out)
         if not d.eof:
-            n = sum(c.count(b"\n") for c in out)
+            n = done.count(b"\n")
             raise DataFormatError(path, n + 1, f"truncated gzip file: the stream ends after {n} "
                                                f"line(s) without its end marker")
         data = d.unused_data
         if not data.strip(b"\0"):  # gzip tolerates zero padding after the last member
-            return b"".join(out)
+            return done
 
 
 def read_bytes(path: Path) -> bytes:
