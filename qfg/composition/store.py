@@ -152,11 +152,14 @@ def checksum(T: np.ndarray) -> str:
 
 
 def tensors_dir() -> Path:
-    """The tensor directory: ``$QFG_TENSORS`` if set, else ``tensors/`` at the repository root."""
+    """The tensor directory: ``$QFG_TENSORS`` if set, else the package data ``qfg/_tensors``
+    (found with :mod:`importlib.resources`; in a checkout it is the top-level ``tensors/``)."""
     env = os.environ.get(ENV_VAR)
     if env:
         return Path(env)
-    return Path(__file__).resolve().parents[2] / "tensors"
+    from importlib.resources import files
+
+    return Path(str(files("qfg") / "_tensors")).resolve()
 
 
 def tensor_path(name: str) -> Path:
