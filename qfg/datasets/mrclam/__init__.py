@@ -34,7 +34,7 @@ offsets against motion capture (dataset 6); the ``DEFAULT_SIGMA_*`` values come 
 The data directory is never built in: pass it, or set ``QFG_MRCLAM_DIR`` (:func:`data_root`).
 
 Data flows one way: this package reads files and produces measurements (histories); it does not
-import solvers or plotting (figures are in ``qfg.plotting_mrclam``). Modules, by concern:
+import solvers or plotting (figures are in ``qfg.harness.plotting_mrclam``). Modules, by concern:
 ``_io`` (bytes, text, tables, errors), ``_data`` (types and the load report), ``_load``,
 ``_odometry``, ``_checks`` (the data against itself), ``_histories``, ``_noise``, ``_cli``.
 

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..._validate import as_float_array, positive_int
 from ...geometry import bearing, wrap_angle
+from ._constants import DEFAULT_ODOMETRY_LEAD
 from ._data import MRCLAMDataset
 
 
@@ -173,8 +174,11 @@ def bearing_residuals(dataset: MRCLAMDataset, robot, *, min_landmarks: int = 4,
 
 def odometry_check(dataset: MRCLAMDataset, robot, *, bins=((0.5, 3.0), (3.0, 10.0), (10.0, 30.0),
                                                            (30.0, 100.0)),
-                   max_residual: float = 0.1, min_landmarks: int = 3) -> list[dict]:
+                   max_residual: float = 0.1, min_landmarks: int = 3,
+                   odometry_lead: float = DEFAULT_ODOMETRY_LEAD) -> list[dict]:
     """How far the odometry's turn drifts from the landmark fixes' turn, by time between fixes.
+
+    The odometry is read at ``fix time - odometry_lead`` (as the histories read it).
 
     For every pair of good fixes (rms residual at most ``max_residual`` m) whose time difference
     falls in a bin ``(lo, hi]`` seconds, the error is ``wrap((theta_j - theta_i)_fixes -
@@ -187,9 +191,10 @@ def odometry_check(dataset: MRCLAMDataset, robot, *, bins=((0.5, 3.0), (3.0, 10.
         return []
     f = landmark_fixes(dataset, robot, min_landmarks=min_landmarks)
     o = rd.odometry
-    good = (f.residual <= max_residual) & (f.times >= o.time[0]) & (f.times <= o.time[-1])
+    q = f.times - odometry_lead
+    good = (f.residual <= max_residual) & (q >= o.time[0]) & (q <= o.time[-1])
     ft, fth = f.times[good], f.poses[good, 2]
-    oth = o.poses(ft)[:, 2]
+    oth = o.poses(q[good])[:, 2]
     dt = ft[None, :] - ft[:, None]
     rows = []
     for lo, hi in bins:
