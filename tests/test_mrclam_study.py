@@ -159,6 +159,16 @@ def test_runner_tasks_one_per_dataset(data, tmp_path):
     assert {"quick", "paper"} <= set(presets)
     for p in presets.values():
         study._params(p)
+        assert "data" not in p   # no machine path in the presets
+
+
+def test_runner_data_directory_from_the_environment(data, monkeypatch):
+    monkeypatch.setenv(mrclam.DATA_ENV, str(data))
+    assert [t["path"].rsplit("/", 1)[-1] for t in study.tasks({})] == [
+        "MRCLAM_Dataset1", "MRCLAM_Dataset2"]
+    monkeypatch.delenv(mrclam.DATA_ENV)
+    with pytest.raises(ValueError, match=mrclam.DATA_ENV):
+        study.tasks({})
 
 
 # ------------------------------------------------------------------------- combining estimates

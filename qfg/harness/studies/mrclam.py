@@ -43,8 +43,8 @@ import numpy as np
 
 from qfg import metrics
 from qfg.datasets import mrclam as _mrclam
+from qfg.harness.runner import Study, figure_format, param_spec, save_figure
 from qfg.partitions import get as get_partition
-from qfg.harness.runner import Study
 
 METRICS = ("dmse", "gmd", "entropy", "gt_rating")
 COMBINE = ("product", "mean", "best")
@@ -52,7 +52,7 @@ METHODS = ("fast", "full", "baseline")
 EDC_WINDOW_CORNERS = ((-2.0, -2.0), (2.0, 3.0))
 
 DEFAULTS = {
-    "data": "/work/shared/data/mrclam",   # directory holding MRCLAM_Dataset* directories
+    "data": "",                            # directory holding MRCLAM_Dataset* ("": $QFG_MRCLAM_DIR)
     "datasets": [],                        # dataset numbers (empty: every one found)
     "robots": [],                          # robot numbers (empty: every robot)
     "method": "fast",
@@ -337,9 +337,6 @@ def make_figures(fig_dir: Path, rows: list[dict], *, details=None, robot=None) -
     again (seed 0, the rows' method) to get the hypotheses: C samples (size ~ weight), camera
     samples per view, and the state probabilities of that history.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     from qfg.harness.plotting import draw_partition
@@ -361,7 +358,7 @@ def make_figures(fig_dir: Path, rows: list[dict], *, details=None, robot=None) -
     sols = [(x, TripletSolver.solve(x, method=row["method"].split(";")[0], seed=0)) for x in hs]
     h, solver = max(sols, key=lambda he: (not he[1].estimate().degenerate, he[0].n_views))
     est, hyp = solver.estimate(), solver.hypotheses()
-    p = dataset_figure(ds, r, fig_dir / f"{name}_robot{r}.png", history=h)
+    p = dataset_figure(ds, r, fig_dir / f"{name}_robot{r}.{figure_format()}", history=h)
     paths.append(Path(p))
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 6))
@@ -393,10 +390,8 @@ def make_figures(fig_dir: Path, rows: list[dict], *, details=None, robot=None) -
     axes[1].set_title(f"P(state | this history); truth {h.truth.state + 1} (red), most likely "
                       f"{top + 1} (p = {est.landmark[top]:.2f})", fontsize=9)
     fig.tight_layout()
-    p2 = fig_dir / f"{name}_triplet_{trip[0]}_{trip[1]}_{trip[2]}.png"
-    fig.savefig(p2, dpi=120)
-    plt.close(fig)
-    paths.append(p2)
+    paths.append(save_figure(fig, Path(fig_dir).parent, f"{name}_triplet_{trip[0]}_{trip[1]}_{trip[2]}",
+                             dpi=120))
     return paths
 
 
@@ -414,8 +409,9 @@ def _params(params: dict) -> dict:
 
 
 def dataset_dirs(data, numbers=()) -> list[Path]:
-    """``MRCLAM_Dataset<N>`` directories under ``data`` (only ``numbers`` if given), by N."""
-    root = Path(data)
+    """``MRCLAM_Dataset<N>`` directories under ``data`` (only ``numbers`` if given), by N. An empty
+    ``data`` means the directory named by ``$QFG_MRCLAM_DIR`` (:func:`qfg.datasets.mrclam.data_root`)."""
+    root = _mrclam.data_root(data or None)
     if not root.is_dir():
         raise ValueError(f"data: {root} is not a directory")
     found = {}
@@ -446,11 +442,13 @@ def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
 
 
 def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
-    write_outputs(outdir, rows)
+    print("\n".join(table_lines(write_outputs(outdir, rows))))
 
 
 STUDY = Study(name="mrclam", tasks=tasks, run_task=run_task, summarize=summarize,
-              description="MRCLAM datasets: triplet estimates, full map, propagation (paper 6d)")
+              description="MRCLAM datasets: triplet estimates, full map, propagation (paper 6d)",
+              params=param_spec(DEFAULTS, method={"choices": METHODS},
+                                combine={"choices": COMBINE}, partition={"choices": ("edc",)}))
 
 __all__ = ["run_dataset", "combine_estimates", "summary", "write_outputs", "make_figures",
            "dataset_dirs", "tasks", "run_task", "summarize", "STUDY", "DEFAULTS", "prepare",
