@@ -40,11 +40,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .composition import marginal as compose_marginal
-from .metrics import information_score
-
 from .inference.exact import elimination_estimate, exact_marginals
 from .inference.junction import MAX_TABLE
 from .inference.results import GraphTooLargeError, Marginals, ZeroMassError
+from .metrics import information_score
 
 __all__ = [
     "GraphTooLargeError", "ZeroMassError", "Marginals", "PropagationResult", "ScoreResult",

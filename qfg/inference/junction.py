@@ -20,11 +20,17 @@ compiled once (:class:`JunctionTree`, plain numpy, nothing per graph is generate
    ``beta_v = psi_v * delta_v``, ``delta_c = sum_{C_v \\ N_c} beta_v / mu_c`` (0/0 = 0: where
    ``mu_c`` is zero the clique belief is zero too). Marginal of ``v``: ``beta_v`` summed over
    ``N_v``, normalized. Cost: two passes over the clique tables.
-4. **Underflow.** Factors are rescaled to max 1. If a clique's product falls below 1e-250 (or to
-   zero) in linear arithmetic, the whole calibration is repeated in the log domain (sums become
-   log-sum-exp), so products of many tiny factors (1e-200 each) keep full relative precision; a
-   component whose log-domain mass is ``-inf`` has no mass:
-   :class:`~qfg.inference.results.ZeroMassError`.
+4. **Underflow.** Factors and messages are rescaled to max 1, so every value is <= 1 and one
+   multiplication can lose at most ``tau = 1e-291`` in absolute terms (underflow). The linear pass
+   carries a first-order bound on the absolute error of every table (upward: ``k tau`` per
+   clique plus the children's message errors, divided by the message's normalizer; downward:
+   the parent's belief error through the Hugin division -- where it divides by a tiny
+   ``mu_c(x)``, the child's ``psi_c(., x) <= mu_c(x)`` multiplies it back -- including entries
+   of a message that underflowed to zero) and accepts its answer only if, at every clique, the bound on the
+   marginal's error is below 1e-13 of the clique's mass. Otherwise (tiny masses, e.g. products
+   of many 1e-200 factors) the whole calibration runs in the log domain (products become sums,
+   sums log-sum-exp), with full relative precision. A component whose log-domain mass is
+   ``-inf`` has no mass: :class:`~qfg.inference.results.ZeroMassError`.
 5. **MAP / K-best.** Max-product (log domain) up the same tree, then decoding down it
    (:meth:`JunctionTree.map_assignment`); the K best by Lawler-Murty partitioning of the
    assignment space (the scheme of Nilsson's algorithm; each subproblem is one max-product pass
@@ -54,8 +60,11 @@ __all__ = ["FactorModel", "SizeEstimate", "JunctionTree", "size_estimate", "MAX_
 #: Default limit on the largest table (entries) an exact engine may build (2**26: 512 MiB).
 MAX_TABLE = 2 ** 26
 
-#: Below this clique mass (factors rescaled to max 1) the calibration is redone in the log domain.
-_LINEAR_FLOOR = 1e-250
+#: Absolute error one multiplication of values <= 1 can make by underflow (below ~1e-292 a double
+#: has lost relative precision: subnormals start at 2.2e-308, 52 bits above that is 1e-292).
+_TAU = 1e-291
+#: The linear pass is accepted when its error bound is below this fraction of every clique's mass.
+_REL_TOL = 1e-13
 
 
 def check_max_table(max_table) -> int:
@@ -393,8 +402,8 @@ class JunctionTree:
         return root
 
     def _scaled_tables(self, log: bool):
-        """Factor tables rescaled to max 1 (linear) or their logs minus the max; and the total
-        log of the scales removed."""
+        """Factor tables rescaled to max 1 (linear) or their logs minus the max, and the total log
+        of the scales removed."""
         tabs, scale = [], 0.0
         cache = {}
         for t in self.model.tables:
@@ -439,15 +448,15 @@ class JunctionTree:
             f"the tensor's support ({why})", triplets=trip, local_factors=local)
 
     # ------------------------------------------------------------------ sum-product
-    def _calibrate(self, log: bool, mask=None):
+    def _calibrate(self, log: bool):
         """Returns (marginals (n, card_max) padded, log Z) or None if linear arithmetic lost the
         mass (caller retries in the log domain)."""
         model = self.model
         n = model.n
         tabs, log_scale = self._scaled_tables(log)
-        if mask is not None:
-            mtabs = [np.where(mask[v, :model.cards[v]], 0.0 if log else 1.0,
-                              -np.inf if log else 0.0) for v in range(n)]
+        e_psi = [0.0] * n          # linear: absolute error bounds (values scaled to max 1)
+        e_up = [0.0] * n
+        e_down = [0.0] * n
         psi_store = [None] * n
         up = [None] * n
         logz = log_scale
@@ -456,8 +465,6 @@ class JunctionTree:
             psi = None
             parts = [_expand(tabs[f], ex) for f, ex in self._fac_ex[v]]
             parts += [_expand(up[c], ex) for c, ex in self._child_ex[v]]
-            if mask is not None:
-                parts.append(mtabs[v].reshape((-1,) + (1,) * (len(shape) - 1)))
             if len(parts) >= 2:  # the first product allocates; the rest are in place
                 psi = parts[0] + parts[1] if log else parts[0] * parts[1]
                 parts = parts[2:]
@@ -483,11 +490,14 @@ class JunctionTree:
                 umx = float(u.max())
                 u -= umx
             else:
-                if not mx > _LINEAR_FLOOR:
-                    return None
+                if not mx > 0:
+                    return None  # underflow or no mass: the log domain decides
+                e_psi[v] = (len(self._fac_ex[v]) + len(self._child_ex[v])) * _TAU + sum(
+                    e_up[c] for c in self.children[v])
                 u = psi.sum(axis=0)
                 umx = float(u.max())
                 u /= umx
+                e_up[v] = shape[0] * e_psi[v] / umx
             logz += math.log(umx) if not log else umx
             psi_store[v] = psi
             up[v] = u
@@ -510,6 +520,10 @@ class JunctionTree:
             else:
                 mv = beta.sum(axis=other) if other else beta.copy()
             s = mv.sum()
+            if not log:
+                e_beta = e_psi[v] + e_down[v] + _TAU
+                if not (s > 0 and beta.size * e_beta <= _REL_TOL * s):
+                    return None  # the bound is not small against the mass: log domain
             if not s > 0:
                 raise self._zero_mass(v)
             P[v, :len(mv)] = mv / s
@@ -529,9 +543,23 @@ class JunctionTree:
                     red = beta.sum(axis=axes)
                     red = red.transpose(perm) if perm != tuple(range(len(perm))) else red
                     uc = up[c]
-                    dc = np.divide(red, uc, out=np.zeros_like(red), where=uc > 0)
+                    pos = uc > 0
+                    dc = np.divide(red, uc, out=np.zeros_like(red), where=pos)
                     dm = dc.max()
-                    down[c] = dc / dm if dm > 0 else dc
+                    if not dm > 0:
+                        return None
+                    down[c] = dc / dm
+                    # error bound of beta_c = psi_c * delta_c from this step: delta_c(x) has the
+                    # error of r_c summed entries of beta_v divided by mu_c(x), but psi_c(., x)
+                    # <= mu_c(x) * (its normalizer <= card) cancels the division; where mu_c
+                    # underflowed to zero, the true delta is at most r_c and psi_c at most its
+                    # bound
+                    r_c = beta.size // red.size
+                    card_c = self._shape[c][0]
+                    err = r_c * card_c * e_beta
+                    if e_up[c] > 0 and not pos.all():
+                        err += r_c * card_c * e_psi[c]
+                    e_down[c] = err / dm
         return P, logz
 
     def marginals(self, log_domain: bool = False) -> np.ndarray:
