@@ -2,8 +2,18 @@ import os
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 REPO = Path(__file__).resolve().parents[1]
+
+# Property tests are derandomized everywhere (make test, CI, a developer's run): the examples
+# depend only on the test, so a suite never fails by chance, and with no example database a
+# failure found once cannot be replayed into later runs (a fresh clone behaves like any other).
+# A failure prints its reproduction (@reproduce_failure blob) instead. To hunt for new failures
+# with random examples: QFG_HYPOTHESIS_PROFILE=explore pytest ...
+settings.register_profile("ci", derandomize=True, database=None, print_blob=True)
+settings.register_profile("explore", derandomize=False, database=None, print_blob=True)
+settings.load_profile(os.environ.get("QFG_HYPOTHESIS_PROFILE", "ci"))
 
 
 def shared_data_dir() -> Path:
