@@ -1,11 +1,18 @@
 """Single-triplet solvers: P(S^{AB:C} | H) and P(S^{AB:X}_i | H) from one triplet's history.
 
-One entry point, :func:`solve_triplet`, with three methods (paper section 4, Table 1):
+One entry point, :func:`solve_triplet`, with these methods (paper section 4, Table 1):
 
-* ``"full"``: Algorithm 1, the sampling solver with the motion model (:mod:`._full`);
-* ``"fast"``: the faster variant, samples represent only the prior (:mod:`._fast`);
+* ``"full"``: Algorithm 1, sequential importance sampling over camera trajectories with the
+  motion model, C integrated by sampling and the exact prior of the whole configuration in the
+  final weights (:mod:`._sis`);
+* ``"fast"``: the same engine with small budgets (the default fast variant: noise modelled);
+* ``"fast-paper"``: the paper's faster variant taken literally, measured bearings and headings
+  taken as exact and samples representing only the prior (:mod:`._fast`);
 * ``"baseline"``: the same Bayesian model without motion factors, views independent
   (:mod:`._baseline`).
+
+Every method takes ``prior=`` (a name or a :class:`qfg.priors.Prior`; default ``"world"``, the
+exact prior of the simulator's world).
 
 :func:`solve_triplets` solves many triplets in one call (the fast variant batched in numpy);
 :class:`TripletSolver` solves one triplet incrementally (``add_view``, ``estimate``,
@@ -27,7 +34,7 @@ from typing import Sequence
 
 import numpy as np
 
-from . import _baseline, _fast, _full
+from . import _baseline, _fast, _sis
 from . import _common as C
 from ._common import DEFAULTS, METHODS, Hypotheses, TripletEstimate
 
@@ -86,9 +93,15 @@ def solve_triplet(bearings, headings=None, *, method: str = "full", partition="e
     model = _model(method, meas)
     opts = _options(method, model, options)
     root = C.root_seed(seed)
-    if model == "fast":
+    if model == "fast-paper":
         return _solve_fast_batch([meas], part, opts)[0]
+    if model in _SIS:
+        return _solve_sis_batch(model, [meas], [root], part, opts)[0]
     return _solve(model, meas, part, opts, root)[0]
+
+
+#: Methods solved by the batched SIS engine (:mod:`._sis`).
+_SIS = ("full", "fast")
 
 
 def _solve(model, meas, part, opts, root):
@@ -111,6 +124,16 @@ def _solve_fast_batch(metas, part, opts):
     for i in range(1, n):
         st = _fast.step(st, b[:, i], np.array([m.headings[i - 1] for m in metas]))
     return [e for e, _ in _fast.finish(st)]
+
+
+def _solve_sis_batch(model, metas, roots, part, opts):
+    b = np.stack([m.bearings for m in metas])
+    sv = np.array([m.sigma_bearing for m in metas])
+    sh = np.array([m.sigma_heading for m in metas])
+    st = _sis.start(b[:, 0], sv, sh, roots, opts, part, model)
+    for i in range(1, b.shape[1]):
+        st = _sis.step(st, b[:, i], np.array([m.headings[i - 1] for m in metas]))
+    return [e for e, _ in _sis.finish(st)]
 
 
 def solve_triplets(histories, headings=None, *, method: str = "full", partition="edc",
@@ -139,17 +162,20 @@ def solve_triplets(histories, headings=None, *, method: str = "full", partition=
     groups: dict = {}
     for t, meas in enumerate(metas):
         model = _model(method, meas)
-        if model == "fast":
-            groups.setdefault(meas.n_views, []).append(t)
+        if model in ("fast-paper",) + _SIS:
+            groups.setdefault((model, meas.n_views), []).append(t)
         else:
             out[t] = _solve(model, meas, part, _options(method, model, options),
                             C.child_seed(root, t))[0]
-    if groups:
-        opts = _options(method, "fast", options)
-        for idx in groups.values():
-            for t, est in zip(idx, _solve_fast_batch([metas[t] for t in idx], part, opts),
-                              strict=True):
-                out[t] = est
+    for (model, _), idx in groups.items():
+        opts = _options(method, model, options)
+        ms = [metas[t] for t in idx]
+        if model == "fast-paper":
+            ests = _solve_fast_batch(ms, part, opts)
+        else:
+            ests = _solve_sis_batch(model, ms, [C.child_seed(root, t) for t in idx], part, opts)
+        for t, est in zip(idx, ests, strict=True):
+            out[t] = est
     return out
 
 
@@ -269,9 +295,9 @@ class TripletSolver:
     def n_views(self) -> int:
         if self._state is None:
             return 0
-        if self.method == "fast":
-            return self._state.n_views
-        return self._state.meas.n_views
+        if self.method == "baseline":
+            return self._state.meas.n_views
+        return self._state.n_views
 
     def add_view(self, bearings, heading=None) -> "TripletSolver":
         """Add one view: ``bearings`` (3,) [phi_A, phi_B, phi_C] radians and ``heading`` psi
@@ -291,13 +317,13 @@ class TripletSolver:
                                  "previous view")
             heading = float(C.check_headings([heading], 2)[0])
         part, opts = self.partition, self.options
-        if self.method == "full":
+        if self.method in _SIS:
             if first:
-                meas = C.Measurements(phi[None, :], None, self._sb, self._sh)
-                self._state = _full.start(meas, self._root, opts, part)
+                self._state = _sis.start(phi[None, :], np.array([self._sb]), np.array([self._sh]),
+                                         (self._root,), opts, part, self.method)
             else:
-                self._state = _full.step(self._state, phi, heading)
-        elif self.method == "fast":
+                self._state = _sis.step(self._state, phi[None, :], np.array([heading]))
+        elif self.method == "fast-paper":
             if first:
                 self._state = _fast.start(phi[None, :], np.array([self._sb]),
                                           np.array([self._sh]), opts, part)
@@ -316,9 +342,9 @@ class TripletSolver:
         if self._state is None:
             raise ValueError("bearings: no view added yet (call add_view first)")
         if self._cache is None:
-            if self.method == "full":
-                self._cache = _full.finish(self._state)
-            elif self.method == "fast":
+            if self.method in _SIS:
+                self._cache = _sis.finish(self._state, hypotheses=True)[0]
+            elif self.method == "fast-paper":
                 self._cache = _fast.finish(self._state, hypotheses=True)[0]
             else:
                 self._cache = _baseline.finish(self._state)

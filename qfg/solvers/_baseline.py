@@ -32,7 +32,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..geometry import LOCUS_EPS, wrap_angle
+from .. import priors as _priors
 from . import _common as C
+
+_PRODUCT = _priors.ProductPrior()
 
 #: Largest relative bearing residual accepted for a resected pose (radians).
 _RESECTION_TOL = 1e-6
@@ -51,9 +54,11 @@ class BaselineState:
     reasons: tuple
 
 
-def _candidates(rng, n, prior, window):
-    """n C candidates drawn from the prior by a jittered grid in its inverse-CDF coordinates."""
-    if prior == "world":
+def _candidates(rng, n, prior):
+    """n C candidates drawn by a jittered grid in inverse-CDF coordinates: from the per-point
+    world fit (world priors and any prior without a window), or uniform in a WindowPrior's
+    window. Returns (candidates (N, 2), log proposal density (N,))."""
+    if not isinstance(prior, _priors.WindowPrior):
         # p(P) = (s^2/pi)(s^2 + r^2)^-2 about the centre: P(radius <= r) = r^2 / (s^2 + r^2)
         gx = max(1, int(round(np.sqrt(n / 4))))
         gy = max(1, int(np.ceil(n / gx)))
@@ -61,9 +66,10 @@ def _candidates(rng, n, prior, window):
         u = rng.random((gx * gy, 2))
         U = (ix.ravel() + u[:, 0]) / gx
         ang = 2 * np.pi * (iy.ravel() + u[:, 1]) / gy
-        r = C.WORLD_SCALE * np.sqrt(U / (1.0 - U))
-        return C.WORLD_CENTRE + np.stack([r * np.cos(ang), r * np.sin(ang)], axis=-1)
-    xmin, xmax, ymin, ymax = window
+        r = _PRODUCT.scale * np.sqrt(U / (1.0 - U))
+        pts = _PRODUCT.CENTRE + np.stack([r * np.cos(ang), r * np.sin(ang)], axis=-1)
+        return pts, C.point_log_prior(_PRODUCT, pts)
+    xmin, xmax, ymin, ymax = prior.window
     w, h = xmax - xmin, ymax - ymin
     gx = max(1, int(round(np.sqrt(n * w / h))))
     gy = max(1, int(np.ceil(n / gx)))
@@ -71,7 +77,7 @@ def _candidates(rng, n, prior, window):
     u = rng.random((gx * gy, 2))
     x = xmin + (ix.ravel() + u[:, 0]) * (w / gx)
     y = ymin + (iy.ravel() + u[:, 1]) * (h / gy)
-    return np.stack([x, y], axis=-1)
+    return np.stack([x, y], axis=-1), np.full(gx * gy, -np.log(w * h))
 
 
 def resect(L, phi):
@@ -119,11 +125,12 @@ def resect(L, phi):
 
 def start(meas: C.Measurements, root, opts, part) -> BaselineState:
     rng = C.stream(root, 0, C.STREAM_LANDMARKS)
-    cand = _candidates(rng, opts["n_landmark_samples"], opts["prior"], opts["prior_window"])
+    cand, lq = _candidates(rng, opts["n_landmark_samples"], opts["prior"])
     st = BaselineState(meas=C.Measurements(meas.bearings[:0], None, meas.sigma_bearing,
                                            meas.sigma_heading),
                        root=root, opts=opts, part=part, candidates=cand,
-                       lw=np.zeros(cand.shape[0]), shares=(), cameras=(), reasons=())
+                       lw=C.point_log_prior(opts["prior"], cand) - lq, shares=(), cameras=(),
+                       reasons=())
     return step(st, meas.bearings[0])
 
 
@@ -138,7 +145,7 @@ def step(state: BaselineState, phi) -> BaselineState:
     draws = phi[None, :] + sv * rng.standard_normal((k, 3))
     L = state.candidates
     poses, logdet, ok = resect(L, draws)
-    lc = C.log_point_prior(poses[..., :2], opts["prior"], opts["prior_window"]) - logdet
+    lc = C.point_log_prior(opts["prior"], poses[..., :2]) - logdet
     lc = np.where(ok, lc, -np.inf)
     fin = np.isfinite(lc)
     if not np.any(fin):
@@ -167,10 +174,7 @@ def finish(state: BaselineState):
     opts, part, meas = state.opts, state.part, state.meas
     n, m = meas.n_views, part.n_states
     reasons = list(state.reasons)
-    bad = C.nominal_degenerate(meas.bearings)
-    if bad:
-        reasons.insert(0, "camera on line AB (phi_A = phi_B or opposite) in view(s) "
-                       + ", ".join(str(b + 1) for b in bad))
+    reasons[:0] = C.geometry_reasons(meas.bearings, meas.sigma_bearing)
     w = C.normalize_log(state.lw)
     landmark, ok = C.state_histogram(part, state.candidates, w)
     N = state.candidates.shape[0]

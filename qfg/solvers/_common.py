@@ -11,24 +11,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import partitions as _partitions
+from .. import priors as _priors
 from .._validate import as_float_array, non_negative, positive_int
-from ..geometry import LOCUS_EPS, heading_on_locus, locus_point, wrap_angle
+from ..geometry import LOCUS_EPS, heading_on_locus, locus_point, triangulate_lsq, wrap_angle
 
 #: Methods :func:`qfg.solvers.solve_triplet` knows.
-METHODS = ("full", "fast", "baseline")
+METHODS = ("full", "fast", "fast-paper", "baseline")
 
-#: Priors over positions (cameras and C) in the AB frame:
-#:
-#: * ``"world"``: the AB-frame density of a point placed uniformly in the world independently of A
-#:   and B (the paper's prior, seen from the AB frame), measured to be close to
-#:   ``p(P) = (s^2 / pi) (s^2 + |P - (0, 1/2)|^2)^-2`` with s = 0.85, i.e.
-#:   ``P(|P - (0, 1/2)| <= R) = R^2 / (s^2 + R^2)`` (heavy-tailed, proper; docs/solvers.md);
-#: * ``"uniform"``: uniform over positions in ``prior_window`` for cameras; C uniform in the window
-#:   with one view and for the baseline (where the integral needs bounds), unrestricted with two
-#:   or more views;
-#: * ``"arc"``: uniform in the angle at A along each locus arc (the implicit prior of sampling
-#:   the arc uniformly), no window; C as for ``"uniform"``.
-PRIORS = ("world", "uniform", "arc")
+#: Prior names the solvers accept (besides any :class:`qfg.priors.Prior` object): see
+#: :func:`qfg.priors.get`. ``"world"`` (default) is the exact prior of the simulator's world.
+PRIORS = _priors.NAMES
 
 #: Triangulation used in the resection step.
 RESECTIONS = ("centroid", "lsq")
@@ -149,24 +141,31 @@ def ess(weights) -> float:
 #: Documented defaults (chosen by measurement: docs/solvers.md). Angles in radians.
 DEFAULTS = {
     "full": {
-        "n_samples": 600,            # camera samples on the first view's locus (sampling step);
-                                     # x motion_samples when both sigmas are 0 (see _full)
-        "motion": "sample",          # motion step: "sample" = each hypothesis' ray, heading noise
-                                     # sampled, meets locus arcs drawn under bearing noise;
-                                     # "match" = independent view samples matched by heading
-        "motion_samples": 8,         # noise draws per hypothesis and view (motion="sample")
-        "match_sigmas": 3.0,         # matching window in heading sigmas (motion="match")
+        "n_samples": 600,            # first-view camera samples per triplet (x motion_samples
+                                     # when both sigmas are 0)
+        "motion_samples": 8,         # noise draws per hypothesis and view (motion step)
         "max_hypotheses": 3000,      # cap after pruning (systematic resampling down to it)
         "prune_ratio": 1e-6,         # drop hypotheses lighter than this x the heaviest
+        "landmark_samples": 4,       # C samples per trajectory (intermediate and final weights)
+        "ray_fraction": 0.25,        # share of C samples drawn along a line of sight
+        "posterior_samples": 256,    # trajectories resampled for the exact-prior final weights
+        "one_view_samples": 16,      # C samples per trajectory with a single view
         "bearing_floor": np.deg2rad(0.05),
-        "heading_floor": np.deg2rad(1.0),
-        "one_view_samples": 16,      # C samples per camera sample with a single view
-        "resection": "lsq",          # "lsq" or the paper's "centroid" of pairwise intersections
-        "landmark_volume": False,    # Laplace volume of C about the triangulated point
         "prior": "world",
-        "prior_window": (-6.0, 6.0, -5.5, 6.5),
     },
     "fast": {
+        "n_samples": 64,
+        "motion_samples": 4,
+        "max_hypotheses": 256,
+        "prune_ratio": 1e-6,
+        "landmark_samples": 2,
+        "ray_fraction": 0.5,
+        "posterior_samples": 32,
+        "one_view_samples": 8,
+        "bearing_floor": np.deg2rad(0.05),
+        "prior": "world",
+    },
+    "fast-paper": {
         "n_samples": 128,            # camera positions on the first view's arc (coarse grid)
         "refine_levels": 1,          # adaptive refinement of the first camera's arc parameter:
         "refine_cells": 16,          #   the heaviest cells, split into
@@ -180,14 +179,12 @@ DEFAULTS = {
         "resection": "lsq",
         "landmark_volume": False,
         "prior": "world",
-        "prior_window": (-6.0, 6.0, -5.5, 6.5),
     },
     "baseline": {
         "n_landmark_samples": 4096,  # C candidates drawn from the prior (stratified)
         "noise_samples": 16,         # measurement-noise draws per view (1 when sigma = 0)
         "jacobian_cap": 30.0,        # cap on 1/|det J| relative to the median candidate
         "prior": "world",
-        "prior_window": (-6.0, 6.0, -5.5, 6.5),
     },
 }
 
@@ -205,7 +202,8 @@ def resolve_options(method: str, options: dict) -> dict:
     if "motion" in opts and opts["motion"] not in ("sample", "match"):
         raise ValueError(f"motion: expected 'sample' or 'match', got {opts['motion']!r}")
     for k in ("n_samples", "max_hypotheses", "one_view_samples", "n_landmark_samples",
-              "motion_samples", "noise_samples", "refine_cells", "refine_factor"):
+              "motion_samples", "noise_samples", "refine_cells", "refine_factor",
+              "posterior_samples", "landmark_samples"):
         if k in opts:
             opts[k] = positive_int(k, opts[k])
     if "refine_levels" in opts:
@@ -227,16 +225,12 @@ def resolve_options(method: str, options: dict) -> dict:
         raise ValueError(f"kernel: expected 'bearing' or 'combined', got {opts['kernel']!r}")
     if opts.get("resection", "centroid") not in RESECTIONS:
         raise ValueError(f"resection: expected one of {RESECTIONS}, got {opts['resection']!r}")
-    if opts["prior"] not in PRIORS:
-        raise ValueError(f"prior: expected one of {PRIORS}, got {opts['prior']!r}")
-    w = tuple(float(v) for v in np.asarray(opts["prior_window"], dtype=float).ravel())
-    if len(w) != 4 or not (np.all(np.isfinite(w)) and w[0] < w[1] and w[2] < w[3]):
-        raise ValueError(f"prior_window: expected (xmin, xmax, ymin, ymax) with xmin < xmax and "
-                         f"ymin < ymax, got {opts['prior_window']!r}")
-    opts["prior_window"] = w
-    if method == "baseline" and opts["prior"] == "arc":
-        raise ValueError("prior: the baseline needs a prior over C positions ('world' or "
-                         "'uniform'), not 'arc'")
+    opts["prior"] = resolve_prior(opts["prior"])
+    if "ray_fraction" in opts:
+        rf = non_negative("ray_fraction", opts["ray_fraction"])
+        if rf > 1:
+            raise ValueError(f"ray_fraction: expected a number in [0, 1], got {rf}")
+        opts["ray_fraction"] = rf
     return opts
 
 
@@ -320,7 +314,7 @@ def get_partition(partition):
 # of all views draws for it.
 
 #: spawn-key purposes
-STREAM_CAMERAS, STREAM_RESAMPLE, STREAM_ONE_VIEW, STREAM_LANDMARKS = 0, 1, 2, 3
+STREAM_CAMERAS, STREAM_RESAMPLE, STREAM_ONE_VIEW, STREAM_LANDMARKS, STREAM_POSTERIOR = 0, 1, 2, 3, 4
 
 
 def root_seed(seed) -> np.random.SeedSequence:
@@ -356,12 +350,17 @@ def log_gauss(residual, sigma):
     return -0.5 * r * r - np.log(sigma)
 
 
-def log_landmark_volume(cameras, L, sigma, window) -> np.ndarray:
+#: Cap of the Laplace volume of C (log of an area in |AB|^2): near-parallel rays leave C
+#: unconstrained along them, and the prior, not the volume, then bounds it.
+LOG_VOLUME_CAP = np.log(100.0)
+
+
+def log_landmark_volume(cameras, L, sigma) -> np.ndarray:
     """Log of the Laplace volume of C about a triangulated point: the integral over L of
     ``prod_t N(phi_C,t - f(L, X_t); sigma)`` is about ``exp(-r^2 / 2 sigma^2) 2 pi sigma^2 /
     sqrt(det H)`` with ``H = sum_t g_t g_t^T``, ``g_t = grad_L f(L, X_t)`` (``|g_t| = 1 / d_t``),
-    so ``det H = sum_{s<t} sin^2(angle between rays s, t) / (d_s d_t)^2``. Capped at the prior
-    window's area (near-parallel rays leave C unconstrained along them).
+    so ``det H = sum_{s<t} sin^2(angle between rays s, t) / (d_s d_t)^2``. Capped at
+    :data:`LOG_VOLUME_CAP`.
 
     ``cameras`` (..., n, 2), ``L`` (..., 2), ``sigma`` broadcastable to (...).
     """
@@ -372,47 +371,85 @@ def log_landmark_volume(cameras, L, sigma, window) -> np.ndarray:
     ii, jj = np.triu_indices(n, k=1)
     cr = g[..., ii, 0] * g[..., jj, 1] - g[..., ii, 1] * g[..., jj, 0]
     det = np.sum(cr * cr, axis=-1)
-    xmin, xmax, ymin, ymax = window
-    cap = np.log((xmax - xmin) * (ymax - ymin))
     with np.errstate(divide="ignore"):
         lv = np.log(2 * np.pi * np.asarray(sigma) ** 2) - 0.5 * np.log(np.maximum(det, 1e-300))
-    return np.minimum(lv, cap)
+    return np.minimum(lv, LOG_VOLUME_CAP)
 
 
-def in_window(points, window) -> np.ndarray:
-    xmin, xmax, ymin, ymax = window
-    x, y = points[..., 0], points[..., 1]
-    return (x >= xmin) & (x <= xmax) & (y >= ymin) & (y <= ymax)
+def resolve_prior(prior) -> "_priors.Prior":
+    """A :class:`qfg.priors.Prior` from a name or a Prior (ValueError naming ``prior``)."""
+    return _priors.get(prior)
 
 
-#: Centre and scale of the ``"world"`` prior (the middle of AB; s fitted to the simulator's
-#: AB-frame distribution of uniformly placed objects, within 0.015 in the CDF: docs/solvers.md).
-WORLD_CENTRE = np.array([0.0, 0.5])
-WORLD_SCALE = 0.85
-
-
-def log_point_prior(points, prior: str, window) -> np.ndarray:
-    """Log prior density of AB-frame positions (..., 2), up to a constant (see :data:`PRIORS`).
-    For C with two or more views only ``"world"`` is informative (see :func:`log_c_prior`)."""
-    if prior == "world":
-        d = points - WORLD_CENTRE
-        s2 = WORLD_SCALE**2
+def point_log_prior(prior, points) -> np.ndarray:
+    """Per-point log density (..., 2) -> (...) used in the solvers' *intermediate* weights only
+    (pruning, resampling, ranking): the cheap product fit for the exact world prior, the prior of
+    a single point otherwise. Final weights use ``prior.log_density`` of the whole configuration
+    (:func:`log_joint_prior`), so this choice affects efficiency, never the target."""
+    pts = np.asarray(points, dtype=float)
+    if isinstance(prior, _priors.WorldBoxPrior):
+        prior = _PRODUCT
+    if isinstance(prior, _priors.ProductPrior):
+        d = pts - prior.CENTRE
+        s2 = prior.scale**2
         return np.log(s2 / np.pi) - 2.0 * np.log(s2 + np.sum(d * d, axis=-1))
-    return log_window(points, window, prior)
+    if pts.size == 0:
+        return np.zeros(pts.shape[:-1])
+    return prior.log_density(pts[..., None, :])
 
 
-def log_c_prior(points, prior: str) -> np.ndarray:
-    """Log prior of a triangulated C (two or more views): the ``"world"`` density, else flat."""
-    if prior == "world":
-        return log_point_prior(points, prior, None)
-    return np.zeros(points.shape[:-1])
+_PRODUCT = _priors.ProductPrior()
 
 
-def log_window(points, window, prior: str) -> np.ndarray:
-    """0 inside the prior window, -inf outside (``prior="uniform"``); 0 everywhere for ``"arc"``."""
-    if prior != "uniform":
-        return np.zeros(points.shape[:-1])
-    return np.where(in_window(points, window), 0.0, _NEG_INF)
+def log_joint_prior(prior, landmark, cameras) -> np.ndarray:
+    """``prior.log_density`` of configurations ``[C, X_1..X_n]``: landmark (..., 2), cameras
+    (..., n, 2) -> (...)."""
+    L = np.asarray(landmark, dtype=float)
+    X = np.asarray(cameras, dtype=float)
+    cfg = np.concatenate([L[..., None, :], X], axis=-2)
+    if cfg.size == 0:
+        return np.zeros(cfg.shape[:-2])
+    return prior.log_density(cfg)
+
+
+#: Scale of the heavy-tailed distance proposal along lines of sight (|AB| units).
+RAY_CENTRE = np.array([0.0, 0.5])
+
+
+def ray_samples(rng, origins, angles, sigma, k):
+    """C drawn along lines of sight: ``L = O + r u(theta + eps)``, ``eps ~ N(0, sigma^2)``,
+    ``r = tau v / (1 - v)`` with v uniform (stratified) and ``tau = max(1, |O - (0, 1/2)|)``
+    (the distance scale of the world). ``origins`` (..., 2), ``angles`` (...) ->
+    ``(L (..., k, 2), log q (..., k))`` with q the proposal density over positions,
+    ``N(eps; sigma) tau / (tau + r)^2 / r`` (polar coordinates about O)."""
+    shape = np.shape(angles) + (k,)
+    eps = sigma * rng.standard_normal(shape)
+    v = (np.arange(k) + rng.random(shape)) / k
+    return _ray_points(origins, angles, eps, v, sigma)
+
+
+def _ray_points(origins, angles, eps, v, sigma):
+    tau = np.maximum(1.0, np.linalg.norm(origins - RAY_CENTRE, axis=-1))[..., None]
+    v = np.clip(v, 1e-12, 1 - 1e-12)
+    r = tau * v / (1.0 - v)
+    th = np.asarray(angles)[..., None] + eps
+    L = origins[..., None, :] + r[..., None] * np.stack([np.cos(th), np.sin(th)], axis=-1)
+    return L, ray_log_density_polar(eps, r, tau, sigma)
+
+
+def ray_log_density_polar(eps, r, tau, sigma):
+    """log q of :func:`ray_samples` at angular offset ``eps`` and distance ``r``."""
+    return (log_gauss(eps, sigma) - 0.5 * np.log(2 * np.pi) + np.log(tau)
+            - 2.0 * np.log(tau + r) - np.log(np.maximum(r, 1e-300)))
+
+
+def ray_log_density(L, origins, angles, sigma):
+    """log q of :func:`ray_samples` at points L (..., k, 2) for rays (...)."""
+    d = L - origins[..., None, :]
+    r = np.linalg.norm(d, axis=-1)
+    eps = wrap_angle(np.arctan2(d[..., 1], d[..., 0]) - np.asarray(angles)[..., None])
+    tau = np.maximum(1.0, np.linalg.norm(origins - RAY_CENTRE, axis=-1))[..., None]
+    return ray_log_density_polar(eps, r, tau, sigma)
 
 
 def arc_parameter(gamma, w):
@@ -472,19 +509,17 @@ def log_ray_jacobian(points, origins, angles) -> np.ndarray:
     return np.where(ok, out, _NEG_INF)
 
 
-def log_camera_prior(points, gamma, log_dadw, prior, window) -> np.ndarray:
-    """Importance log-weight of arc samples under the chosen prior (see :data:`PRIORS`)."""
-    if prior in ("uniform", "world"):
-        return log_arc_jacobian(points, gamma, log_dadw) + log_point_prior(points, prior, window)
-    ok = (np.sin(gamma) ** 2 >= LOCUS_EPS**2) & np.isfinite(log_dadw)
-    return np.broadcast_to(np.where(ok, log_dadw, _NEG_INF), points.shape[:-1]).copy()
+def log_camera_prior(points, gamma, log_dadw, prior) -> np.ndarray:
+    """Intermediate importance log-weight of arc samples: the arc's change of variables times
+    the per-point prior (:func:`point_log_prior`)."""
+    return log_arc_jacobian(points, gamma, log_dadw) + point_log_prior(prior, points)
 
 
 # ---------------------------------------------------------------------------------------------
 # the sampling step
 
 
-def sample_view(rng: np.random.Generator, phi, sigma: float, n: int, prior: str, window):
+def sample_view(rng: np.random.Generator, phi, sigma: float, n: int, prior):
     """Camera poses of one view sampled near its locus arc under bearing noise.
 
     ``phi``: (3,) measured [phi_A, phi_B, phi_C]. Bearings to A and B are perturbed with
@@ -500,11 +535,11 @@ def sample_view(rng: np.random.Generator, phi, sigma: float, n: int, prior: str,
     a, log_dadw = arc_parameter(gamma, u)
     X = locus_point(gamma, a)
     alpha = heading_on_locus(X, pa)
-    logw = log_camera_prior(X, gamma, log_dadw, prior, window)
+    logw = log_camera_prior(X, gamma, log_dadw, prior)
     return np.concatenate([X, alpha[:, None]], axis=-1), logw
 
 
-def arc_poses(phi_a, phi_b, w, prior: str, window):
+def arc_poses(phi_a, phi_b, w, prior):
     """Camera poses on the exact locus arcs of bearings ``phi_a``, ``phi_b`` (T,) at arc
     parameters ``w`` (T, K) in (0, 1) (:func:`arc_parameter`). Returns ``(poses (T, K, 3),
     logw (T, K))`` with logw the prior importance weight per unit of w."""
@@ -513,67 +548,149 @@ def arc_poses(phi_a, phi_b, w, prior: str, window):
     a, log_dadw = arc_parameter(gamma, w)
     X = locus_point(gamma, a)
     alpha = heading_on_locus(X, pa)
-    logw = log_camera_prior(X, gamma, log_dadw, prior, window)
+    logw = log_camera_prior(X, gamma, log_dadw, prior)
     return np.concatenate([X, alpha[..., None]], axis=-1), logw
 
 
-def arc_grid(phi_a, phi_b, n: int, prior: str, window):
+def arc_grid(phi_a, phi_b, n: int, prior):
     """:func:`arc_poses` at the midpoints of n equal steps of w, for every arc of (...)."""
     w = np.broadcast_to((np.arange(n) + 0.5) / n, np.shape(phi_a) + (n,))
-    return arc_poses(phi_a, phi_b, w, prior, window)
+    return arc_poses(phi_a, phi_b, w, prior)
 
 
-def ray_window_span(origin, angle, window):
-    """Parameters ``[t_in, t_out]`` (t >= 0) where rays ``origin + t u(angle)`` are inside the
-    window (slab method); ``t_out <= t_in`` where a ray misses it."""
-    xmin, xmax, ymin, ymax = window
-    ux, uy = np.cos(angle), np.sin(angle)
-    t_in = np.zeros(np.broadcast_shapes(np.shape(angle), origin.shape[:-1]))
-    t_out = np.full_like(t_in, np.inf)
-    for o, u, lo, hi in ((origin[..., 0], ux, xmin, xmax), (origin[..., 1], uy, ymin, ymax)):
-        par = np.abs(u) < 1e-15
-        su = np.where(par, 1.0, u)
-        t1, t2 = (lo - o) / su, (hi - o) / su
-        tlo, thi = np.minimum(t1, t2), np.maximum(t1, t2)
-        inside = (o >= lo) & (o <= hi)
-        tlo = np.where(par, np.where(inside, -np.inf, np.inf), tlo)
-        thi = np.where(par, np.where(inside, np.inf, -np.inf), thi)
-        t_in = np.maximum(t_in, tlo)
-        t_out = np.minimum(t_out, thi)
-    return t_in, t_out
+def _laplace(X, theta):
+    """Least-squares triangulation of lines of sight (J, n) and ``H = sum_t g_t g_t^T`` there
+    (``g_t = grad_L f(L, X_t)``, ``|g_t| = 1 / d_t``), with a tiny ridge so that H is always
+    invertible. Returns (L* (J, 2), ok, h00, h01, h11, det H, least squared camera distance)."""
+    Ls, ok = triangulate_lsq(X, theta)
+    # a triangulation far beyond the world (near-parallel lines) is no better than none
+    ok = ok & np.all(np.abs(Ls) < 1e6, axis=-1)
+    Ls = np.where(ok[:, None], Ls, X.mean(axis=1))
+    dx = Ls[:, None, 0] - X[..., 0]
+    dy = Ls[:, None, 1] - X[..., 1]
+    r2 = np.clip(dx * dx + dy * dy, 1e-150, 1e150)
+    r4 = r2 * r2
+    ux, uy = np.clip(dx, -1e75, 1e75), np.clip(dy, -1e75, 1e75)
+    h00 = np.sum(uy * uy / r4, axis=1)
+    h11 = np.sum(ux * ux / r4, axis=1)
+    h01 = -np.sum(ux * uy / r4, axis=1)
+    ridge = 1e-9 * (h00 + h11) + 1e-12
+    h00, h11 = h00 + ridge, h11 + ridge
+    det = h00 * h11 - h01 * h01
+    return Ls, ok, h00, h01, h11, det, np.min(r2, axis=1)
 
 
-def landmarks_on_rays(origins, angles, q, window):
-    """C positions along lines of sight for a single view, under a uniform prior in ``window``.
+def depth_spread(ok, h00, h01, h11, det, r2min, sig):
+    """Standard deviation of C along its least constrained direction (``sigma^2 H^-1``) over its
+    distance from the nearest camera; inf without a triangulation."""
+    tr = (h00 + h11) / det
+    lam = 0.5 * tr + np.sqrt(np.maximum(0.25 * tr * tr - 1.0 / det, 0.0))
+    return np.where(ok, np.sqrt(lam) * sig / np.sqrt(r2min), np.inf)
 
-    In polar coordinates about the camera ``dL = t dt dtheta``, so along a ray C has density
-    proportional to t on the part of the ray inside the window. ``q`` (..., k) in [0, 1) are the
-    quantiles to place samples at: ``t = sqrt(t_in^2 + q (t_out^2 - t_in^2))``. Returns
-    ``(points (..., k, 2), log_mass (...))`` with mass ``(t_out^2 - t_in^2) / 2`` the prior mass
-    of that ray (-inf where the ray misses the window).
+
+def laplace_landmark(poses, phi_c, sigma):
+    """Laplace approximation of C's integral ``log ∫ prod_t N(phi_C,t - f(L, X_t); sigma) dL``
+    (normalized Gaussians) about the least-squares triangulation, without the prior:
+    ``sum_t log N(r_t) + log(2 pi sigma^2 / sqrt(det H))``. Good where C's depth is resolved;
+    returns (log Z (J,), L* (J, 2), depth spread (J,)) so that callers can fall back to sampling
+    (:func:`sample_landmarks`) where it is not."""
+    J, n = poses.shape[:2]
+    X = poses[..., :2]
+    theta = poses[..., 2] + phi_c
+    sig = np.broadcast_to(np.asarray(sigma, dtype=float), (J,))
+    Ls, ok, h00, h01, h11, det, r2min = _laplace(X, theta)
+    dd = Ls[:, None, :] - X
+    res = wrap_angle(np.arctan2(dd[..., 1], dd[..., 0]) - theta)
+    lz = (-0.5 * np.sum(res * res, axis=-1) / (sig * sig) - n * (np.log(sig) + 0.5 * np.log(2 * np.pi))
+          + np.log(2 * np.pi * sig * sig) - 0.5 * np.log(det))
+    return lz, Ls, depth_spread(ok, h00, h01, h11, det, r2min, sig)
+
+
+def sample_landmarks(rng, poses, phi_c, sigma, k: int, ray_fraction: float, draws=None):
+    """C samples for each camera trajectory, from a defensive mixture: a Gaussian about the
+    least-squares triangulation with covariance ``(1.5 sigma)^2 H^-1`` (``H = sum_t g_t g_t^T``,
+    ``g_t = grad_L f(L, X_t)``; the Laplace approximation of C's conditional, inflated) and, for
+    a share ``ray_fraction`` of the samples (all of them with one view), :func:`ray_samples` along
+    the line of sight of a view chosen uniformly. The mixture density is evaluated exactly, so
+    ``exp(log prior + log lik - log q)`` is an unbiased estimate of C's integral for every
+    geometry, including lines of sight that coincide (C's depth then comes from the prior).
+
+    ``poses`` (J, n, 3), ``phi_c`` (n,) or (J, n), ``sigma`` > 0 (scalar or (J,)); the random
+    numbers come from ``rng`` or, if given, ``draws`` (dict: ``z`` (J, kg, 2) and ``eps`` (J, kr)
+    standard normals, ``t`` (J, kr) views, ``u`` (J, kr) uniforms). Returns ``L (J, k, 2)``, ``log q
+    (J, k)``, ``log lik (J, k)`` (sum over views of the normalized Gaussian C-bearing
+    likelihood) and the depth spread ``(J,)``: the standard deviation of C along its least
+    constrained direction over its distance from the nearest camera (inf without a
+    triangulation).
     """
-    t_in, t_out = ray_window_span(origins, angles, window)
-    hit = t_out > t_in
-    ti2 = np.where(hit, t_in, 0.0) ** 2
-    to2 = np.where(hit, t_out, 1.0) ** 2
-    t = np.sqrt(ti2[..., None] + q * (to2 - ti2)[..., None])
-    u = np.stack([np.cos(angles), np.sin(angles)], axis=-1)
-    pts = origins[..., None, :] + t[..., None] * u[..., None, :]
-    with np.errstate(divide="ignore"):
-        log_mass = np.where(hit, np.log(np.maximum(0.5 * (to2 - ti2), 1e-300)), _NEG_INF)
-    return pts, log_mass
+    J, n = poses.shape[:2]
+    X = poses[..., :2]
+    theta = poses[..., 2] + phi_c
+    kr = k if n == 1 else min(k, int(round(k * ray_fraction)))
+    kg = k - kr
+    if draws is None:
+        draws = {"z": rng.standard_normal((J, kg, 2)), "t": rng.integers(0, n, size=(J, kr)),
+                 "eps": rng.standard_normal((J, kr)), "u": rng.random((J, kr))}
+    sig = np.broadcast_to(np.asarray(sigma, dtype=float), (J,))
+    L = np.empty((J, k, 2))
+    spread = np.full(J, np.inf)
+    c2 = (1.5 * sig) ** 2
+    if kg:
+        Ls, ok, h00, h01, h11, det, r2min = _laplace(X, theta)
+        # covariance c2 H^-1 and its Cholesky factor
+        s00, s11, s01 = c2 * h11 / det, c2 * h00 / det, -c2 * h01 / det
+        l11 = np.sqrt(s00)
+        l21 = s01 / l11
+        l22 = np.sqrt(np.maximum(s11 - l21 * l21, 1e-300))
+        z = draws["z"]
+        L[:, :kg, 0] = Ls[:, None, 0] + l11[:, None] * z[..., 0]
+        L[:, :kg, 1] = Ls[:, None, 1] + l21[:, None] * z[..., 0] + l22[:, None] * z[..., 1]
+        spread = depth_spread(ok, h00, h01, h11, det, r2min, sig)
+    if kr:
+        t = draws["t"]
+        jj = np.arange(J)[:, None]
+        eps = sig[:, None] * draws["eps"]
+        v = (np.arange(kr) + draws["u"]) / kr
+        Lr, _ = _ray_points(X[jj, t], theta[jj, t], eps[..., None], v[..., None],
+                            sig[:, None, None])
+        L[:, kg:] = Lr[..., 0, :]
+    # per view: distance and angular residual of every sample
+    ddx = L[:, :, None, 0] - X[:, None, :, 0]
+    ddy = L[:, :, None, 1] - X[:, None, :, 1]
+    res = wrap_angle(np.arctan2(ddy, ddx) - theta[:, None, :])
+    log_lik = -0.5 * np.sum(res * res, axis=-1) / (sig * sig)[:, None] - n * (
+        np.log(sig) + 0.5 * np.log(2 * np.pi))[:, None]
+    logs = []
+    if kg:
+        ex = L[..., 0] - Ls[:, None, 0]
+        ey = L[..., 1] - Ls[:, None, 1]
+        m = (h00[:, None] * ex * ex + 2 * h01[:, None] * ex * ey + h11[:, None] * ey * ey) / \
+            c2[:, None]
+        logs.append(np.log(kg / k) - 0.5 * m - np.log(2 * np.pi)
+                    + 0.5 * np.log(det / (c2 * c2))[:, None])
+    if kr:
+        tau = np.maximum(1.0, np.hypot(X[..., 0] - RAY_CENTRE[0], X[..., 1] - RAY_CENTRE[1]))
+        r = np.sqrt(ddx * ddx + ddy * ddy)
+        lr = ray_log_density_polar(res, r, tau[:, None, :], sig[:, None, None])
+        logs.append(np.log(kr / k) + logsumexp(lr, axis=-1) - np.log(n))
+    log_q = logs[0] if len(logs) == 1 else np.logaddexp(logs[0], logs[1])
+    return L, log_q, log_lik, spread
 
 
-def landmarks_on_rays_world(origins, angles, q):
-    """As :func:`landmarks_on_rays` under the ``"world"`` prior: ``t = tau q / (1 - q)`` with
-    ``tau = max(1, |O - centre|)`` and weight ``p(L) t dt/dq`` (importance sampling of the ray
-    integral of ``p(L) t dt``). Returns ``(points (..., k, 2), log_weight (..., k))``."""
-    tau = np.maximum(1.0, np.linalg.norm(origins - WORLD_CENTRE, axis=-1))[..., None]
-    t = tau * q / (1.0 - q)
-    u = np.stack([np.cos(angles), np.sin(angles)], axis=-1)
-    pts = origins[..., None, :] + t[..., None] * u[..., None, :]
-    lw = log_point_prior(pts, "world", None) + np.log(t) + np.log(tau) - 2 * np.log1p(-q)
-    return pts, lw
+def weighted_state_error(part, points, weights) -> float:
+    """Monte Carlo standard error of a self-normalized weighted state histogram (delta method:
+    ``sqrt(sum_i w_i^2 (1[s_i = s] - p_s)^2)``), the largest over states. ``weights`` sum to 1."""
+    w = np.asarray(weights, dtype=float)
+    if w.size == 0 or not np.any(w > 0):
+        return float("nan")
+    s = part.state_of(points)
+    m = part.n_states
+    p = np.bincount(s, weights=w, minlength=m)
+    w2 = w * w
+    a = np.bincount(s, weights=w2, minlength=m)           # sum over i in s of w_i^2
+    tot = w2.sum()
+    var = a * (1 - p) ** 2 + (tot - a) * p**2
+    return float(np.sqrt(var.max()))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -643,6 +760,26 @@ def uniform_estimate(method, part, n_views, reason, opts) -> tuple[TripletEstima
     return make_estimate(method, part, n_views, np.full(m, 1.0 / m),
                          np.full((n_views, m), 1.0 / m), hypotheses=empty_hypotheses(n_views),
                          reasons=(reason,), opts=opts)
+
+
+#: Bearings of consecutive views equal within this (radians, all three): the camera is taken as
+#: not having moved.
+SAME_POSE_TOL = 1e-9
+
+#: C's depth is called unresolved when its standard deviation along the least constrained
+#: direction exceeds this fraction of its distance from the nearest camera.
+DEPTH_SPREAD = 0.5
+
+
+def geometry_reasons(bearings, sigma_bearing=0.0) -> list[str]:
+    """Flags from the measurements alone: cameras on (or within the bearing noise of) line AB."""
+    g = wrap_angle(bearings[:, 1] - bearings[:, 0])
+    tol = max(LOCUS_EPS, float(np.sin(min(float(sigma_bearing), np.pi / 2))))
+    bad = [int(i) for i in np.flatnonzero(np.abs(np.sin(g)) < tol)]
+    if not bad:
+        return []
+    return ["camera on line AB (phi_A = phi_B or opposite, within the bearing noise) in view(s) "
+            + ", ".join(str(b + 1) for b in bad)]
 
 
 def nominal_degenerate(bearings) -> list[int]:

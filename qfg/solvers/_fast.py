@@ -100,15 +100,14 @@ def _resection(tid, poses, phi_c, sigma_v, opts):
     sv = sigma_v[tid]
     lw = C.log_gauss(res, sv[:, None]).sum(axis=-1)
     if opts["landmark_volume"] and poses.shape[1] >= 2:
-        lw = lw + C.log_landmark_volume(poses[..., :2], L, sv, opts["prior_window"])
-    lw = lw + C.log_c_prior(L, opts["prior"])
+        lw = lw + C.log_landmark_volume(poses[..., :2], L, sv)
+    lw = lw + C.point_log_prior(opts["prior"], L)
     return L, np.where(ok, lw, -np.inf)
 
 
 def _first(b0, tid, w, lwidth, opts):
     """First-view hypotheses at arc parameters ``w`` (N,) of triplets ``tid``; alive ones only."""
-    poses, lp = C.arc_poses(b0[tid, 0], b0[tid, 1], w[:, None], opts["prior"],
-                            opts["prior_window"])
+    poses, lp = C.arc_poses(b0[tid, 0], b0[tid, 1], w[:, None], opts["prior"])
     lw = lp[:, 0] + lwidth
     keep = np.isfinite(lw)
     return tid[keep], poses[keep], lw[keep], w[keep], lwidth[keep]
@@ -127,7 +126,7 @@ def _extend(hyp, bearings, headings, sv, opts):
     j, b = np.nonzero(valid)                      # parent, branch; parents stay in order
     X = pts[j, b]
     alpha = heading_on_locus(X, phi[tid[j], 0])
-    lw_new = lw[j] + C.log_point_prior(X, opts["prior"], opts["prior_window"])
+    lw_new = lw[j] + C.point_log_prior(opts["prior"], X)
     if opts["jacobian"]:
         lw_new = lw_new + C.log_ray_jacobian(X, prev[j, :2], th[j])
     keep = np.isfinite(lw_new)
@@ -238,14 +237,14 @@ def finish(state: FastState, hypotheses: bool = False):
         cam = poses[:, 0, :]
         ang = cam[:, 2] + state.bearings[tid, 0, 2]
         q = (np.arange(k) + 0.5) / k
-        if opts["prior"] == "world":
-            pts, lw_q = C.landmarks_on_rays_world(cam[:, :2], ang, q)
-            lw_l = (lw[:, None] + lw_q - np.log(k)).ravel()
-            lw_cam = lw + C.logsumexp(lw_q, axis=-1) - np.log(k)
-        else:
-            pts, log_mass = C.landmarks_on_rays(cam[:, :2], ang, q, opts["prior_window"])
-            lw_cam = lw + log_mass
-            lw_l = np.repeat(lw_cam, k) - np.log(k)
+        # deterministic quantiles of the ray proposal; weight = prior(L) t dt / q(t)
+        pts, lq = C._ray_points(cam[:, :2], ang, np.zeros((ang.size, k)),
+                                np.broadcast_to(q, (ang.size, k)), 1.0)
+        lq = lq - C.log_gauss(0.0, 1.0) + 0.5 * np.log(2 * np.pi)
+        r = np.linalg.norm(pts - cam[:, None, :2], axis=-1)
+        lw_q = C.point_log_prior(opts["prior"], pts) - lq - np.log(np.maximum(r, 1e-300))
+        lw_l = (lw[:, None] + lw_q - np.log(k)).ravel()
+        lw_cam = lw + C.logsumexp(lw_q, axis=-1) - np.log(k)
         l_samples, l_tid = pts.reshape(-1, 2), np.repeat(tid, k)
     else:
         tid, poses, lw_cam, l_samples = _refine(state, sv)
@@ -262,17 +261,13 @@ def finish(state: FastState, hypotheses: bool = False):
     cb = np.searchsorted(tid, np.arange(T + 1))
     out = []
     for t in range(T):
-        reasons = []
-        bad = C.nominal_degenerate(state.bearings[t])
-        if bad:
-            reasons.append("camera on line AB (phi_A = phi_B or opposite) in view(s) "
-                           + ", ".join(str(v + 1) for v in bad))
+        reasons = C.geometry_reasons(state.bearings[t], state.sigma_bearing[t])
         cw = c_w[cb[t]:cb[t + 1]]
         alive = cw > 0
         if not np.any(alive):
             reasons.append("no hypothesis survived (rays miss the locus arcs or C cannot be "
                            "triangulated)")
-            out.append(C.uniform_estimate("fast", part, n, "; ".join(reasons), opts))
+            out.append(C.uniform_estimate("fast-paper", part, n, "; ".join(reasons), opts))
             continue
         lw_t = l_w[lb[t]:lb[t + 1]]
         keep_l = lw_t > 0
@@ -281,7 +276,7 @@ def finish(state: FastState, hypotheses: bool = False):
             landmark_samples=l_samples[lb[t]:lb[t + 1]][keep_l], landmark_weights=lw_t[keep_l],
             camera_samples=np.transpose(poses[cb[t]:cb[t + 1]][alive], (1, 0, 2)),
             camera_weights=np.broadcast_to(cw[alive], (n, na)).copy(), joint=n > 1)
-        est, hyp = C.make_estimate("fast", part, n, lm[t] / lm[t].sum(),
+        est, hyp = C.make_estimate("fast-paper", part, n, lm[t] / lm[t].sum(),
                                    cm[t] / cm[t].sum(axis=1, keepdims=True), hypotheses=hyp,
                                    reasons=reasons, opts=opts)
         out.append((est, hyp if hypotheses else None))

@@ -61,10 +61,11 @@ class FullState:
     opts: dict
     part: object
     poses: np.ndarray     # (J, i, 3) camera poses per hypothesis
-    lw_base: np.ndarray   # (J,) log prior x motion weights (+ resampling adjustment)
+    lw_base: np.ndarray   # (J,) log per-point prior x change of variables (+ resampling)
+    lp_x: np.ndarray      # (J,) the per-point prior part of lw_base (divided out at the end)
     lw_res: np.ndarray    # (J,) log resection weight at the current triangulation (+ C prior)
-    landmark: np.ndarray  # (J, 2) triangulated C (zeros before the second view)
     reasons: tuple
+    same_pose: tuple = ()  # views whose bearings repeat the previous view's exactly
 
 
 def _triangulate(X, theta, how):
@@ -75,17 +76,16 @@ def _triangulate(X, theta, how):
     return L, ok
 
 
-def _resection(poses, phi_c, sigma_v, opts):
-    """(L (J, 2), log wr summed over views + log prior of L) for trajectories (J, i, 3)."""
-    theta = poses[..., 2] + phi_c[None, :]
-    L, ok = _triangulate(poses[..., :2], theta, opts["resection"])
-    d = L[:, None, :] - poses[..., :2]
-    res = wrap_angle(np.arctan2(d[..., 1], d[..., 0]) - theta)
-    lw = C.log_gauss(res, sigma_v).sum(axis=-1)
-    if opts["landmark_volume"] and poses.shape[-2] >= 2:
-        lw = lw + C.log_landmark_volume(poses[..., :2], L, sigma_v, opts["prior_window"])
-    lw = lw + C.log_c_prior(L, opts["prior"])
-    return L, np.where(ok, lw, -np.inf)
+def _landmark_weight(rng, poses, phi_c, sigma_v, opts):
+    """log of an unbiased estimate of ``integral p1(L) prod_t N(phi_C,t - f(L, X_t)) dL`` for
+    trajectories (J, i, 3) (``landmark_samples`` C samples each, :func:`._common.sample_landmarks`;
+    p1 the per-point prior), the intermediate weight of C."""
+    k = opts["landmark_samples"]
+    L, log_q, log_lik, _ = C.sample_landmarks(rng, poses, phi_c, float(sigma_v), k,
+                                              opts["ray_fraction"])
+    lw = C.point_log_prior(opts["prior"], L) + log_lik - log_q
+    lw = np.where(np.isnan(lw), -np.inf, lw)
+    return C.logsumexp(lw, axis=1) - np.log(k)
 
 
 def _match(prev, psi, Y, tol):
@@ -133,6 +133,7 @@ def _prune(state: FullState, view: int) -> FullState:
     cap = state.opts["max_hypotheses"]
     lw_base = state.lw_base[idx]
     lw_res = state.lw_res[idx]
+    lp_x = state.lp_x[idx]
     if idx.size > cap:
         # systematic resampling: every survivor carries the mean weight, the total is unchanged
         w = np.exp(total[idx] - mx)
@@ -144,9 +145,9 @@ def _prune(state: FullState, view: int) -> FullState:
         mean_log = mx + np.log(w.sum() / cap)
         idx = idx[pick]
         lw_res = state.lw_res[idx]
+        lp_x = state.lp_x[idx]
         lw_base = mean_log - lw_res
-    return replace(state, poses=state.poses[idx], lw_base=lw_base, lw_res=lw_res,
-                   landmark=state.landmark[idx])
+    return replace(state, poses=state.poses[idx], lw_base=lw_base, lw_res=lw_res, lp_x=lp_x)
 
 
 def _noiseless(meas, opts) -> bool:
@@ -162,11 +163,12 @@ def start(meas: C.Measurements, root, opts, part) -> FullState:
         # no noise to draw in the motion step (one child per hypothesis instead of
         # motion_samples): spend the same hypothesis budget on the first view instead
         n1 *= opts["motion_samples"]
-    poses, lp = C.sample_view(rng, meas.bearings[0], sv, n1, opts["prior"], opts["prior_window"])
+    poses, lp = C.sample_view(rng, meas.bearings[0], sv, n1, opts["prior"])
     st = FullState(meas=replace(meas, bearings=meas.bearings[:1],
                                 headings=None if meas.headings is None else meas.headings[:0]),
                    root=root, opts=opts, part=part, poses=poses[:, None, :], lw_base=lp,
-                   lw_res=np.zeros(lp.shape), landmark=np.zeros((lp.size, 2)), reasons=())
+                   lp_x=C.point_log_prior(opts["prior"], poses[:, :2]),
+                   lw_res=np.zeros(lp.shape), reasons=())
     st = _prune(st, 0)
     if st.poses.shape[0] == 0:
         st = replace(st, reasons=("view 1: no valid camera sample on the locus arc",))
@@ -190,10 +192,10 @@ def _propose(rng, prev, phi, psi, sigma_v, sigma_w, r, opts):
     pav = np.broadcast_to(pa[..., None], valid.shape)[valid]
     # sampled noise cancels the heading and A/B bearing likelihoods; what is left is the change of
     # variables (eps, gamma) -> (x, y)
-    lw = C.log_ray_jacobian(X, prev[par[valid], :2], thv)
-    lw = lw + C.log_point_prior(X, opts["prior"], opts["prior_window"])
+    lpx = C.point_log_prior(opts["prior"], X)
+    lw = C.log_ray_jacobian(X, prev[par[valid], :2], thv) + lpx
     alpha = wrap_angle(np.arctan2(-X[:, 1], -X[:, 0]) - pav)
-    return par[valid], np.concatenate([X, alpha[:, None]], axis=-1), lw
+    return par[valid], np.concatenate([X, alpha[:, None]], axis=-1), lw, lpx
 
 
 def step(state: FullState, phi, psi) -> FullState:
@@ -208,27 +210,39 @@ def step(state: FullState, phi, psi) -> FullState:
     sw = C.effective_sigma(meas.sigma_heading, opts["heading_floor"])
     rng = C.stream(state.root, i, C.STREAM_CAMERAS)
     reasons = state.reasons
+    if np.all(np.abs(wrap_angle(phi - meas.bearings[-1])) <= C.SAME_POSE_TOL):
+        # the same bearings again: the camera may not have moved (a move that repeats all three
+        # bearings exactly has probability 0). Keep the pose; the view adds no constraint on C
+        # beyond its line of sight, so C stays spread along it as far as the other views allow.
+        st = replace(state, meas=new_meas,
+                     poses=np.concatenate([state.poses, state.poses[:, -1:]], axis=1),
+                     same_pose=state.same_pose + (i,))
+        lw_res = _landmark_weight(C.stream(state.root, i, C.STREAM_LANDMARKS), st.poses,
+                                  new_meas.bearings[:, 2], sv, opts)
+        return _prune(replace(st, lw_res=lw_res), i)
     if opts["motion"] == "sample":
         r = 1 if _noiseless(meas, opts) else opts["motion_samples"]
-        jj, Y, lpY = _propose(rng, state.poses[:, -1, :], phi, psi, float(meas.sigma_bearing),
-                              float(meas.sigma_heading), r, opts)
+        jj, Y, lpY, lpx = _propose(rng, state.poses[:, -1, :], phi, psi, float(meas.sigma_bearing),
+                                   float(meas.sigma_heading), r, opts)
         poses = np.concatenate([state.poses[jj], Y[:, None, :]], axis=1)
         lw_base = state.lw_base[jj] + lpY - np.log(r)
     else:
         Y, lpY = C.sample_view(rng, phi, float(meas.sigma_bearing), opts["n_samples"],
-                               opts["prior"], opts["prior_window"])
+                               opts["prior"])
         good = np.isfinite(lpY)
         Y, lpY = Y[good], lpY[good]
         if state.poses.shape[0] == 0 or Y.shape[0] == 0:
             return replace(state, meas=new_meas, poses=np.zeros((0, i + 1, 3)),
-                           lw_base=np.zeros(0), lw_res=np.zeros(0), landmark=np.zeros((0, 2)),
+                           lw_base=np.zeros(0), lp_x=np.zeros(0), lw_res=np.zeros(0),
                            reasons=reasons or (f"view {i + 1}: no hypothesis to extend",))
         jj, kk, res = _match(state.poses[:, -1, :], psi, Y, opts["match_sigmas"] * float(sw))
         poses = np.concatenate([state.poses[jj], Y[kk][:, None, :]], axis=1)
         lw_base = state.lw_base[jj] + lpY[kk] + C.log_gauss(res, sw)
-    L, lw_res = _resection(poses, new_meas.bearings[:, 2], sv, opts)
-    st = FullState(meas=new_meas, root=state.root, opts=opts, part=state.part, poses=poses,
-                   lw_base=lw_base, lw_res=lw_res, landmark=L, reasons=reasons)
+        lpx = C.point_log_prior(opts["prior"], Y[kk, :2])
+    lw_res = _landmark_weight(C.stream(state.root, i, C.STREAM_LANDMARKS), poses,
+                              new_meas.bearings[:, 2], sv, opts)
+    st = replace(state, meas=new_meas, poses=poses, lw_base=lw_base,
+                 lp_x=state.lp_x[jj] + lpx, lw_res=lw_res)
     st = _prune(st, i)
     if st.poses.shape[0] == 0 and not reasons:
         what = "motion step" if jj.size == 0 else "resection step"
@@ -236,49 +250,77 @@ def step(state: FullState, phi, psi) -> FullState:
     return st
 
 
+def _resample(rng, logw, n):
+    """Systematic resampling of n indices by weights exp(logw) (finite somewhere)."""
+    w = np.exp(logw - np.max(logw))
+    cdf = np.cumsum(w)
+    cdf /= cdf[-1]
+    return np.minimum(np.searchsorted(cdf, (rng.random() + np.arange(n)) / n, side="right"),
+                      logw.size - 1)
+
+
+def posterior_samples(state: FullState):
+    """The final weighted sample of (trajectory, C): trajectories resampled by their
+    intermediate weights (``posterior_samples`` of them), ``landmark_samples`` C samples each
+    (:func:`._common.sample_landmarks`; ``one_view_samples`` with one view), weighted by the
+    exact prior of the whole configuration over the intermediate one:
+
+        w_jk  ∝  prior([L_jk, X_j]) prod_t N(phi_C,t - f(L_jk, X_jt)) / q(L_jk | X_j)
+                 / (prod_t p1(X_jt) Z(X_j))
+
+    where ``p1`` is the per-point prior and ``Z`` the triangulation weight the intermediate
+    steps used. Returns (poses (M, n, 3), L (M, k, 2), log w (M, k), depth spread (M,)), or
+    None when no trajectory has a finite weight."""
+    opts, meas = state.opts, state.meas
+    n = meas.n_views
+    total = state.lw_base + state.lw_res
+    if total.size == 0 or not np.any(np.isfinite(total)):
+        return None
+    rng = C.stream(state.root, n, C.STREAM_POSTERIOR)
+    M = opts["posterior_samples"]
+    idx = _resample(rng, total, M)
+    poses = state.poses[idx]
+    k = opts["one_view_samples"] if n == 1 else opts["landmark_samples"]
+    sv = float(C.effective_sigma(meas.sigma_bearing, opts["bearing_floor"]))
+    L, log_q, log_lik, spread = C.sample_landmarks(rng, poses, meas.bearings[:, 2], sv, k,
+                                                   opts["ray_fraction"])
+    keep = [t for t in range(n) if t not in state.same_pose]
+    X = np.broadcast_to(poses[:, None, keep, :2], (M, k, len(keep), 2))
+    lp = C.log_joint_prior(opts["prior"], L, X)
+    with np.errstate(invalid="ignore"):
+        lw = lp + log_lik - log_q - (state.lw_res[idx] + state.lp_x[idx])[:, None]
+    lw = np.where(np.isnan(lw), -np.inf, lw)
+    return poses, L, lw, spread
+
+
 def finish(state: FullState, method: str = "full"):
-    """State probabilities (eqs. slamapprox1/2) from the hypotheses: (estimate, hypotheses)."""
+    """State probabilities (eqs. slamapprox1/2) from the final weighted sample:
+    (estimate, hypotheses)."""
     part, opts, meas = state.part, state.opts, state.meas
     n = meas.n_views
     reasons = list(state.reasons)
-    bad = C.nominal_degenerate(meas.bearings)
-    if bad:
-        reasons.insert(0, "camera on line AB (phi_A = phi_B or opposite) in view(s) "
-                       + ", ".join(str(b + 1) for b in bad))
-    J = state.poses.shape[0]
-    if J == 0:
+    reasons[:0] = C.geometry_reasons(meas.bearings, meas.sigma_bearing)
+    if state.same_pose:
+        reasons.append("view(s) " + ", ".join(str(v + 1) for v in state.same_pose)
+                       + " repeat the previous view's bearings (camera taken as not moved)")
+    ps = posterior_samples(state) if state.poses.shape[0] else None
+    if ps is None:
         return C.uniform_estimate(method, part, n, "; ".join(reasons) or "no hypothesis", opts)
-    total = state.lw_base + state.lw_res
-    if n == 1:
-        k = opts["one_view_samples"]
-        rng = C.stream(state.root, 0, C.STREAM_ONE_VIEW)
-        cam = state.poses[:, 0, :]
-        ang = (cam[:, 2] + meas.bearings[0, 2])[:, None] + \
-            float(meas.sigma_bearing) * rng.standard_normal((J, k))
-        q = rng.random((J, k, 1))
-        origins = np.broadcast_to(cam[:, None, :2], (J, k, 2))
-        if opts["prior"] == "world":
-            pts, log_mass = C.landmarks_on_rays_world(origins, ang, q)
-            log_mass = log_mass[..., 0]
-        else:
-            pts, log_mass = C.landmarks_on_rays(origins, ang, q, opts["prior_window"])
-        lw_l = (total[:, None] + log_mass).reshape(-1)
-        lw_cam = total + C.logsumexp(log_mass, axis=1) - np.log(k)
-        l_samples = pts.reshape(-1, 2)
-        l_w = C.normalize_log(lw_l)
-        c_w = C.normalize_log(lw_cam)[None, :]
-        joint = False
-    else:
-        l_samples = state.landmark
-        l_w = C.normalize_log(total)
-        c_w = np.broadcast_to(l_w, (n, J)).copy()
-        joint = True
-    landmark, ok = C.state_histogram(part, l_samples, l_w)
-    cams = np.stack([C.state_histogram(part, state.poses[:, t, :2], c_w[t])[0] for t in range(n)])
-    if not ok:
+    poses, L, lw, spread = ps
+    M, k = lw.shape
+    w = C.normalize_log(lw.ravel())
+    if not np.any(w > 0):
         reasons.append("every hypothesis has zero weight")
-    hyp = C.Hypotheses(landmark_samples=l_samples, landmark_weights=l_w,
-                       camera_samples=np.transpose(state.poses, (1, 0, 2)), camera_weights=c_w,
-                       joint=joint)
+        return C.uniform_estimate(method, part, n, "; ".join(reasons), opts)
+    l_samples = L.reshape(-1, 2)
+    landmark, _ = C.state_histogram(part, l_samples, w)
+    cw = w.reshape(M, k).sum(axis=1)
+    cams = np.stack([C.state_histogram(part, poses[:, t, :2], cw)[0] for t in range(n)])
+    if n >= 2 and np.sum(cw * (spread > C.DEPTH_SPREAD)) > 0.5:
+        reasons.append("lines of sight to C (nearly) coincide: its depth along them is set by "
+                       "the prior")
+    hyp = C.Hypotheses(landmark_samples=l_samples, landmark_weights=w,
+                       camera_samples=np.transpose(np.repeat(poses, k, axis=0), (1, 0, 2)),
+                       camera_weights=np.broadcast_to(w, (n, w.size)).copy(), joint=True)
     return C.make_estimate(method, part, n, landmark, cams, hypotheses=hyp, reasons=reasons,
-                           opts=opts)
+                           mc_error=C.weighted_state_error(part, l_samples, w), opts=opts)

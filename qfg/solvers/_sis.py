@@ -1,0 +1,375 @@
+"""Sequential importance sampling over camera trajectories, batched over triplets: the engine of
+``method="full"`` (the paper's Algorithm 1) and of the default ``method="fast"`` (the same with
+small budgets).
+
+Per view i of every triplet (AB frame, A = (0, 0), B = (0, 1)):
+
+* sampling step (view 1): ``n_samples`` camera poses near the locus arc of (phi_A, phi_B): the
+  bearings to A and B drawn from N(measured, sigma_v^2), a position on the drawn arc at a
+  stratified arc parameter (:func:`._common.arc_parameter`), the heading from phi_A. The
+  importance weight is the arc's change of variables times the per-point prior.
+* motion step (views 2..n): for each hypothesis, ``motion_samples`` draws of the heading noise and
+  of the view's A/B bearing noise; the ray from X_{i-1} along ``alpha_{i-1} + psi + eps`` meets
+  the drawn locus arc at 0, 1 or 2 points, each a new hypothesis. The drawn noise carries the
+  heading and A/B likelihoods exactly; the weight is the change of variables
+  ``t / |grad Gamma . u|`` (:func:`._common.log_ray_jacobian`) times the per-point prior.
+* C (views 2..n): its integral ``∫ p1(L) prod_t N(phi_C,t - f(L, X_t); sigma_v) dL`` is
+  estimated with ``landmark_samples`` draws from a defensive mixture (Laplace Gaussian about the
+  triangulation, and draws along the lines of sight: :func:`._common.sample_landmarks`), which
+  stays right when the lines of sight coincide.
+* pruning and resampling per triplet: hypotheses below ``prune_ratio`` x the heaviest are
+  dropped; above ``max_hypotheses`` the set is resampled (systematic), the C weight divided out as
+  in sequential importance resampling.
+
+These intermediate weights use a per-point prior ``p1`` (:func:`._common.point_log_prior`).
+The answer does not: :func:`finish` resamples ``posterior_samples`` trajectories per triplet,
+draws C for each, and weights every (trajectory, C) sample by the prior's ``log_density`` of the
+whole configuration [C, X_1..X_n] over the intermediate target, so the estimate targets the
+exact posterior under any :class:`qfg.priors.Prior`.
+
+Every random draw of triplet t at view i comes from its own stream
+``SeedSequence(root_t, spawn_key=(i, purpose))``, so a triplet solved alone, in a batch, or view
+by view gives the same numbers. Views whose three bearings repeat the previous view's exactly are
+taken as the camera not having moved (flagged). With both sigmas zero a triplet draws no noise in
+the motion step (one child per hypothesis) and spends the same budget on the first view
+(``n_samples x motion_samples``). Likelihood widths are ``max(sigma, floor)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..geometry import heading_on_locus, locus_circle, locus_point, ray_circle_intersection
+from ..geometry import wrap_angle
+from . import _common as C
+
+
+@dataclass(frozen=True, eq=False)
+class SISState:
+    """Hypotheses of T triplets after the views so far (flat arrays sorted by triplet)."""
+
+    bearings: np.ndarray       # (T, i, 3)
+    headings: np.ndarray       # (T, i - 1)
+    sigma_bearing: np.ndarray  # (T,)
+    sigma_heading: np.ndarray  # (T,)
+    roots: tuple               # T SeedSequences
+    opts: dict
+    part: object
+    method: str
+    tid: np.ndarray            # (N,) triplet of each hypothesis
+    poses: np.ndarray          # (N, i, 3)
+    lw_base: np.ndarray        # (N,) log change of variables x per-point prior (+ resampling)
+    lp_x: np.ndarray           # (N,) the per-point prior part of lw_base
+    lw_c: np.ndarray           # (N,) log estimate of C's integral (0 with one view)
+    same_pose: np.ndarray      # (T, i) views taken as "camera did not move"
+    lost: np.ndarray           # (T,) view (1-based) at which nothing survived, 0 if alive
+
+    @property
+    def n_triplets(self) -> int:
+        return self.bearings.shape[0]
+
+    @property
+    def n_views(self) -> int:
+        return self.bearings.shape[1]
+
+    def sigma_v(self) -> np.ndarray:
+        """(T,) C-bearing likelihood width ``max(sigma_v, floor)``."""
+        return C.effective_sigma(self.sigma_bearing, self.opts["bearing_floor"])
+
+    def noiseless(self) -> np.ndarray:
+        return (self.sigma_bearing == 0) & (self.sigma_heading == 0)
+
+
+def _per_triplet(roots, view, purpose, counts, draw):
+    """Concatenate ``draw(rng_t, count_t)`` over triplets (each from its own stream); ``draw``
+    returns a tuple of arrays with leading axis count_t."""
+    parts = [draw(C.stream(roots[t], view, purpose), int(counts[t]))
+             for t in range(len(roots))]
+    return tuple(np.concatenate([p[k] for p in parts]) for k in range(len(parts[0])))
+
+
+def _landmark_draws(roots, view, purpose, tid, T, n, k, ray_fraction):
+    kr = k if n == 1 else min(k, int(round(k * ray_fraction)))
+    kg = k - kr
+    counts = np.bincount(tid, minlength=T)
+
+    def draw(rng, m):
+        return (rng.standard_normal((m, kg, 2)), rng.integers(0, n, size=(m, kr)),
+                rng.standard_normal((m, kr)), rng.random((m, kr)))
+
+    z, t, e, u = _per_triplet(roots, view, purpose, counts, draw)
+    return {"z": z, "t": t, "eps": e, "u": u}
+
+
+def _c_weight(state_like, tid, poses, bearings_c, view, purpose, k):
+    """(L, log q, log lik, spread) for hypotheses (N, i, 3) of triplets ``tid``."""
+    T = len(state_like.roots)
+    n = poses.shape[1]
+    draws = _landmark_draws(state_like.roots, view, purpose, tid, T, n, k,
+                            state_like.opts["ray_fraction"])
+    return C.sample_landmarks(None, poses, bearings_c[tid], state_like.sigma_v()[tid], k,
+                              state_like.opts["ray_fraction"], draws=draws)
+
+
+#: Depth spread below which the intermediate C weight uses the Laplace approximation; above it
+#: (C's depth poorly resolved, e.g. lines of sight that nearly coincide) it is sampled.
+_LAPLACE_SPREAD = 0.1
+
+
+def _log_intermediate_c(state_like, tid, poses, bearings_c, view):
+    """log of C's integral with the per-point prior, for the intermediate weights: Laplace about
+    the triangulation where C's depth is resolved, a :func:`._common.sample_landmarks` estimate
+    elsewhere."""
+    prior = state_like.opts["prior"]
+    sig = state_like.sigma_v()[tid]
+    lz, Ls, spread = C.laplace_landmark(poses, bearings_c[tid], sig)
+    out = lz + C.point_log_prior(prior, Ls)
+    hard = np.flatnonzero(~(spread < _LAPLACE_SPREAD))
+    if hard.size:
+        k = state_like.opts["landmark_samples"]
+        L, log_q, log_lik, _ = _c_weight(state_like, tid[hard], poses[hard], bearings_c, view,
+                                         C.STREAM_LANDMARKS, k)
+        lw = C.point_log_prior(prior, L) + log_lik - log_q
+        lw = np.where(np.isnan(lw), -np.inf, lw)
+        out[hard] = C.logsumexp(lw, axis=1) - np.log(k)
+    return np.where(np.isnan(out), -np.inf, out)
+
+
+def _segment_max(tid, x, T):
+    mx = np.full(T, -np.inf)
+    np.maximum.at(mx, tid, x)
+    return mx
+
+
+def _systematic(tid, logw, T, counts_out, offsets):
+    """Per-triplet systematic resampling: ``counts_out[t]`` indices of triplet t's elements drawn
+    by weights exp(logw), with offsets (T,) in [0, 1). Triplets whose weights are all -inf (or
+    counts_out = 0) draw nothing. Returns indices sorted by triplet."""
+    mx = _segment_max(tid, logw, T)
+    ok = np.isfinite(mx)
+    w = np.where(np.isfinite(logw), np.exp(logw - np.where(ok, mx, 0.0)[tid]), 0.0)
+    tot = np.bincount(tid, weights=w, minlength=T)
+    cum = np.cumsum(w)
+    start = np.concatenate([[0.0], cum])[np.searchsorted(tid, np.arange(T))]
+    # position of each element's right edge within its triplet, in [0, 1], plus triplet index
+    key = tid + (cum - start[tid]) / np.where(tot > 0, tot, 1.0)[tid]
+    key = np.where(tot[tid] > 0, key, tid + 1.0)
+    co = np.where(ok & (tot > 0), counts_out, 0)
+    pt = np.repeat(np.arange(T), co)
+    pos = pt + (offsets[pt] + (np.arange(pt.size) - np.repeat(np.cumsum(co) - co, co))) / \
+        np.repeat(np.maximum(co, 1), co)
+    idx = np.searchsorted(key, pos, side="right")
+    # stay inside the triplet's own range (rounding at the right edge)
+    hi = np.searchsorted(tid, pt, side="right") - 1
+    return np.minimum(idx, hi)
+
+
+def _offsets(roots, view, purpose):
+    return np.array([C.stream(r, view, purpose).random() for r in roots])
+
+
+def _prune(st: SISState, view: int) -> SISState:
+    T = st.n_triplets
+    total = st.lw_base + st.lw_c
+    mx = _segment_max(st.tid, total, T)
+    ratio = st.opts["prune_ratio"]
+    floor = mx + np.log(ratio) if ratio > 0 else np.full(T, -np.inf)
+    keep = np.isfinite(total) & (total >= floor[st.tid])
+    st = _take(st, np.flatnonzero(keep))
+    cap = st.opts["max_hypotheses"]
+    counts = np.bincount(st.tid, minlength=T)
+    if counts.size and counts.max() > cap:
+        over = counts > cap
+        total = st.lw_base + st.lw_c
+        off = _offsets(st.roots, view, C.STREAM_RESAMPLE)
+        idx_over = _systematic(st.tid, total, T, np.where(over, cap, 0), off)
+        keep_under = np.flatnonzero(~over[st.tid])
+        # every survivor of an over-full triplet carries the mean weight, the total is unchanged
+        mx = _segment_max(st.tid, total, T)
+        w = np.exp(total - np.where(np.isfinite(mx), mx, 0.0)[st.tid])
+        mean_log = mx + np.log(np.bincount(st.tid, weights=w, minlength=T) / cap)
+        idx = np.concatenate([keep_under, idx_over])
+        idx = idx[np.argsort(st.tid[idx], kind="stable")]
+        new = _take(st, idx)
+        resampled = over[new.tid]
+        lw_base = np.where(resampled, mean_log[new.tid] - new.lw_c, new.lw_base)
+        st = replace(new, lw_base=lw_base)
+    return st
+
+
+def _take(st: SISState, idx) -> SISState:
+    return replace(st, tid=st.tid[idx], poses=st.poses[idx], lw_base=st.lw_base[idx],
+                   lp_x=st.lp_x[idx], lw_c=st.lw_c[idx])
+
+
+def start(bearings0, sigma_bearing, sigma_heading, roots, opts, part, method) -> SISState:
+    """First view of T triplets: bearings0 (T, 3), sigmas (T,), roots: T SeedSequences."""
+    b0 = np.asarray(bearings0, dtype=float).reshape(-1, 3)
+    T = b0.shape[0]
+    sb = np.asarray(sigma_bearing, dtype=float).reshape(T)
+    sh = np.asarray(sigma_heading, dtype=float).reshape(T)
+    quiet = (sb == 0) & (sh == 0)
+    M = np.where(quiet, opts["n_samples"] * opts["motion_samples"], opts["n_samples"])
+
+    def draw(rng, m):
+        return rng.standard_normal((m, 2)), (rng.permutation(m) + rng.random(m)) / m
+
+    z, u = _per_triplet(roots, 0, C.STREAM_CAMERAS, M, draw)
+    tid = np.repeat(np.arange(T), M)
+    pa = b0[tid, 0] + sb[tid] * z[:, 0]
+    pb = b0[tid, 1] + sb[tid] * z[:, 1]
+    gamma = wrap_angle(pb - pa)
+    a, log_dadw = C.arc_parameter(gamma, u)
+    X = locus_point(gamma, a)
+    alpha = heading_on_locus(X, pa)
+    lw = C.log_camera_prior(X, gamma, log_dadw, opts["prior"])
+    poses = np.concatenate([X, alpha[:, None]], axis=-1)[:, None, :]
+    st = SISState(bearings=b0[:, None, :], headings=np.zeros((T, 0)), sigma_bearing=sb,
+                  sigma_heading=sh, roots=tuple(roots), opts=opts, part=part, method=method,
+                  tid=tid, poses=poses, lw_base=lw, lp_x=C.point_log_prior(opts["prior"], X),
+                  lw_c=np.zeros(tid.size), same_pose=np.zeros((T, 1), dtype=bool),
+                  lost=np.zeros(T, dtype=int))
+    st = _prune(st, 0)
+    alive = np.bincount(st.tid, minlength=T) > 0
+    return replace(st, lost=np.where(alive, 0, 1))
+
+
+def step(state: SISState, phi, psi) -> SISState:
+    """Add one view to T triplets: ``phi`` (T, 3), ``psi`` (T,)."""
+    phi = np.asarray(phi, dtype=float).reshape(-1, 3)
+    psi = np.asarray(psi, dtype=float).reshape(-1)
+    opts, T, i = state.opts, state.n_triplets, state.n_views
+    bearings = np.concatenate([state.bearings, phi[:, None, :]], axis=1)
+    headings = np.concatenate([state.headings, psi[:, None]], axis=1)
+    same = np.all(np.abs(wrap_angle(phi - state.bearings[:, -1])) <= C.SAME_POSE_TOL, axis=1)
+    quiet = state.noiseless()
+    r = np.where(same | quiet, 1, opts["motion_samples"])
+    tid, prev = state.tid, state.poses[:, -1, :]
+    counts = np.bincount(tid, minlength=T) * r
+
+    def draw(rng, m):
+        return (rng.standard_normal((m, 3)),)
+
+    (z,) = _per_triplet(state.roots, i, C.STREAM_CAMERAS, counts, draw)
+    par = np.repeat(np.arange(tid.size), r[tid])
+    ct = tid[par]
+    sb, sh = state.sigma_bearing[ct], state.sigma_heading[ct]
+    th = prev[par, 2] + psi[ct] + sh * z[:, 0]
+    pa = phi[ct, 0] + sb * z[:, 1]
+    pb = phi[ct, 1] + sb * z[:, 2]
+    circ = locus_circle(pa, pb)
+    pts, valid = ray_circle_intersection(prev[par, :2], th, circ.center, circ.radius, circ.side)
+    j, b = np.nonzero(valid)
+    X = pts[j, b]
+    lpx = C.point_log_prior(opts["prior"], X)
+    lw = state.lw_base[par[j]] + C.log_ray_jacobian(X, prev[par[j], :2], th[j]) + lpx \
+        - np.log(r[ct[j]])
+    alpha = wrap_angle(np.arctan2(-X[:, 1], -X[:, 0]) - pa[j])
+    new_pose = np.concatenate([X, alpha[:, None]], axis=-1)
+    # same-pose triplets: the one child is the parent's pose again, weight unchanged
+    sp = same[ct]
+    if np.any(sp):
+        keep = ~sp[j]
+        sj = np.flatnonzero(sp)
+        j = np.concatenate([j[keep], sj])
+        new_pose = np.concatenate([new_pose[keep], prev[par[sj]]])
+        lw = np.concatenate([lw[keep], state.lw_base[par[sj]]])
+        lpx = np.concatenate([lpx[keep], np.zeros(sj.size)])
+        order = np.argsort(ct[j], kind="stable")
+        j, new_pose, lw, lpx = j[order], new_pose[order], lw[order], lpx[order]
+    parent = par[j]
+    poses = np.concatenate([state.poses[parent], new_pose[:, None, :]], axis=1)
+    ntid = tid[parent]
+    st = replace(state, bearings=bearings, headings=headings, tid=ntid, poses=poses, lw_base=lw,
+                 lp_x=state.lp_x[parent] + lpx, lw_c=np.zeros(ntid.size),
+                 same_pose=np.concatenate([state.same_pose, same[:, None]], axis=1))
+    if ntid.size:
+        st = replace(st, lw_c=_log_intermediate_c(st, ntid, poses, bearings[..., 2], i))
+    st = _prune(st, i)
+    alive = np.bincount(st.tid, minlength=T) > 0
+    return replace(st, lost=np.where((state.lost == 0) & ~alive, i + 1, state.lost))
+
+
+def finish(state: SISState, hypotheses: bool = False):
+    """One (estimate, hypotheses or None) pair per triplet: the final weighted sample of
+    (trajectory, C), weighted by the prior of the whole configuration:
+
+        w_jk  ∝  prior([L_jk, X_j]) prod_t N(phi_C,t - f(L_jk, X_jt)) / q(L_jk | X_j)
+                 / (prod_t p1(X_jt) Z(X_j))
+
+    over trajectories X_j resampled by their intermediate weights (p1 the per-point prior, Z the
+    intermediate C weight)."""
+    opts, part, T, n = state.opts, state.part, state.n_triplets, state.n_views
+    m = part.n_states
+    total = state.lw_base + state.lw_c
+    M = opts["posterior_samples"]
+    alive = np.bincount(state.tid, weights=np.isfinite(total), minlength=T) > 0
+    off = _offsets(state.roots, n, C.STREAM_POSTERIOR)
+    idx = _systematic(state.tid, total, T, np.where(alive, M, 0), off)
+    tid, poses = state.tid[idx], state.poses[idx]
+    k = opts["one_view_samples"] if n == 1 else opts["landmark_samples"]
+    if tid.size:
+        L, log_q, log_lik, spread = _c_weight(state, tid, poses, state.bearings[..., 2], n,
+                                              C.STREAM_POSTERIOR, k)
+        lp = np.empty(L.shape[:2])
+        keep_mask = ~state.same_pose[tid]
+        # the prior of the distinct points: views taken as "not moved" repeat a camera
+        pat, inv = np.unique(keep_mask, axis=0, return_inverse=True)
+        for g in range(pat.shape[0]):
+            rows = np.flatnonzero(inv.reshape(-1) == g)
+            X = poses[rows][:, :, :2][:, pat[g]]
+            lp[rows] = C.log_joint_prior(opts["prior"], L[rows],
+                                         np.broadcast_to(X[:, None], (rows.size, k) + X.shape[1:]))
+        with np.errstate(invalid="ignore"):
+            lw = lp + log_lik - log_q - (state.lw_c[idx] + state.lp_x[idx])[:, None]
+        lw = np.where(np.isnan(lw), -np.inf, lw)
+    else:
+        L, lw, spread = np.zeros((0, k, 2)), np.zeros((0, k)), np.zeros(0)
+    # normalize per triplet
+    flat_tid = np.repeat(tid, k)
+    flw = lw.ravel()
+    mx = _segment_max(flat_tid, flw, T)
+    e = np.where(np.isfinite(flw), np.exp(flw - np.where(np.isfinite(mx), mx, 0.0)[flat_tid]),
+                 0.0)
+    s = np.bincount(flat_tid, weights=e, minlength=T)
+    w = np.where(s[flat_tid] > 0, e / np.where(s > 0, s, 1.0)[flat_tid], 0.0)
+    Lf = L.reshape(-1, 2)
+    ls = part.state_of(Lf) if Lf.size else np.zeros(0, dtype=int)
+    lm = np.bincount(flat_tid * m + ls, weights=w, minlength=T * m).reshape(T, m)
+    cw = w.reshape(-1, k).sum(axis=1) if w.size else np.zeros(0)
+    cs = part.state_of(poses[..., :2]) if poses.size else np.zeros((0, n), dtype=int)
+    cidx = (tid[:, None] * n + np.arange(n)) * m + cs
+    cm = np.bincount(cidx.ravel(), weights=np.repeat(cw, n), minlength=T * n * m).reshape(T, n, m)
+    unresolved = np.bincount(tid, weights=cw * (spread > C.DEPTH_SPREAD), minlength=T)
+    lb = np.searchsorted(flat_tid, np.arange(T + 1))
+    cb = np.searchsorted(tid, np.arange(T + 1))
+    out = []
+    for t in range(T):
+        reasons = C.geometry_reasons(state.bearings[t], state.sigma_bearing[t])
+        sp = np.flatnonzero(state.same_pose[t])
+        if sp.size:
+            reasons.append("view(s) " + ", ".join(str(v + 1) for v in sp)
+                           + " repeat the previous view's bearings (camera taken as not moved)")
+        if lm[t].sum() <= 0:
+            v = int(state.lost[t])
+            reasons.append(f"view {v}: no hypothesis survived (rays miss the locus arcs)"
+                           if v else "every hypothesis has zero weight")
+            out.append(C.uniform_estimate(state.method, part, n, "; ".join(reasons), opts))
+            continue
+        if n >= 2 and unresolved[t] > 0.5:
+            reasons.append("lines of sight to C (nearly) coincide: its depth along them is set "
+                           "by the prior")
+        wt = w[lb[t]:lb[t + 1]]
+        Lt = Lf[lb[t]:lb[t + 1]]
+        hyp = C.Hypotheses(
+            landmark_samples=Lt, landmark_weights=wt,
+            camera_samples=np.transpose(np.repeat(poses[cb[t]:cb[t + 1]], k, axis=0), (1, 0, 2)),
+            camera_weights=np.broadcast_to(wt, (n, wt.size)).copy(), joint=True)
+        est, hyp = C.make_estimate(
+            state.method, part, n, lm[t] / lm[t].sum(), cm[t] / cm[t].sum(axis=1, keepdims=True),
+            hypotheses=hyp, reasons=reasons, opts=opts,
+            mc_error=C.weighted_state_error(part, Lt, wt))
+        out.append((est, hyp if hypotheses else None))
+    return out
