@@ -15,6 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import shared_data_dir
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from qfg.datasets import mrclam
 from qfg.datasets.mrclam import DataFormatError
@@ -475,3 +477,35 @@ def test_triplet_counts_over_all_combinations_are_consistent(tmp_path):
     brute = {c for c in itertools.combinations(range(ds.landmark_ids.size), 3)
              if sum(rd.visible[:, list(c)].all(axis=1)) >= 3}
     assert mrclam.history_counts(ds)["all"]["distinct_triplets_raw"] == len(brute) == 20
+
+
+# ----------------------------------------------------------------------------------------------
+# damaged files: whatever the damage, a dataset or a DataFormatError naming a file of it
+
+FILES = ("Barcodes.dat", "Landmark_Groundtruth.dat", "Robot1_Measurement.dat", "Robot1_Odometry.dat",
+         "Robot1_Groundtruth.dat")
+
+
+@settings(max_examples=60, deadline=None)
+@given(which=st.sampled_from(FILES), gz=st.booleans(),
+       flips=st.lists(st.tuples(st.floats(0.0, 1.0, exclude_max=True), st.integers(1, 255)),
+                      min_size=1, max_size=3))
+def test_damaged_file_loads_or_names_the_file(tmp_path_factory, which, gz, flips):
+    d = tmp_path_factory.mktemp("fuzz")
+    t = np.round(np.arange(999.0, 1004.0, 0.05), 3)
+    small_dataset(d, split_images(), odometry=[(x, 0.1, 0.2) for x in t],
+                  groundtruth=[(x, 0.1 * (x - 999), 0.0, 0.0) for x in t], gz=gz)
+    p = d / which
+    if gz and which.startswith("Robot"):
+        p = d / (which + ".gz")
+    raw = bytearray(p.read_bytes())
+    for pos, xor in flips:
+        raw[int(pos * len(raw))] ^= xor
+    p.write_bytes(bytes(raw))
+    try:
+        ds = mrclam.load(d)
+    except DataFormatError as err:
+        assert Path(err.path).parent == d and (err.line is None or err.line >= 1), str(err)
+        assert err.path in str(err)
+    else:
+        assert ds.report.robot(1).views == ds.robot(1).n_views

@@ -15,11 +15,11 @@ from hypothesis import strategies as st
 from test_mrclam import LANDMARKS, write_dataset
 
 from qfg import metrics
-from qfg.harness.cli import main as qfg_main
 from qfg.datasets import mrclam
+from qfg.harness.cli import main as qfg_main
+from qfg.harness.studies import mrclam as study
 from qfg.partitions import get as get_partition
 from qfg.solvers import solve_triplets
-from qfg.harness.studies import mrclam as study
 
 EDC = get_partition("edc")
 M = EDC.n_states

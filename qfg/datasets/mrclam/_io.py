@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import io
 import math
+import re
 import warnings
 import zlib
 from dataclasses import dataclass
@@ -55,6 +56,7 @@ class Column:
 
 
 _CHUNK = 1 << 16
+_NUMBER = re.compile(r"[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|inf(?:inity)?|nan)", re.IGNORECASE)
 
 
 def _inflate_until_error(data: bytes, good: int) -> bytes:
@@ -153,10 +155,10 @@ def _first_bad_line(text: str, columns: tuple[Column, ...]):
             names = ", ".join(c.name for c in columns)
             return no, f"expected {ncols} columns ({names}), got {len(fields)}: {' '.join(fields)!r}"
         for col, tok in zip(columns, fields, strict=True):
-            try:
-                val = float(tok)
-            except ValueError:
+            # numpy's reader is stricter than float() (no '1_000', no ' 1 '): accept what both take
+            if not _NUMBER.fullmatch(tok):
                 return no, f"column '{col.name}': expected a number, got {tok!r}"
+            val = float(tok)
             if not math.isfinite(val):
                 return no, f"column '{col.name}': expected a finite number, got {tok!r}"
     return None

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ..._validate import as_float_array
 from ...geometry import wrap_angle
-from ._data import RobotData
+
+if TYPE_CHECKING:  # an annotation only: _data imports this module (RobotData.poses)
+    from ._data import RobotData
 
 
 def integrate_odometry(time, v, omega, query_times, *, start=(0.0, 0.0, 0.0)) -> np.ndarray:
