@@ -1,0 +1,617 @@
+"""Reference solver: the exact posterior P(S^{AB:C} | H) and P(S^{AB:X}_i | H) under a given prior,
+by adaptive importance sampling, with its Monte Carlo error estimated and reported.
+
+Model (AB frame; the same as the other solvers, ``docs/priors.md``): configuration
+``theta = (C, X_1, alpha_1, ..., X_n, alpha_n)``, prior ``prior(C, X_1..X_n) (2 pi)^-n`` (headings
+uniform), bearings ``phi_{j,L} ~ WN(f(L, X_j, alpha_j), sigma_v^2)`` for L in {A, B, C} and
+headings ``psi_j ~ WN(g(X_j, alpha_j, X_{j+1}), sigma_w^2)`` (WN: the wrapped normal, which for
+sigma below ~20 deg is the normal of the wrapped residual).
+
+Sampling variables ``u`` (a bijection with theta wherever the target is positive):
+
+* the true bearings of A and B in every view, ``phi~ = phi + sigma_v eps`` (eps standard
+  normal: this absorbs their likelihood exactly) and, between views, the true heading
+  ``psi~ = psi + sigma_w eps``;
+* view 1 (every view without an incoming heading): the angle at A along the locus arc of
+  ``gamma = phi~_B - phi~_A``, through the arc parameter w in (0, 1) (``_common.arc_parameter``);
+  ``dX dalpha = |x| / sin^2(gamma) dphi~_A dphi~_B da``;
+* later views: the point where the motion ray from X_{j-1} at ``alpha_{j-1} + psi~`` meets the
+  locus arc, root r_j among the valid intersections; ``dX = t / |grad Gamma . u| dpsi~ dgamma``;
+* C given the cameras: a mixture of a multivariate t about the triangulated point (Laplace
+  covariance of the C-bearing likelihood) and, defensively, a heavy-tailed draw along one view's
+  line of sight (``dC = t dt dbeta``).
+
+Round 1 draws w uniformly and eps from N(0, 1) (likelihood-absorbing, "sequential" proposal).
+Later rounds draw from ``lam * sequential + (1 - lam) * sum_k pi_k t_k(u)``, t-distributions in
+``(logit w, eps)`` fitted to the previous round's weighted sample, one per cluster (root pattern,
+separated values of w); the defensive share keeps every weight at most 1/lam times the
+sequential weight. The estimate uses the last round; its error is the delta-method standard
+deviation of the self-normalized estimator, ``sqrt(sum_i wbar_i^2 (1[s_i = s] - P_s)^2)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import partitions as _partitions
+from .. import priors as _priors
+from .._validate import as_rng, non_negative, positive_int
+from ..geometry import (
+    heading_on_locus,
+    locus_circle,
+    locus_point,
+    ray_circle_intersection,
+    triangulate_lsq,
+    wrap_angle,
+)
+from ._common import arc_parameter, check_bearings, check_headings, log_ray_jacobian, logsumexp
+
+__all__ = ["solve_reference", "REFERENCE_DEFAULTS"]
+
+#: Options of :func:`solve_reference` (angles in radians). Chosen on development seeds
+#: (benchmarks/bench_reference.py): ESS per triplet in docs/priors.md.
+REFERENCE_DEFAULTS = {
+    "n_samples": 20_000,          # draws per round
+    "rounds": 3,                  # rounds of the first stage (1 = sequential proposal only)
+    "first_stage": 3,             # views in the first stage
+    "stage_rounds": 1,            # least rounds of every later stage (one view added per stage)
+    "max_rounds": 5,              # most rounds of a stage
+    "ess_target": 0.1,            # a stage ends once ESS >= ess_target * n_samples
+    "defensive": 0.2,             # share of the sequential proposal in adapted rounds
+    "c_defensive": 0.1,           # share of the line-of-sight draw for C
+    "max_components": 8,          # t components of the adapted proposal
+    "t_dof": 10.0,                # degrees of freedom of the t components
+    "inflate": 1.1,               # scale factor on the fitted standard deviations
+    "bearing_floor": np.deg2rad(0.05),   # sigmas used are max(sigma, floor): zero noise works
+    "heading_floor": np.deg2rad(0.05),
+    "min_ess": 30.0,              # below this the answer is flagged
+}
+
+_LOG2PI = np.log(2 * np.pi)
+
+
+# ---------------------------------------------------------------------------------------------
+# densities
+
+
+def _log_wn(r, sigma):
+    """Log density of the wrapped normal WN(0, sigma^2) at angles r (any real values)."""
+    r = wrap_angle(r)
+    base = -0.5 * (r / sigma) ** 2 - np.log(sigma) - 0.5 * _LOG2PI
+    if sigma < 0.3:          # the other wraps are below e^-50 of the nearest one
+        return base
+    terms = [-0.5 * ((r + 2 * np.pi * k) / sigma) ** 2 for k in (-3, -2, -1, 1, 2, 3)]
+    extra = np.exp(np.stack(terms) + 0.5 * (r / sigma) ** 2).sum(axis=0)
+    return base + np.log1p(extra)
+
+
+def _log_std_normal(e):
+    return -0.5 * e * e - 0.5 * _LOG2PI
+
+
+def _log_t(x, mean, chol, dof):
+    """Log density of the multivariate t (location mean, scale L L^T, dof) at x (N, d)."""
+    d = mean.shape[-1]
+    z = np.linalg.solve(chol, (x - mean).T).T if d else np.zeros((x.shape[0], 0))
+    q = np.sum(z * z, axis=-1)
+    from math import lgamma
+
+    c = (lgamma((dof + d) / 2) - lgamma(dof / 2) - 0.5 * d * np.log(dof * np.pi)
+         - np.sum(np.log(np.abs(np.diag(chol)))))
+    return c - 0.5 * (dof + d) * np.log1p(q / dof)
+
+
+def _draw_t(rng, n, mean, chol, dof):
+    d = mean.shape[-1]
+    z = rng.standard_normal((n, d))
+    g = rng.chisquare(dof, size=n) / dof
+    return mean + (z @ chol.T) / np.sqrt(g)[:, None]
+
+
+# ---------------------------------------------------------------------------------------------
+# the model's layout
+
+
+class _Layout:
+    """The sampling variables of the first ``n`` views: one block of 3 per view, ``[logit w_j,
+    eps_A, eps_B]`` for an anchor view (drawn on its arc: view 1, or every view without motion)
+    and ``[eps_psi_{j-1}, eps_A, eps_B]`` for a view reached along the motion ray."""
+
+    def __init__(self, bearings, headings, sv, sw):
+        self.phi = bearings                      # (n, 3)
+        self.psi = headings                      # (n - 1,) or None
+        self.n = bearings.shape[0]
+        self.sv, self.sw = sv, sw
+        self.anchor = np.ones(self.n, bool) if headings is None else np.r_[True, np.zeros(
+            self.n - 1, bool)]
+        self.n_psi = 0 if headings is None else self.n - 1
+        self.dim = 3 * self.n
+
+    def first(self, k):
+        return _Layout(self.phi[:k], None if self.psi is None else self.psi[:k - 1],
+                       self.sv, self.sw)
+
+
+def _construct(L, v, r=None, u=None):
+    """Cameras from sampling variables. v (N, 3n) continuous; r (N, n) root indices, or u (N, n)
+    uniforms that pick a root uniformly among the valid ones (the sequential proposal: the count
+    at view j depends on the camera at j - 1) where r is -1 or None. Returns X (N, n, 2),
+    alpha (N, n), logjac (N,), lseq (N, n) the sequential proposal's log density per view block
+    (root choice included), valid (N,), r (N, n)."""
+    N = v.shape[0]
+    # r = -1: pick the root with u (uniformly among the valid ones)
+    r = np.full((N, L.n), -1, dtype=np.int64) if r is None else np.array(r, dtype=np.int64)
+    first, eA, eB = v[:, 0::3], v[:, 1::3], v[:, 2::3]
+    pa = L.phi[None, :, 0] + L.sv * eA
+    pb = L.phi[None, :, 1] + L.sv * eB
+    X = np.zeros((N, L.n, 2))
+    alpha = np.zeros((N, L.n))
+    logjac = np.zeros(N)
+    lseq = _log_std_normal(eA) + _log_std_normal(eB)
+    valid = np.ones(N, bool)
+    for j in range(L.n):
+        gamma = wrap_angle(pb[:, j] - pa[:, j])
+        s2 = np.sin(gamma) ** 2
+        if L.anchor[j]:
+            lg = first[:, j]
+            wj = 1.0 / (1.0 + np.exp(-lg))
+            # uniform w in logit space: dw = w (1 - w) dlogit (in the target and the proposal)
+            lwj = -np.logaddexp(0.0, -lg) - np.logaddexp(0.0, lg)
+            a, log_dadw = arc_parameter(gamma, wj)
+            Xj = locus_point(gamma, a)
+            ax = np.abs(Xj[:, 0])
+            ok = (s2 > 1e-300) & (ax > 0) & np.isfinite(log_dadw)
+            with np.errstate(divide="ignore"):
+                lj = (np.log(np.where(ok, ax, 1.0)) - np.log(np.where(ok, s2, 1.0))
+                      + np.where(ok, log_dadw, 0.0)) + lwj
+            lseq[:, j] += lwj
+            r[:, j] = 0
+        else:
+            origin = X[:, j - 1]
+            theta = alpha[:, j - 1] + L.psi[j - 1] + L.sw * first[:, j]
+            circ = locus_circle(pa[:, j], pb[:, j])
+            rad = np.where(circ.degenerate, np.inf, circ.radius)
+            pts, vr = ray_circle_intersection(origin, theta, circ.center, rad, circ.side)
+            nr = vr.sum(axis=-1)
+            pick = r[:, j] < 0
+            if np.any(pick):
+                r[pick, j] = np.minimum((u[pick, j] * nr[pick]).astype(np.int64),
+                                        np.maximum(nr[pick] - 1, 0))
+            # r indexes the valid roots in order of distance along the ray
+            idx = np.where(r[:, j] == 0, np.where(vr[:, 0], 0, 1), 1)
+            ok = (r[:, j] < nr) & ~circ.degenerate
+            Xj = np.take_along_axis(pts, idx[:, None, None], axis=1)[:, 0]
+            lj = log_ray_jacobian(Xj, origin, theta)
+            ok &= np.isfinite(lj)
+            lj = np.where(ok, lj, 0.0)
+            lseq[:, j] += _log_std_normal(first[:, j]) - np.log(np.maximum(nr, 1))
+        X[:, j] = Xj
+        alpha[:, j] = heading_on_locus(Xj, pa[:, j])
+        logjac += lj
+        valid &= ok
+    return X, alpha, logjac, lseq, valid, r
+
+
+def _draw_seq(L, rng, N, d0=0):
+    """Sequential-proposal values of the dims from d0 on: v (N, 3n - d0), root uniforms."""
+    v = rng.standard_normal((N, L.dim - d0))
+    for j in range(d0 // 3, L.n):
+        if L.anchor[j]:
+            w = rng.random(N) if j or N < 2 else (rng.permutation(N) + rng.random(N)) / N
+            w = np.clip(w, 1e-12, 1 - 1e-12)
+            v[:, 3 * j - d0] = np.log(w) - np.log1p(-w)
+    return v, rng.random((N, L.n))
+
+
+# ---------------------------------------------------------------------------------------------
+# C given the cameras
+
+
+def _c_terms(L, X, alpha, rng, lam_ray):
+    """Draw C given cameras; returns C (N, 2) and log [prod_j L_jC(C) / q_C(C | cameras)]."""
+    N, n = alpha.shape
+    sv = L.sv
+    beta = alpha + L.phi[None, :, 2]                    # measured lines of sight (AB frame)
+    tau = 0.5 + np.linalg.norm(X - np.array([0.0, 0.5]), axis=-1)     # (N, n)
+    # defensive: along one view's line of sight, direction noise absorbed, Lomax distance
+    jv = rng.integers(0, n, size=N)
+    bj = np.take_along_axis(beta, jv[:, None], 1)[:, 0] + sv * rng.standard_normal(N)
+    tj = np.take_along_axis(tau, jv[:, None], 1)[:, 0]
+    q = rng.random(N)
+    t = tj * q / (1.0 - q)
+    Xj = np.take_along_axis(X, jv[:, None, None], 1)[:, 0]
+    c_ray = Xj + t[:, None] * np.stack([np.cos(bj), np.sin(bj)], -1)
+    use_lap = np.zeros(N, bool)
+    c = c_ray
+    if n >= 2:
+        c0, okt = triangulate_lsq(X, beta)
+        d = c0[:, None, :] - X
+        r2 = np.maximum(np.sum(d * d, -1), 1e-300)
+        g = np.stack([-d[..., 1], d[..., 0]], -1) / r2[..., None]
+        res = wrap_angle(beta - np.arctan2(d[..., 1], d[..., 0]))
+        Hm = np.einsum("nji,njk->nik", g, g)
+        det = Hm[:, 0, 0] * Hm[:, 1, 1] - Hm[:, 0, 1] ** 2
+        tr = Hm[:, 0, 0] + Hm[:, 1, 1]
+        lmin = 0.5 * (tr - np.sqrt(np.maximum(tr * tr - 4 * det, 0.0)))
+        # the Laplace component only where every direction is pinned to within 1e3 |AB|
+        good = okt & (lmin > (sv / 1e3) ** 2) & np.isfinite(det) & (det > 0)
+        sdet = np.where(good, det, 1.0)
+        Hinv = np.stack([np.stack([Hm[:, 1, 1], -Hm[:, 0, 1]], -1),
+                         np.stack([-Hm[:, 0, 1], Hm[:, 0, 0]], -1)], -2) / sdet[:, None, None]
+        # one Gauss-Newton step on the angular residuals
+        step = np.einsum("nik,nk->ni", Hinv, np.einsum("nji,nj->ni", g, res))
+        mu = c0 + np.where(good[:, None], step, 0.0)
+        cov = Hinv * (sv * REFERENCE_DEFAULTS["inflate"]) ** 2
+        # 2 x 2 Cholesky by hand: rows that are not numerically positive definite lose the
+        # Laplace component
+        l00 = np.sqrt(np.maximum(cov[:, 0, 0], 0.0))
+        l10 = cov[:, 0, 1] / np.where(l00 > 0, l00, 1.0)
+        d11 = cov[:, 1, 1] - l10 * l10
+        good &= (l00 > 0) & (d11 > 1e-12 * np.maximum(cov[:, 1, 1], 1e-300)) & np.isfinite(d11)
+        l11 = np.sqrt(np.where(good, d11, 1.0))
+        chol = np.zeros((N, 2, 2))
+        chol[:, 0, 0] = np.where(good, l00, 1.0)
+        chol[:, 1, 0] = np.where(good, l10, 0.0)
+        chol[:, 1, 1] = l11
+        mu = np.where(good[:, None], mu, 0.0)
+        dof = REFERENCE_DEFAULTS["t_dof"]
+        z = rng.standard_normal((N, 2))
+        gsc = np.sqrt(rng.chisquare(dof, size=N) / dof)
+        c_lap = mu + np.einsum("nik,nk->ni", chol, z) / gsc[:, None]
+        pick_lap = good & (rng.random(N) >= lam_ray)
+        c = np.where(pick_lap[:, None], c_lap, c_ray)
+        use_lap = good
+    # mixture density at c
+    dd = c[:, None, :] - X
+    dist = np.maximum(np.linalg.norm(dd, axis=-1), 1e-300)
+    ang = np.arctan2(dd[..., 1], dd[..., 0])
+    lq_rays = (_log_wn(ang - beta, sv) + np.log(tau) - 2 * np.log(tau + dist) - np.log(dist))
+    lq_ray = logsumexp(lq_rays, axis=-1) - np.log(n)
+    if n >= 2:
+        dz = c - mu
+        z0 = dz[:, 0] / chol[:, 0, 0]
+        z1 = (dz[:, 1] - chol[:, 1, 0] * z0) / chol[:, 1, 1]
+        qf = z0 * z0 + z1 * z1
+        from math import lgamma
+
+        lq_lap = (lgamma((dof + 2) / 2) - lgamma(dof / 2) - np.log(dof * np.pi)
+                  - np.log(np.abs(chol[:, 0, 0] * chol[:, 1, 1])) - 0.5 * (dof + 2) * np.log1p(
+                      qf / dof))
+        lq = np.where(use_lap, np.logaddexp(np.log(lam_ray) + lq_ray,
+                                            np.log1p(-lam_ray) + lq_lap), lq_ray)
+    else:
+        lq = lq_ray
+    lik = np.sum(_log_wn(L.phi[None, :, 2] - (ang - alpha), sv), axis=-1)
+    return c, lik - lq
+
+
+# ---------------------------------------------------------------------------------------------
+# adapted proposal
+
+
+class _Mixture:
+    """Sequential proposal (share lam) plus t components. A component fits the first ``d`` dims
+    (the blocks of the views seen when it was fitted) with a fixed root pattern there; later
+    views' dims and roots are drawn by the sequential proposal."""
+
+    def __init__(self, L, comps, lam, dof):
+        self.L, self.comps, self.lam, self.dof = L, comps, lam, dof
+
+    def draw(self, rng, N):
+        L = self.L
+        nseq = rng.binomial(N, self.lam) if self.comps else N
+        v1, u1 = _draw_seq(L, rng, nseq)
+        out = [(v1, None, u1)]
+        if self.comps:
+            pis = np.array([c[0] for c in self.comps])
+            counts = rng.multinomial(N - nseq, pis / pis.sum())
+            for (_, mean, chol, roots), k in zip(self.comps, counts, strict=True):
+                if k:
+                    d = mean.shape[0]
+                    head = _draw_t(rng, k, mean, chol, self.dof)
+                    tail, u = _draw_seq(L, rng, k, d)
+                    rr = np.full((k, L.n), -1, dtype=np.int64)
+                    rr[:, :roots.shape[0]] = roots
+                    out.append((np.concatenate([head, tail], 1), rr, u))
+        return out
+
+    def log_density(self, v, r, lseq):
+        ls = lseq.sum(axis=1)
+        if not self.comps:
+            return ls
+        pis = np.array([c[0] for c in self.comps])
+        pis = pis / pis.sum()
+        cum = np.cumsum(lseq[:, ::-1], axis=1)[:, ::-1]   # cum[:, j] = sum of blocks j..n-1
+        cum = np.concatenate([cum, np.zeros((cum.shape[0], 1))], axis=1)
+        parts = [np.log(self.lam) + ls]
+        for pi, (_, mean, chol, roots) in zip(pis, self.comps, strict=True):
+            d, jf = mean.shape[0], roots.shape[0]
+            same = np.all(r[:, :jf] == roots[None, :], axis=1)
+            lt = np.where(same, _log_t(v[:, :d], mean, chol, self.dof), -np.inf) + cum[:, jf]
+            parts.append(np.log1p(-self.lam) + np.log(pi) + lt)
+        return logsumexp(np.stack(parts, -1), axis=-1)
+
+
+def _fit(L, v, r, wn, max_components, inflate):
+    """t components fitted to a weighted sample: one per root pattern and separated w_1
+    cluster (gaps wider than 0.5 in logit w_1)."""
+    keep = wn > 1e-6 * wn.max()
+    v, r, wn = v[keep], r[keep], wn[keep]
+    groups: dict = {}
+    for i, k in enumerate(map(tuple, r)):
+        groups.setdefault(k, []).append(i)
+    clusters = []
+    for k, idx in groups.items():
+        idx = np.asarray(idx)
+        o = idx[np.argsort(v[idx, 0])]
+        for p in np.split(o, np.flatnonzero(np.diff(v[o, 0]) > 0.5) + 1):
+            clusters.append((wn[p].sum(), p, np.asarray(k)))
+    clusters.sort(key=lambda c: -c[0])
+    clusters = [c for c in clusters[:max_components] if c[0] > 1e-3]
+    comps = []
+    d = v.shape[1]
+    is_w = np.zeros(d, bool)
+    is_w[0::3] = L.anchor
+    for mass, p, roots in clusters:
+        ww = wn[p] / wn[p].sum()
+        mean = ww @ v[p]
+        dv = v[p] - mean
+        S = (dv * ww[:, None]).T @ dv
+        ess = 1.0 / np.sum(ww ** 2)
+        # variances floored (eps: 1e-4 of the proposal's N(0, 1)); correlations shrunk towards 0
+        # with weight 2 / (ess + 2), so that a cluster with few effective draws still gives a
+        # usable covariance (more shrinkage would destroy the posterior's narrow directions)
+        var = np.maximum(np.diag(S), np.where(is_w, 1e-10, 1e-4))
+        sd = np.sqrt(var)
+        sS = np.sqrt(np.maximum(np.diag(S), 1e-300))
+        R = S / np.outer(sS, sS)
+        R = (ess * R + 2.0 * np.eye(d)) / (ess + 2.0)
+        np.fill_diagonal(R, 1.0)
+        cov = R * np.outer(sd, sd) * inflate ** 2
+        chol = np.linalg.cholesky(cov + 1e-12 * np.diag(var))
+        comps.append((mass, mean, chol, roots))
+    return comps
+
+
+# ---------------------------------------------------------------------------------------------
+# one round
+
+
+def _round(L, prior, part, rng, mix, N, lam_ray):
+    parts = [_construct(L, vv, rr, uu) + (vv,) for vv, rr, uu in mix.draw(rng, N)]
+    X, alpha, logjac, lseq, valid, r, v = (np.concatenate(z) for z in zip(*parts, strict=True))
+    lq = mix.log_density(v, r, lseq)
+    c, lc = _c_terms(L, X, alpha, rng, lam_ray)
+    lw = np.full(N, -np.inf)
+    ok = valid & np.isfinite(lc) & np.isfinite(lq)
+    if np.any(ok):
+        pts = np.concatenate([c[ok, None, :], X[ok]], axis=1)
+        lp = prior.log_density(pts)
+        vo = v[ok]
+        # the likelihoods of the true bearings of A, B and of the true headings, in eps units
+        lik = (np.sum(_log_std_normal(vo[:, 1::3]) + _log_std_normal(vo[:, 2::3]), axis=1)
+               + np.sum(np.where(L.anchor[None, :], 0.0, _log_std_normal(vo[:, 0::3])), axis=1))
+        lw[ok] = lp - L.n * _LOG2PI + logjac[ok] + lc[ok] + lik - lq[ok]
+    lw = np.where(np.isnan(lw), -np.inf, lw)
+    return v, r, X, c, lw
+
+
+def _fit_pool(L, pool, opts):
+    if not pool:
+        return []
+    v = np.concatenate([p[0] for p in pool])
+    r = np.concatenate([p[1] for p in pool])
+    w = np.concatenate([p[2] for p in pool])
+    return _fit(L, v, r, w / w.sum(), int(opts["max_components"]), float(opts["inflate"]))
+
+
+def _combine(finals, N):
+    """ESS-weighted combination of the final stage's round estimates (consistent estimators of
+    the same posterior): probabilities, their standard deviations, total ESS, log evidence from
+    the pooled weights."""
+    if not finals:
+        return None
+    ess = np.array([f[4] for f in finals])
+    cw = ess / ess.sum()
+    land = sum(c * f[0] for c, f in zip(cw, finals, strict=True))
+    err = np.sqrt(sum((c * f[1]) ** 2 for c, f in zip(cw, finals, strict=True)))
+    cams = sum(c * f[2] for c, f in zip(cw, finals, strict=True))
+    cam_err = np.sqrt(sum((c * f[3]) ** 2 for c, f in zip(cw, finals, strict=True)))
+    log_mean = float(logsumexp(np.array([f[5] for f in finals]) + np.log(cw)))
+    best = int(np.argmax(ess))
+    return land, err, cams, cam_err, float(ess.sum()), log_mean, finals[best][6], \
+        finals[best][7], finals[best][8]
+
+
+def _weights(lw):
+    mx = np.max(lw) if lw.size else -np.inf
+    if not np.isfinite(mx):
+        return None
+    w = np.exp(lw - mx)
+    return w / w.sum()
+
+
+def _summaries(part, X, c, lw):
+    m = part.n_states
+    mx = np.max(lw) if lw.size else -np.inf
+    if not np.isfinite(mx):
+        return None
+    w = np.exp(lw - mx)
+    wn = w / w.sum()
+    sc = part.state_of(c)
+    sx = part.state_of(X)                                   # (N, n)
+    okc = sc >= 0
+    land = np.bincount(sc[okc], weights=wn[okc], minlength=m)[:m]
+    land = land / max(land.sum(), 1e-300)
+    ind = (sc[:, None] == np.arange(m)[None, :]).astype(float)
+    err = np.sqrt(np.sum(wn[:, None] ** 2 * (ind - land[None, :]) ** 2, axis=0))
+    n = X.shape[1]
+    cams = np.zeros((n, m))
+    cam_err = np.zeros((n, m))
+    for j in range(n):
+        okj = sx[:, j] >= 0
+        h = np.bincount(sx[okj, j], weights=wn[okj], minlength=m)[:m]
+        cams[j] = h / max(h.sum(), 1e-300)
+        indj = (sx[:, j, None] == np.arange(m)[None, :]).astype(float)
+        cam_err[j] = np.sqrt(np.sum(wn[:, None] ** 2 * (indj - cams[j][None, :]) ** 2, axis=0))
+    ess = 1.0 / np.sum(wn ** 2)
+    log_mean = mx + np.log(w.sum()) - np.log(lw.size)
+    return land, err, cams, cam_err, float(ess), float(log_mean), wn
+
+
+def solve_reference(bearings, headings, sigma_bearing, sigma_heading, partition="edc",
+                    prior="world", rng=None, **options) -> dict:
+    """Exact posterior of the states of C and of the cameras, up to a reported Monte Carlo error.
+
+    Args:
+        bearings: (n, 3) radians [phi_A, phi_B, phi_C] per view, n >= 1.
+        headings: (n - 1,) radians (direction of travel relative to the heading), or None (no
+            motion model: views independent given C).
+        sigma_bearing, sigma_heading: noise standard deviations (radians, >= 0); the model uses
+            ``max(sigma, floor)`` (``bearing_floor``, ``heading_floor``) so that 0 works.
+        partition: partition name or object.
+        prior: a :class:`qfg.priors.Prior` or a name for :func:`qfg.priors.get`.
+        rng: numpy Generator, int seed or None.
+        **options: see :data:`REFERENCE_DEFAULTS`.
+
+    Returns a dict: ``landmark`` (m,), ``cameras`` (n, m), ``mc_error`` (m,) and
+    ``cameras_mc_error`` (n, m) (standard deviations of the probabilities), ``ess`` (effective
+    sample size of the final round), ``ess_rounds`` (per round), ``n_samples`` (draws in all
+    rounds), ``log_evidence`` (log p(measurements), radians as the unit of every angle; None when
+    nothing had weight), ``degenerate`` (bool), ``reason`` (str).
+
+    >>> import numpy as np
+    >>> from qfg.simulation import random_triplet_history
+    >>> h = random_triplet_history(np.random.default_rng(1), 3, np.deg2rad(2), np.deg2rad(5))
+    >>> out = solve_reference(h.bearings, h.headings, h.sigma_bearing, h.sigma_heading,
+    ...                       rng=np.random.default_rng(0), n_samples=4000)
+    >>> bool(np.isclose(out["landmark"].sum(), 1.0)), out["landmark"].shape, out["ess"] > 30
+    (True, (20,), True)
+    """
+    opts = dict(REFERENCE_DEFAULTS)
+    unknown = sorted(set(options) - set(opts))
+    if unknown:
+        raise ValueError(f"{unknown[0]}: not an option of the reference solver; known: "
+                         f"{', '.join(sorted(opts))}")
+    opts.update(options)
+    N = positive_int("n_samples", opts["n_samples"], minimum=16)
+    rounds = positive_int("rounds", opts["rounds"])
+    lam = float(opts["defensive"])
+    lam_ray = float(opts["c_defensive"])
+    if not (0 < lam <= 1):
+        raise ValueError(f"defensive: expected a share in (0, 1], got {lam}")
+    if not (0 < lam_ray <= 1):
+        raise ValueError(f"c_defensive: expected a share in (0, 1], got {lam_ray}")
+    b = check_bearings(bearings)
+    h = check_headings(headings, b.shape[0])
+    sv = max(non_negative("sigma_bearing", sigma_bearing),
+              non_negative("bearing_floor", opts["bearing_floor"]))
+    sw = max(non_negative("sigma_heading", sigma_heading),
+             non_negative("heading_floor", opts["heading_floor"]))
+    if sv == 0:
+        raise ValueError("bearing_floor: must be > 0 when sigma_bearing is 0")
+    if h is not None and h.size and sw == 0:
+        raise ValueError("heading_floor: must be > 0 when sigma_heading is 0")
+    part = _partitions.get(partition)
+    pr = _priors.get(prior)
+    rng = as_rng(rng)
+    L = _Layout(b, h if (h is not None and h.size) else None, sv, sw)
+    out = _solve(L, pr, part, rng, opts, N, rounds, lam, lam_ray)
+    if out["log_evidence"] is None and isinstance(pr, _priors.WorldBoxPrior) and pr.d_min > 0:
+        # e.g. every view at one pose with zero noise: cameras closer than d_min are impossible
+        # under the prior, so nothing has weight; answer under the same box without d_min
+        free = _priors.WorldBoxPrior(pr.width, pr.height, 0.0, pr.n_rho)
+        out = _solve(L, free, part, rng, opts, N, rounds, lam, lam_ray)
+        out["n_samples"] *= 2
+        out["degenerate"] = True
+        out["reason"] = "; ".join(x for x in (
+            "no configuration keeps d_min between the objects: answered with d_min = 0",
+            out["reason"]) if x)
+    return out
+
+
+def _solve(L, pr, part, rng, opts, N, rounds, lam, lam_ray):
+    sv, sw = L.sv, L.sw
+
+    # views are added in stages (the first stage has min(n, first_stage) views): every stage is
+    # a complete importance sampler of the posterior given its views, whose fitted proposal
+    # carries over to the next stage, where the new view's variables are drawn by the
+    # likelihood-absorbing sequential proposal and then refitted
+    dof = float(opts["t_dof"])
+    n = L.n
+    j0 = min(n, positive_int("first_stage", opts["first_stage"]))
+    plan = [(j0, rounds)] + [(j, positive_int("stage_rounds", opts["stage_rounds"]))
+                             for j in range(j0 + 1, n + 1)]
+    # a stage ends after its minimum number of rounds once the ESS reaches ess_target * N, or
+    # after max_rounds
+    target = float(opts["ess_target"]) * N
+    max_rounds = positive_int("max_rounds", opts["max_rounds"])
+    # Every round of the final stage is an importance sampler of the full posterior: the answer
+    # combines their estimates with weights proportional to their ESS (the variances combine
+    # accordingly). Fits use the pooled rounds of the current stage, each round's normalized
+    # weights scaled by its ESS, so that a poor round does not starve the next fit.
+    comps, ess_rounds, finals, total = [], [], [], 0
+    for si, (j, nr) in enumerate(plan):
+        Lj = L if j == n else L.first(j)
+        final = si == len(plan) - 1
+        pool = []
+        for k in range(max(nr, max_rounds)):
+            v, r, X, c, lw = _round(Lj, pr, part, rng, _Mixture(Lj, comps, lam, dof), N, lam_ray)
+            total += N
+            wn = _weights(lw)
+            ess = 0.0 if wn is None else 1.0 / np.sum(wn ** 2)
+            ess_rounds.append(float(ess))
+            if wn is not None:
+                pool.append((v, r, wn * ess))
+                if final:
+                    finals.append(_summaries(part, X, c, lw) + (X, c))
+            if k + 1 >= max(nr, max_rounds) or (k + 1 >= nr and ess >= target):
+                if not final:
+                    comps = _fit_pool(Lj, pool[-3:], opts)
+                break
+            comps = _fit_pool(Lj, pool[-3:], opts)
+    summ = _combine(finals, N)
+    m = part.n_states
+    reasons = []
+    if summ is None:
+        land, err = np.full(m, 1.0 / m), np.zeros(m)
+        cams, cam_err = np.full((n, m), 1.0 / m), np.zeros((n, m))
+        ess, log_ev = 0.0, None
+        reasons.append("no sample had positive weight")
+    else:
+        land, err, cams, cam_err, ess, log_mean, wn, X, c = summ
+        log_ev = log_mean - 2 * n * np.log(sv) - L.n_psi * np.log(sw)
+        if ess < float(opts["min_ess"]):
+            reasons.append(f"effective sample size {ess:.1f} < {opts['min_ess']:g}")
+        reasons += _geometry_flags(L, X, c, wn)
+    return {
+        "landmark": land, "cameras": cams, "mc_error": err, "cameras_mc_error": cam_err,
+        "ess": float(ess), "ess_rounds": ess_rounds, "n_samples": int(total),
+        "log_evidence": log_ev, "degenerate": bool(reasons), "reason": "; ".join(reasons),
+    }
+
+
+def _geometry_flags(L, X, c, wn):
+    """Reasons the geometry leaves the answer spread: cameras on line AB, lines of sight to C
+    that (nearly) coincide (all views at one pose, motion along the line of sight)."""
+    out = []
+    g = wrap_angle(L.phi[:, 1] - L.phi[:, 0])
+    on_ab = np.flatnonzero(np.abs(np.sin(g)) < 3 * L.sv)
+    if on_ab.size:
+        out.append("camera on line AB in view(s) " + ", ".join(str(int(i)) for i in on_ab))
+    if L.n >= 2:
+        d = c[:, None, :] - X
+        ang = np.arctan2(d[..., 1], d[..., 0])
+        ii, jj = np.triu_indices(L.n, k=1)
+        spread = np.max(np.abs(np.sin(ang[:, ii] - ang[:, jj])), axis=1)
+        med = _weighted_median(spread, wn)
+        if med < 3 * L.sv:
+            out.append(f"lines of sight to C nearly coincide (largest angle between them "
+                       f"{np.rad2deg(np.arcsin(min(med, 1.0))):.2g} deg)")
+    return out
+
+
+def _weighted_median(x, w):
+    o = np.argsort(x)
+    cw = np.cumsum(w[o])
+    return float(x[o][np.searchsorted(cw, 0.5 * cw[-1])])
