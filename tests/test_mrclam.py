@@ -342,6 +342,8 @@ def test_bad_arguments(synth):
         mrclam.triplet_segments(synth, 1, max_gap=-1.0)
     with pytest.raises(ValueError, match="max_views"):
         mrclam.triplet_segments(synth, 1, max_views=2)
+    with pytest.raises(ValueError, match="odometry_lead"):
+        mrclam.triplet_histories(synth, 1, odometry_lead=float("nan"))
 
 
 def test_check_landmarks_finds_a_swapped_ground_truth(tmp_path, synth):

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ... import partitions as _partitions
-from ..._validate import non_negative, positive_int
+from ..._validate import as_float_array, non_negative, positive_int
 from ...geometry import motion_heading, poses_to_frame, to_frame
 from ...simulation import TripletHistory, TripletTruth
 from ._constants import (
@@ -64,10 +64,11 @@ def view_poses(rd: RobotData, odometry_lead: float = DEFAULT_ODOMETRY_LEAD):
     The odometry is read at ``view time - odometry_lead``: a command stamped t moves the robot as
     seen by the camera at t + lead (:data:`DEFAULT_ODOMETRY_LEAD`, measured by
     :func:`measure_noise`)."""
+    lead = float(as_float_array("odometry_lead", odometry_lead, ndim=0))
     if rd.odometry is None:
         return None, np.ones(rd.n_views, dtype=bool)
     t = rd.odometry.time
-    q = rd.view_times - odometry_lead
+    q = rd.view_times - lead
     covered = (q >= t[0]) & (q <= t[-1])
     poses = np.zeros((rd.n_views, 3))
     poses[covered] = rd.odometry.poses(q[covered])
