@@ -355,37 +355,42 @@ def loopy_bp(g, damping: float = 0.0, max_iters: int = 100, tol: float = 1e-9) -
     T = T / T.max()
     mats = _role_matrices(T)
     m = g.m
+    n = g.n_triplets
     fv = g.factor_vars
     F = len(fv)
     logp = np.log(np.maximum(g.prior_matrix(), 1e-300))
     r = np.full((F, 3, m), 1.0 / m)
     tiny = 1e-300
     converged, it, change = F == 0, 0, 0.0
-    flat_v = fv.ravel()
-    others = ((1, 2), (0, 2), (0, 1))
+    # incidence (n, 3F): beliefs sum the log messages into their variables with one sparse product
+    from scipy import sparse
 
-    def beliefs(r):
-        lb = logp.copy()
-        np.add.at(lb, flat_v, np.log(np.maximum(r, tiny)).reshape(-1, m))
-        return lb
+    inc = sparse.csr_matrix((np.ones(3 * F), (fv.ravel(), np.arange(3 * F))), shape=(n, 3 * F))
+    others = ((1, 2), (0, 2), (0, 1))
+    chunk = max(1, (1 << 22) // (m * m))     # bound the (chunk, m^2) outer products (32 MiB)
+
+    def beliefs(lr):
+        return logp + inc @ lr.reshape(-1, m)
 
     new = np.empty_like(r)
     while not converged and it < max_iters:
         it += 1
-        lb = beliefs(r)
-        lq = lb[fv] - np.log(np.maximum(r, tiny))        # (F, 3, m): exclude own message
+        lr = np.log(np.maximum(r, tiny))
+        lq = beliefs(lr)[fv] - lr                           # (F, 3, m): exclude own message
         q = np.exp(lq - lq.max(axis=-1, keepdims=True))
         q = _normalize_rows(q)
-        for role, (x, y) in enumerate(others):
-            outer = (q[:, x, :, None] * q[:, y, None, :]).reshape(F, m * m)
-            np.matmul(outer, mats[role].T, out=new[:, role])
+        for lo in range(0, F, chunk):
+            qs = q[lo:lo + chunk]
+            for role, (x, y) in enumerate(others):
+                outer = (qs[:, x, :, None] * qs[:, y, None, :]).reshape(len(qs), m * m)
+                np.matmul(outer, mats[role].T, out=new[lo:lo + chunk, role])
         msg = _normalize_rows(new)
         if damping:
             msg = (1 - damping) * msg + damping * r
         change = float(np.abs(msg - r).max())
         r = msg
         converged = change < tol
-    lb = beliefs(r)
+    lb = beliefs(np.log(np.maximum(r, tiny)))
     b = np.exp(lb - lb.max(axis=-1, keepdims=True))
     return Marginals(tuple(g.triplets), g.partition, _normalize_rows(b), "loopy_bp",
                      {"converged": bool(converged), "iterations": it, "max_change": change,

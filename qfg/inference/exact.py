@@ -84,7 +84,7 @@ def elimination_estimate(g) -> tuple[int, int]:
 
     >>> import numpy as np
     >>> from qfg.graph import full_map
-    >>> elimination_estimate(full_map(3, tensor=np.ones((2, 2, 2))))
+    >>> elimination_estimate(full_map(3, partition=None, tensor=np.ones((2, 2, 2))))
     (1, 2)
     """
     est = size_estimate(g)
