@@ -8,13 +8,17 @@ Natural logarithms throughout (conventions.md).
 >>> u = np.full(20, 1 / 20)
 >>> round(float(dmse(u, 3)), 3), round(float(entropy(u)), 3), float(information_score(u))
 (0.975, 2.996, 0.0)
+>>> float(gt_rating(u, 3)), round(float(log_score(u, 3)), 3)
+(10.5, -2.996)
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-from ._validate import as_float_array
+from ._validate import as_float_array, positive_int
 
 __all__ = [
     "dmse",
@@ -22,6 +26,12 @@ __all__ = [
     "gmd",
     "gt_likelihood",
     "gt_likelihood_ratio",
+    "log_score",
+    "brier",
+    "truth_under",
+    "Reliability",
+    "reliability",
+    "expected_calibration_error",
     "entropy",
     "likelihood_ratio",
     "information_score",
@@ -73,11 +83,25 @@ def dmse(p, g) -> np.ndarray:
     return np.sqrt(np.sum((p - onehot) ** 2, axis=-1))
 
 
+#: Two probabilities closer than this count as tied in :func:`gt_rating`.
+TIE_TOL = 1e-12
+
+
 def gt_rating(p, g) -> np.ndarray:
-    """``1 + #{i : p_i > p_g}``: rank of the truth (1 = most likely; ties favour the truth)."""
+    """Expected rank of the truth with ties split evenly:
+    ``1 + #{i : p_i > p_g} + #{i != g : p_i = p_g} / 2`` (1 = the single most likely state; equal
+    within :data:`TIE_TOL`). It is the mean rank over the orderings of tied states, so a uniform
+    estimate over m states rates (m + 1) / 2, not 1.
+
+    >>> float(gt_rating([0.5, 0.3, 0.2], 1)), float(gt_rating([0.25] * 4, 0))
+    (2.0, 2.5)
+    """
     p = _probs(p)
     g = _truth(p, g)
-    return 1 + np.sum(p > _pg(p, g)[..., None], axis=-1)
+    pg = _pg(p, g)[..., None]
+    above = np.sum(p > pg + TIE_TOL, axis=-1)
+    tied = np.sum(np.abs(p - pg) <= TIE_TOL, axis=-1) - 1          # the truth itself excluded
+    return 1.0 + above + 0.5 * tied
 
 
 def gmd(p, g, centroids) -> np.ndarray:
@@ -103,6 +127,125 @@ def gt_likelihood_ratio(p, g) -> np.ndarray:
     return _pg(p, _truth(p, g)) / p.max(axis=-1)
 
 
+def log_score(p, g, clip: float = 1e-4) -> np.ndarray:
+    """``log(max(p_g, clip))``: the (clipped) logarithmic score of each estimate, in nats; higher
+    is better, 0 for certainty on the truth. Its mean over estimates is the proper score the
+    solvers are compared by; the clip keeps one zero-probability truth from dominating a mean.
+
+    >>> round(float(log_score([0.5, 0.3, 0.2], 1)), 4), round(float(log_score([1.0, 0.0], 1)), 4)
+    (-1.204, -9.2103)
+    """
+    p = _probs(p)
+    c = float(clip)
+    if not (0 < c <= 1):
+        raise ValueError(f"clip: expected a number in (0, 1], got {clip!r}")
+    return np.log(np.maximum(_pg(p, _truth(p, g)), c))
+
+
+def brier(p, g) -> np.ndarray:
+    """Multi-class Brier score ``sum_s (p_s - 1[s = g])^2`` in [0, 2] (lower is better; it is
+    ``dmse**2``); strictly proper.
+
+    >>> round(float(brier([0.5, 0.3, 0.2], 1)), 4)
+    0.78
+    """
+    p = _probs(p)
+    onehot = np.arange(p.shape[-1]) == _truth(p, g)[..., None]
+    return np.sum((p - onehot) ** 2, axis=-1)
+
+
+def truth_under(p, g, threshold: float = 0.01) -> np.ndarray:
+    """``p_g < threshold``: the truth was given under ``threshold`` (bool per estimate; the mean is
+    the fraction of truths under it).
+
+    >>> truth_under([[0.995, 0.005], [0.5, 0.5]], [1, 1]).tolist()
+    [True, False]
+    """
+    p = _probs(p)
+    return _pg(p, _truth(p, g)) < float(threshold)
+
+
+@dataclass(frozen=True)
+class Reliability:
+    """Reliability (calibration) table of probabilistic estimates, per probability bin.
+
+    Attributes (bins of equal width on [0, 1]; the last bin includes 1):
+        edges: (bins + 1,) bin edges.
+        top_confidence: (bins,) mean probability of the most likely state, over the estimates
+            whose top probability falls in the bin (NaN where the bin is empty).
+        top_accuracy: (bins,) fraction of those estimates whose most likely state is the truth.
+        top_count: (bins,) number of estimates in the bin.
+        all_confidence: (bins,) mean probability over every (estimate, state) pair in the bin.
+        all_frequency: (bins,) fraction of those pairs whose state is the truth.
+        all_count: (bins,) number of pairs in the bin.
+
+    A calibrated forecaster has confidence = accuracy (frequency) in every bin, up to sampling
+    error ~ sqrt(c (1 - c) / count).
+    """
+
+    edges: np.ndarray
+    top_confidence: np.ndarray
+    top_accuracy: np.ndarray
+    top_count: np.ndarray
+    all_confidence: np.ndarray
+    all_frequency: np.ndarray
+    all_count: np.ndarray
+
+
+def _binned(conf, hit, edges):
+    b = np.clip(np.searchsorted(edges, conf, side="right") - 1, 0, edges.size - 2)
+    nb = edges.size - 1
+    cnt = np.bincount(b, minlength=nb)
+    sc = np.bincount(b, weights=conf, minlength=nb)
+    sh = np.bincount(b, weights=hit.astype(float), minlength=nb)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(cnt > 0, sc / cnt, np.nan), np.where(cnt > 0, sh / cnt, np.nan), cnt
+
+
+def reliability(p, g, bins: int = 10) -> Reliability:
+    """Reliability table of estimates ``p`` (..., m) against truths ``g`` (...), for the top
+    state (confidence ``max_s p_s``, hit ``argmax = g``) and for every state (confidence ``p_s``,
+    hit ``s = g``). Ties for the top state go to the lowest index.
+
+    >>> r = reliability([[0.9, 0.1], [0.6, 0.4]], [0, 1], bins=2)
+    >>> r.top_count.tolist(), r.top_accuracy.tolist(), r.all_count.tolist()
+    ([0, 2], [nan, 0.5], [2, 2])
+    """
+    p = _probs(p)
+    g = _truth(p, g)
+    nb = positive_int("bins", bins)
+    edges = np.linspace(0.0, 1.0, nb + 1)
+    flat = p.reshape(-1, p.shape[-1])
+    gf = g.reshape(-1)
+    top = np.argmax(flat, axis=-1) if flat.size else np.zeros(0, int)
+    tc, ta, tn = _binned(flat.max(axis=-1, initial=0.0), top == gf, edges)
+    onehot = np.arange(p.shape[-1])[None, :] == gf[:, None]
+    ac, af, an = _binned(flat.ravel(), onehot.ravel(), edges)
+    return Reliability(edges=edges, top_confidence=tc, top_accuracy=ta, top_count=tn,
+                       all_confidence=ac, all_frequency=af, all_count=an)
+
+
+def expected_calibration_error(p, g, bins: int = 10, kind: str = "top") -> float:
+    """``ECE = sum_b (n_b / n) |accuracy_b - confidence_b|`` over the non-empty bins of
+    :func:`reliability`; ``kind="top"`` for the top state, ``"all"`` for every (estimate, state)
+    pair. 0 for a perfectly calibrated table (it is biased upwards by sampling noise in
+    small bins).
+
+    >>> round(expected_calibration_error([[0.9, 0.1], [0.6, 0.4]], [0, 1], bins=2), 3)
+    0.25
+    """
+    if kind not in ("top", "all"):
+        raise ValueError(f"kind: expected 'top' or 'all', got {kind!r}")
+    r = reliability(p, g, bins)
+    conf, acc, cnt = ((r.top_confidence, r.top_accuracy, r.top_count) if kind == "top" else
+                      (r.all_confidence, r.all_frequency, r.all_count))
+    n = cnt.sum()
+    if n == 0:
+        return 0.0
+    ok = cnt > 0
+    return float(np.sum(cnt[ok] * np.abs(acc[ok] - conf[ok])) / n)
+
+
 def entropy(p) -> np.ndarray:
     """``-sum_i p_i log p_i`` with 0 log 0 = 0 (uniform over 20 states: log 20 = 3.00)."""
     p = _probs(p)
@@ -124,7 +267,8 @@ def information_score(p) -> np.ndarray:
     return np.clip((hmax - entropy(p)) / hmax, 0.0, 1.0)
 
 
-GT_METRICS = ("dmse", "gt_rating", "gmd", "gt_likelihood", "gt_likelihood_ratio")
+GT_METRICS = ("dmse", "gt_rating", "gmd", "gt_likelihood", "gt_likelihood_ratio", "log_score",
+              "brier", "truth_under_1pct")
 INFO_METRICS = ("entropy", "likelihood_ratio", "information_score")
 
 
@@ -136,6 +280,9 @@ def evaluate(p, g, centroids) -> dict[str, np.ndarray]:
         "gmd": gmd(p, g, centroids),
         "gt_likelihood": gt_likelihood(p, g),
         "gt_likelihood_ratio": gt_likelihood_ratio(p, g),
+        "log_score": log_score(p, g),
+        "brier": brier(p, g),
+        "truth_under_1pct": truth_under(p, g, 0.01).astype(float),
         "entropy": entropy(p),
         "likelihood_ratio": likelihood_ratio(p),
         "information_score": information_score(p),

@@ -16,7 +16,7 @@ def test_uniform_edc_values():
     assert round(float(metrics.dmse(U20, 7)), 3) == 0.975
     assert metrics.entropy(U20) == pytest.approx(np.log(20))
     assert metrics.information_score(U20) == pytest.approx(0.0, abs=1e-12)
-    assert metrics.gt_rating(U20, 5) == 1  # ties favour the truth
+    assert metrics.gt_rating(U20, 5) == 10.5  # ties split evenly: the mean rank (20 + 1) / 2
     assert metrics.likelihood_ratio(U20) == pytest.approx(1.0)
     assert metrics.gt_likelihood_ratio(U20, 3) == pytest.approx(1.0)
 
@@ -41,6 +41,7 @@ def test_one_hot_truth_is_perfect():
     cents = partitions.get("edc").centroids
     r = metrics.evaluate(p, 4, cents)
     assert r["dmse"] == 0 and r["gt_rating"] == 1 and r["gmd"] == 0
+    assert r["log_score"] == 0 and r["brier"] == 0 and r["truth_under_1pct"] == 0
     assert r["entropy"] == 0 and r["information_score"] == 1 and r["likelihood_ratio"] == 0
     assert metrics.dmse(p, 5) == pytest.approx(np.sqrt(2))
 
@@ -57,12 +58,15 @@ def test_metric_ranges(p, g):
     r = metrics.evaluate(p, g, cents)
     assert 0 <= r["dmse"] <= np.sqrt(2) + 1e-9
     assert 1 <= r["gt_rating"] <= 20
+    assert np.log(1e-4) <= r["log_score"] <= 0 and 0 <= r["brier"] <= 2
     assert r["gmd"] >= 0
     assert 0 <= r["information_score"] <= 1
     assert 0 <= r["entropy"] <= np.log(20) + 1e-9
     assert 0 <= r["likelihood_ratio"] <= 1
     assert 0 <= r["gt_likelihood_ratio"] <= 1 + 1e-12
-    assert (r["gt_rating"] == 1) == (r["gt_likelihood_ratio"] >= 1 - 1e-12)
+    # rating 1 exactly when the truth is the unique most likely state
+    unique_top = np.sum(p >= p[g] - 1e-12) == 1
+    assert (r["gt_rating"] == 1) == (bool(unique_top) and r["gt_likelihood_ratio"] >= 1 - 1e-12)
 
 
 def test_batched_equals_loop():
@@ -91,3 +95,96 @@ def test_bad_input():
         metrics.entropy([np.nan, 1.0])
     with pytest.raises(ValueError, match="centroids"):
         metrics.gmd([0.5, 0.5], 0, np.zeros((3, 2)))
+
+
+def _rating_by_permutations(p, g):
+    """Mean rank of the truth over every order of the tied states (brute force)."""
+    import itertools
+
+    ranks = []
+    vals = sorted(set(p.tolist()), reverse=True)
+    groups = [[i for i in range(len(p)) if p[i] == v] for v in vals]
+    for perm in itertools.product(*[list(itertools.permutations(gr)) for gr in groups]):
+        order = [i for grp in perm for i in grp]
+        ranks.append(order.index(g) + 1)
+    return np.mean(ranks)
+
+
+def test_gt_rating_ties_split_evenly_brute_force():
+    rng = np.random.default_rng(0)
+    for _ in range(30):
+        counts = rng.integers(0, 4, size=5)
+        counts[0] += 1
+        p = counts / counts.sum()          # equal counts give bit-identical probabilities
+        for g in range(5):
+            bf = _rating_by_permutations(p, g)
+            assert metrics.gt_rating(p, g) == pytest.approx(bf)
+    # a zero-probability truth among zeros no longer rates well
+    assert metrics.gt_rating([1.0, 0, 0, 0], 2) == pytest.approx(3.0)
+
+
+def test_log_score_brier_truth_under_closed_forms():
+    p = np.array([[0.7, 0.2, 0.1, 0.0], [0.25, 0.25, 0.25, 0.25]])
+    g = np.array([3, 1])
+    np.testing.assert_allclose(metrics.log_score(p, g), [np.log(1e-4), np.log(0.25)])
+    np.testing.assert_allclose(metrics.log_score(p, g, clip=1e-2), [np.log(1e-2), np.log(0.25)])
+    np.testing.assert_allclose(metrics.brier(p, g), [0.49 + 0.04 + 0.01 + 1.0, 3 / 16 + 0.75**2])
+    np.testing.assert_allclose(metrics.brier(p, g), metrics.dmse(p, g) ** 2)
+    assert metrics.truth_under(p, g).tolist() == [True, False]
+    assert metrics.truth_under(p, g, 0.3).tolist() == [True, True]
+    with pytest.raises(ValueError, match="clip"):
+        metrics.log_score(p, g, clip=0)
+
+
+def test_scores_are_proper():
+    # the expected score under q is best at p = q (log and Brier are strictly proper)
+    rng = np.random.default_rng(1)
+    q = rng.dirichlet(np.ones(5))
+    states = np.arange(5)
+
+    def expected(f, p):
+        return float(np.sum(q * f(np.tile(p, (5, 1)), states)))
+
+    for _ in range(50):
+        p = rng.dirichlet(np.ones(5))
+        assert expected(metrics.log_score, p) <= expected(metrics.log_score, q) + 1e-12
+        assert expected(metrics.brier, p) >= expected(metrics.brier, q) - 1e-12
+
+
+def test_reliability_against_brute_force():
+    rng = np.random.default_rng(2)
+    P = rng.dirichlet(np.full(4, 0.5), size=300)
+    g = rng.integers(0, 4, size=300)
+    r = metrics.reliability(P, g, bins=5)
+    top, conf = P.argmax(1), P.max(1)
+    for b in range(5):
+        lo, hi = b / 5, (b + 1) / 5
+        inb = (conf >= lo) & ((conf < hi) if b < 4 else (conf <= hi))
+        assert r.top_count[b] == inb.sum()
+        if inb.any():
+            assert r.top_confidence[b] == pytest.approx(conf[inb].mean())
+            assert r.top_accuracy[b] == pytest.approx(np.mean(top[inb] == g[inb]))
+        pairs = (P >= lo) & ((P < hi) if b < 4 else (P <= hi))
+        assert r.all_count[b] == pairs.sum()
+        if pairs.any():
+            hit = np.arange(4)[None, :] == g[:, None]
+            assert r.all_confidence[b] == pytest.approx(P[pairs].mean())
+            assert r.all_frequency[b] == pytest.approx(hit[pairs].mean())
+    assert r.all_count.sum() == P.size and r.top_count.sum() == 300
+    ece = sum(r.top_count[b] * abs(r.top_accuracy[b] - r.top_confidence[b])
+              for b in range(5) if r.top_count[b]) / 300
+    assert metrics.expected_calibration_error(P, g, bins=5) == pytest.approx(ece)
+
+
+def test_calibrated_forecaster_has_small_ece():
+    # truths drawn from the forecasts themselves: ECE shrinks like 1/sqrt(n); a sharpened copy
+    # of the same forecasts is miscalibrated
+    rng = np.random.default_rng(3)
+    P = rng.dirichlet(np.ones(6), size=20000)
+    g = np.array([rng.choice(6, p=p) for p in P])
+    assert metrics.expected_calibration_error(P, g) < 0.02
+    assert metrics.expected_calibration_error(P, g, kind="all") < 0.01
+    S = P**3 / np.sum(P**3, axis=1, keepdims=True)
+    assert metrics.expected_calibration_error(S, g) > 0.05
+    with pytest.raises(ValueError, match="kind"):
+        metrics.expected_calibration_error(P, g, kind="nope")
