@@ -192,13 +192,32 @@ def test_composition_all_zero_table_is_named():
 # ------------------------------------------------------------------------------------------
 # solvers
 
+#: Every solver method (full, fast, fast-paper, baseline, reference at the time of writing).
+METHODS = tuple(solvers.METHODS)
+
 #: Small budgets: this suite checks the contract, not the accuracy. Each method gets the ones
-#: among these that it has (the solvers' options are documented in qfg.solvers.DEFAULTS).
+#: among these that it has (qfg.solvers.DEFAULTS; the reference solver's own table).
 _BUDGET = {"n_samples": 24, "max_hypotheses": 96, "posterior_samples": 16, "motion_samples": 2,
            "landmark_samples": 2, "one_view_samples": 4, "refine_cells": 4, "refine_factor": 2,
-           "n_landmark_samples": 128, "noise_samples": 2}
-SOLVER_OPTIONS = {method: {k: v for k, v in _BUDGET.items() if k in solvers.DEFAULTS[method]}
-                  for method in ("full", "fast", "baseline")}
+           "n_landmark_samples": 128, "noise_samples": 2, "rounds": 1, "max_rounds": 1,
+           "first_stage": 1}
+_REFERENCE_BUDGET = {"n_samples": 256}
+
+
+def _known_options(method):
+    if method in solvers.DEFAULTS:
+        return solvers.DEFAULTS[method]
+    try:
+        from qfg.solvers._reference import REFERENCE_DEFAULTS
+    except ImportError:
+        return {}
+    return REFERENCE_DEFAULTS
+
+
+SOLVER_OPTIONS = {method: {k: v for k, v in {**_BUDGET, **(_REFERENCE_BUDGET if method ==
+                                                             "reference" else {})}.items()
+                           if k in _known_options(method)}
+                  for method in METHODS}
 
 #: Input regimes: ordinary angles and noise; noise sigmas anywhere in 0, 5e-324, 1e-300..1e300;
 #: angles anywhere in +-1e-300..1e300 rad (finite, so valid input).
@@ -224,6 +243,9 @@ SOLVER_XFAIL = {
                                 "'points: N non-finite value(s)', naming an internal argument",
     ("fast", "extreme_sigmas"): "solvers: as full (shared _sis code): sigma_bearing of 1e100 "
                                 "overflows; from about 1e155 'points: N non-finite value(s)'",
+    ("reference", "extreme_sigmas"): "solvers: sigma_bearing of 1.4e285 raises a raw "
+                                     "OverflowError (34, 'Numerical result out of range') in "
+                                     "_reference._round",
 }
 
 
@@ -233,8 +255,7 @@ def _solver_case(method, regime):
     return pytest.param(method, regime, id=f"{method}-{regime}", marks=marks)
 
 
-SOLVER_CASES = [_solver_case(method, regime) for method in ("full", "fast", "baseline")
-                for regime in REGIMES]
+SOLVER_CASES = [_solver_case(method, regime) for method in METHODS for regime in REGIMES]
 
 
 @pytest.mark.parametrize("method, regime", SOLVER_CASES)
@@ -259,7 +280,7 @@ def test_solve_triplet_returns_distributions(method, regime, n, data, seed):
 
 
 @settings(max_examples=20, deadline=None)
-@given(method=st.sampled_from(["full", "fast", "baseline"]),
+@given(method=st.sampled_from(METHODS),
        target=st.sampled_from(["bearings", "headings", "sigma_bearing", "sigma_heading"]),
        how=st.sampled_from(DAMAGE), seed=st.integers(0, 2**31 - 1))
 def test_solve_triplet_rejects_bad_input_naming_it(method, target, how, seed):
@@ -285,14 +306,14 @@ def test_solve_triplet_rejects_bad_input_naming_it(method, target, how, seed):
                                                 **SOLVER_OPTIONS[method]), target)
 
 
-@pytest.mark.parametrize("method", ["full", "fast", "baseline"])
+@pytest.mark.parametrize("method", METHODS)
 def test_solvers_empty_inputs(method):
     assert solvers.solve_triplets([], method=method, **SOLVER_OPTIONS[method]) == []
     raises_naming(lambda: solvers.solve_triplet(np.zeros((0, 3)), method=method,
                                                 sigma_bearing=0.02), "bearings")
 
 
-@pytest.mark.parametrize("method", ["full", "fast", "baseline"])
+@pytest.mark.parametrize("method", METHODS)
 @settings(max_examples=5, deadline=None, phases=NO_SHRINK)
 @given(data=st.data(), seed=st.integers(0, 2**31 - 1))
 def test_solve_triplets_batch_returns_distributions(method, data, seed):
