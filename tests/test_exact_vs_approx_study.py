@@ -33,7 +33,7 @@ def test_same_graphs_as_the_propagation_study_and_exact_rows_exact(tmp_path):
             for m in eva.APPROX:
                 assert 0.0 <= r[f"{m}_tv"] <= 1.0 + 1e-12 and r[f"{m}_kl"] >= 0.0
     assert (tmp_path / "e" / "table.md").exists()
-    assert (tmp_path / "e" / "exact_vs_approx.png").exists()
+    assert (tmp_path / "e" / "figures" / "exact_vs_approx.png").exists()
 
 
 def test_loopy_bp_is_exact_on_tree_graphs_of_the_study(tmp_path):

@@ -2,15 +2,17 @@
 
 import json
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from qfg.harness import runner
 from qfg.graph import QualitativeFactorGraph
+from qfg.harness import runner
 from qfg.harness.studies import propagation as P
+from qfg.propagation import topology_scores
 
 PARAMS = P.TEST_PARAMS
 
@@ -55,7 +57,8 @@ def test_summary_has_the_headline_keys_and_figures(full_run):
     for k in ("spearman_tsc_isc", "spearman_cl_isc", "pearson_tsc_isc", "pearson_cl_isc"):
         assert s[k] is None or -1 <= s[k] <= 1
     assert s["seed"] == 5 and s["command"]
-    for f in ("decay_model_correlation.png", "tsc_vs_cl.png", "example_graphs.png", "bins.csv"):
+    for f in ("figures/decay_model_correlation.png", "figures/tsc_vs_cl.png",
+              "figures/example_graphs.png", "bins.csv"):
         assert (out / f).stat().st_size > 0
 
 
@@ -125,7 +128,7 @@ def test_kept_graph_has_the_max_connectivity_among_its_candidates(full_run):
             n_fc = int(rng.integers(task["n_fc_min"], task["n_fc_max"] + 1))
             factors, triplets, seen, g = P.candidate_graph(rng, task["n_landmarks"], n_fc,
                                                            task["coverage_rate"], table)
-            tsc = g.topology_scores(seen_score=1.0).scores
+            tsc = topology_scores(g, seen_score=1.0).scores
             cands.append((_entropy_of_hist(tsc), triplets, seen))
         scores = [c[0] for c in cands]
         rs = [r for r in rows if r["scenario"] == idx]
@@ -177,7 +180,7 @@ def test_experiment_all_runs_studies_and_rebuilds_results_doc(tmp_path, monkeypa
     doc = tmp_path / "results.md"
     # composition has no preset file in exp: recorded as failed, propagation still runs
     runs = _all.run_all("quick", root=tmp_path / "res", seed=2, progress=False,
-                        only=["composition", "propagation"], doc=False)
+                        only=["composition", "propagation"])
     assert runs[0]["error"] and "preset" in runs[0]["error"]
     assert runs[1]["rows"] > 0 and not runs[1].get("error")
     assert (tmp_path / "res" / "propagation-quick" / "rows.csv").exists()
@@ -219,7 +222,21 @@ def test_experiment_all_doc_only_rebuilds_without_running(tmp_path, monkeypatch)
     from qfg.harness import cli, results_doc, runner
 
     calls = []
-    monkeypatch.setattr(results_doc, "write", lambda *a, **k: calls.append(a) or tmp_path / "r.md")
+    monkeypatch.setattr(results_doc, "write", lambda *a, **k: calls.append((a, k)) or tmp_path / "r.md")
     monkeypatch.setattr(runner, "run_study", lambda *a, **k: pytest.fail("ran a study"))
+    monkeypatch.chdir(tmp_path)
+    # outside a checkout (no docs/results/ here) there is no document to rebuild: a clear error
+    assert cli.main(["experiment", "all", "--doc-only"]) == 2
+    (tmp_path / "docs" / "results").mkdir(parents=True)
     assert cli.main(["experiment", "all", "--doc-only"]) == 0
-    assert calls == [()]
+    assert calls == [((Path("docs/results.md"),), {"results_dir": Path("docs/results")})]
+
+
+def test_experiment_all_writes_no_tracked_file_without_update_docs(tmp_path, monkeypatch):
+    from qfg.harness import cli, results_doc, runner
+
+    monkeypatch.setattr(results_doc, "write", lambda *a, **k: pytest.fail("wrote the results doc"))
+    monkeypatch.setattr(runner, "run_study", lambda *a, **k: [])
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["experiment", "all", "--no-progress"]) == 0
+    assert not (tmp_path / "docs").exists()

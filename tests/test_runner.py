@@ -1,5 +1,6 @@
 """The experiment runner: determinism across workers, resume after a kill, recorded failures."""
 
+import contextlib
 import json
 import os
 import signal
@@ -14,6 +15,24 @@ import toy_study
 from qfg.harness import runner
 
 HERE = Path(__file__).resolve().parent
+
+
+def _child(code: str, **kw) -> subprocess.Popen:
+    """A Python child with the tests folder importable, in its own session (killable as a group)."""
+    pre = (f"import sys; sys.path.insert(0, {str(HERE)!r}); import toy_study; "
+           "from qfg.harness import runner; ")
+    return subprocess.Popen([sys.executable, "-c", pre + code], start_new_session=True, **kw)
+
+
+def _wait_records(rec: Path, n: int, timeout: float = 60):
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        if rec.exists() and rec.read_bytes().count(b"\n") >= n:
+            return
+        time.sleep(0.02)
+    raise AssertionError(f"{rec}: fewer than {n} records after {timeout} s")
+
+
 
 
 def test_same_seed_same_rows_with_1_and_2_workers(tmp_path):
@@ -69,10 +88,8 @@ def test_killed_run_resumes_to_the_uninterrupted_result(tmp_path):
     params = {"n": 40, "sleep": 0.05}
     ref = runner.run_study(toy_study.SLOW, params, tmp_path / "ref", seed=5, progress=False)
     out = tmp_path / "killed"
-    code = (f"import sys; sys.path.insert(0, {str(HERE)!r}); import toy_study; from qfg.harness import runner;"
-            f"runner.run_study(toy_study.SLOW, {params!r}, {str(out)!r}, seed=5, workers=2, "
-            "progress=False)")
-    proc = subprocess.Popen([sys.executable, "-c", code], start_new_session=True)
+    proc = _child(f"runner.run_study(toy_study.SLOW, {params!r}, {str(out)!r}, seed=5, workers=2, "
+                  "progress=False)")
     rec = out / "records.jsonl"
     deadline = time.time() + 60
     while time.time() < deadline:
@@ -102,3 +119,203 @@ def test_presets_and_overrides(tmp_path, monkeypatch):
     (tmp_path / "bad.toml").write_text("[quick\n")
     with pytest.raises(runner.RunnerError, match="bad.toml"):
         runner.load_presets("bad")
+
+
+# ------------------------------------------------------------------ one run per output directory
+def test_a_second_run_on_a_running_output_is_refused(tmp_path):
+    out = tmp_path / "o"
+    params = {"n": 200, "sleep": 0.05}
+    proc = _child(f"runner.run_study(toy_study.SLOW, {params!r}, {str(out)!r}, progress=False)")
+    try:
+        _wait_records(out / "records.jsonl", 2)
+        lock = json.loads((out / runner.LOCK_NAME).read_text())
+        assert lock["pid"] == proc.pid and lock["host"]
+        for resume in (True, False):
+            with pytest.raises(runner.OutputInUse, match=f"in use by pid {proc.pid}"):
+                runner.run_study(toy_study.SLOW, params, out, resume=resume, progress=False)
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    # the holder is dead: its lock is stale and a resume takes it over, then releases it
+    rows = runner.run_study(toy_study.SLOW, {"n": 200, "sleep": 0.0}, out, resume=False,
+                            overwrite=True, progress=False)
+    assert len({r["scenario"] for r in rows}) == 200
+    assert not (out / runner.LOCK_NAME).exists()
+
+
+def test_stale_lock_of_a_dead_process_is_taken_over(tmp_path, capsys):
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    (tmp_path / runner.LOCK_NAME).write_text(json.dumps({"pid": dead.pid, "host": runner._host()}))
+    runner.run_study(toy_study.STUDY, {"n": 3}, tmp_path, progress=False)
+    assert f"took over the lock of pid {dead.pid}" in capsys.readouterr().err
+    # a lock naming another host is never broken automatically
+    other = {"pid": os.getpid(), "host": "elsewhere.example"}
+    (tmp_path / runner.LOCK_NAME).write_text(json.dumps(other))
+    with pytest.raises(runner.OutputInUse, match="elsewhere.example"):
+        runner.run_study(toy_study.STUDY, {"n": 3}, tmp_path, resume=True, progress=False)
+
+
+def test_lock_without_flock_uses_the_pid(tmp_path, monkeypatch):
+    monkeypatch.setattr(runner, "fcntl", None)
+    with runner.OutputLock(tmp_path) as lk:
+        assert json.loads(lk.path.read_text())["pid"] == os.getpid()
+        with pytest.raises(runner.OutputInUse):
+            runner.OutputLock(tmp_path).acquire()  # this (live) process holds it
+    assert not (tmp_path / runner.LOCK_NAME).exists()
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    (tmp_path / runner.LOCK_NAME).write_text(json.dumps({"pid": dead.pid, "host": runner._host()}))
+    with runner.OutputLock(tmp_path) as lk:
+        assert lk.took_over["pid"] == dead.pid
+
+
+def test_duplicate_records_are_read_once(tmp_path):
+    params = {"n": 6}
+    ref = runner.run_study(toy_study.STUDY, params, tmp_path / "ref", seed=2, progress=False)
+    out = tmp_path / "dup"
+    runner.run_study(toy_study.STUDY, params, out, seed=2, progress=False)
+    rec = out / "records.jsonl"
+    lines = rec.read_bytes().splitlines(keepends=True)
+    # what two concurrent resumes used to leave: every scenario twice, one failure in between
+    fail = json.dumps({"index": 1, "seed": [2, 1], "error": "RuntimeError: x"}).encode() + b"\n"
+    rec.write_bytes(b"".join(lines) + fail + b"".join(lines[::-1]))
+    ok, failed = runner.dedupe_records(runner.read_records(rec)[0])
+    assert [r["index"] for r in ok] == list(range(6)) and failed == []
+    rows = runner.run_study(toy_study.STUDY, params, out, seed=2, resume=True, progress=False)
+    assert len(rows) == len(ref) == 18
+    assert (out / "rows.csv").read_bytes() == (tmp_path / "ref" / "rows.csv").read_bytes()
+    assert not (out / "errors.json").exists()
+
+
+def test_fresh_starts_released_together_exactly_one_proceeds(tmp_path):
+    go = tmp_path / "go"
+    for trial in range(3):
+        out = tmp_path / f"run{trial}"
+        code = (f"import os, time\nwhile not os.path.exists({str(go)!r}): time.sleep(0.001)\n"
+                f"try:\n    runner.run_study(toy_study.SLOW, {{'n': 4, 'sleep': 0.05}}, "
+                f"{str(out)!r}, progress=False)\nexcept runner.RunnerError as e:\n"
+                "    print(type(e).__name__, e); sys.exit(2)")
+        procs = [subprocess.Popen([sys.executable, "-c",
+                                   f"import sys; sys.path.insert(0, {str(HERE)!r}); import toy_study;"
+                                   f" from qfg.harness import runner\n" + code],
+                                  stdout=subprocess.PIPE, text=True) for _ in range(3)]
+        time.sleep(1.5)  # every child imported and waiting
+        go.touch()
+        codes = [p.wait(60) for p in procs]
+        go.unlink()
+        assert sorted(codes) == [0, 2, 2], (codes, [p.stdout.read() for p in procs])
+        assert len(runner.read_records(out / "records.jsonl")[0]) == 4
+
+
+def _proc_children(pid: int) -> list[int]:
+    kids = []
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                stat = (d / "stat").read_text()
+            except OSError:
+                continue
+            if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
+                kids.append(int(d.name))
+    return kids
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"  # a zombie has exited; only its exit status is left
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_sigkill_of_the_main_process_leaves_no_worker(tmp_path):
+    out = tmp_path / "o"
+    proc = _child(f"runner.run_study(toy_study.SLOW, {{'n': 400, 'sleep': 0.05}}, {str(out)!r}, "
+                  "workers=2, progress=False)")
+    try:
+        _wait_records(out / "records.jsonl", 4)
+        workers = _proc_children(proc.pid)
+        assert len(workers) >= 2, workers  # the pool (and its resource tracker, if any)
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+        deadline = time.time() + 5
+        while time.time() < deadline and any(_alive(w) for w in workers):
+            time.sleep(0.05)
+        assert not [w for w in workers if _alive(w)], "a worker outlived the main process"
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+
+
+# ------------------------------------------------------------------ arguments checked up front
+def test_bad_seed_workers_and_output_are_rejected_before_running(tmp_path):
+    for seed in (-1, 1.5, "3", True):
+        with pytest.raises(runner.RunnerError, match="seed"):
+            runner.run_study(toy_study.STUDY, {"n": 2}, tmp_path / "s", seed=seed, progress=False)
+    for workers in (0, -3, 2.0):
+        with pytest.raises(runner.RunnerError, match="workers"):
+            runner.run_study(toy_study.STUDY, {"n": 2}, tmp_path / "w", workers=workers,
+                             progress=False)
+    f = tmp_path / "a_file"
+    f.write_text("x")
+    with pytest.raises(runner.RunnerError, match="is a file"):
+        runner.run_study(toy_study.STUDY, {"n": 2}, f, progress=False)
+    with pytest.raises(runner.RunnerError, match="which is a file"):
+        runner.run_study(toy_study.STUDY, {"n": 2}, f / "sub", progress=False)
+    with pytest.raises(runner.RunnerError, match="no scenarios"):
+        runner.run_study(toy_study.STUDY, {"n": 0}, tmp_path / "z", progress=False)
+    assert not any((tmp_path / d).exists() for d in ("s", "w", "z"))
+
+
+def test_every_scenario_failing_is_an_error(tmp_path):
+    with pytest.raises(runner.ScenariosFailed, match="every scenario failed"):
+        runner.run_study(toy_study.FAILING, {"n": 3}, tmp_path, progress=False)
+    assert len(json.loads((tmp_path / "errors.json").read_text())) == 3
+
+
+def test_param_spec_names_the_parameter():
+    spec = runner.param_spec({"n": 10, "xs": [1.0], "mode": "a", "flag": False},
+                             n={"min": 1}, xs={"min": 0.0, "nonempty": True},
+                             mode={"choices": ("a", "b")})
+    assert runner.validate_params(spec, {"n": 2, "xs": [0, 2.5]}) == \
+        {"n": 2, "xs": [0.0, 2.5], "mode": "a", "flag": False}
+    bad = [({"n": -1}, "n: expected an integer >= 1"), ({"n": "abc"}, "n: expected an integer"),
+           ({"n": 2.0}, "n: expected an integer"), ({"n": True}, "n: expected an integer"),
+           ({"xs": []}, "xs: expected a non-empty"), ({"xs": [1, -2]}, r"xs\[1\]"),
+           ({"xs": 3}, "xs: expected a list"), ({"mode": "c"}, "mode: expected one of"),
+           ({"flag": "yes"}, "flag: expected true or false"), ({"zz": 1}, "unknown zz"),
+           ({"xs": [float("nan")]}, "finite")]
+    for params, msg in bad:
+        with pytest.raises(runner.RunnerError, match=msg):
+            runner.validate_params(spec, params)
+
+
+def test_every_preset_satisfies_its_study_spec():
+    from qfg.harness.studies import studies
+
+    found = studies()
+    assert found and all(st.params is not None for st in found.values())
+    for name, st in found.items():
+        for preset, params in runner.load_presets(name).items():
+            runner.validate_params(st.params, params), (name, preset)
+
+
+def test_tables_and_figures_have_one_writer(tmp_path):
+    path = runner.write_table(tmp_path / "t.csv", [{"a": 1.23456789, "b": "x"}, {"a": None, "c": True}])
+    assert path.read_text() == "a,b,c\n1.23457,x,\n,,True\n"
+    runner.write_table(tmp_path / "u.csv", [{"a": 1.23456789}], digits=None)
+    assert (tmp_path / "u.csv").read_text() == "a\n1.23456789\n"
+    import matplotlib.pyplot as plt
+
+    magic = {"png": b"\x89PNG", "pdf": b"%PDF", "svg": b"<?xml"}
+    for fmt, head in magic.items():
+        with runner.use_figure_format(fmt):
+            fig, ax = plt.subplots()
+            p = runner.save_figure(fig, tmp_path / "new" / "dir", "f")
+        assert p == tmp_path / "new" / "dir" / "figures" / f"f.{fmt}"
+        assert p.read_bytes()[:len(head)] == head
+    with pytest.raises(runner.RunnerError, match="format"):
+        runner.run_study(toy_study.STUDY, {"n": 1}, tmp_path / "f", figure_format="jpg",
+                         progress=False)

@@ -23,3 +23,10 @@ def slow_tasks(params):
 
 STUDY = Study("toy", tasks, run_task, None, "toy study for tests")
 SLOW = Study("toy-slow", slow_tasks, run_task, None, "slow toy study for tests")
+
+
+def all_fail_tasks(params):
+    return [{"i": i, "fail": True} for i in range(params["n"])]
+
+
+FAILING = Study("toy-failing", all_fail_tasks, run_task, None, "every scenario fails")

@@ -1,14 +1,21 @@
-"""The ``qfg`` console command. Subcommands live in :mod:`qfg.commands`, one module each."""
+"""The ``qfg`` console command. Subcommands live in :mod:`qfg.harness.commands`, one module each.
+
+Exit status: 0 done; 1 the work failed (every scenario of a run failed, a study of ``qfg
+experiment all`` failed, a check found problems); 2 bad input (arguments, parameters, an output
+that is a file or in use by another run) with one line on stderr; 130 interrupted by Ctrl-C
+(one line saying how far the run got; ``--resume`` continues it).
+"""
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import pkgutil
 import sys
 
-from qfg.harness import commands
 from qfg._version import __version__
+from qfg.harness import commands
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -24,6 +31,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    # Figures are written to files: a non-interactive backend unless the user chose one. Set
+    # here, at the entry point, so that importing qfg in a notebook changes nothing.
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    from qfg.harness.runner import RunInterrupted, ScenariosFailed
+
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
@@ -31,6 +43,15 @@ def main(argv=None) -> int:
         return 0
     try:
         return int(args.func(args) or 0)
+    except RunInterrupted as exc:
+        print(f"qfg {args.command}: {exc}", file=sys.stderr)
+        return 130
+    except KeyboardInterrupt:
+        print(f"qfg {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except ScenariosFailed as exc:
+        print(f"qfg {args.command}: error: {exc}", file=sys.stderr)
+        return 1
     except ValueError as exc:  # bad input: one clear line, not a traceback
         print(f"qfg {args.command}: error: {exc}", file=sys.stderr)
         return 2

@@ -15,9 +15,9 @@ from qfg.solvers import solve_triplets
 
 def run(seed: int = 0, output: str | Path = "out/demo", n_landmarks: int = 6, n_poses: int = 12,
         landmarks_per_view: int = 4, partition: str = "edc", methods=("fast", "full"),
-        echo=print) -> dict:
+        echo=print, fmt: str = "png") -> dict:
     """Simulate, print the ground-truth map and the estimates of ``methods`` for every seen
-    triplet, write ``scenario.png``; return what was made."""
+    triplet, write ``<output>/figures/scenario.<fmt>``; return what was made."""
     rng = np.random.default_rng(seed)
     part = partitions.get(partition)
     sc = random_scenario(rng, n_landmarks, n_poses, landmarks_per_view,
@@ -63,19 +63,17 @@ def run(seed: int = 0, output: str | Path = "out/demo", n_landmarks: int = 6, n_
                  f"(uniform: {float(metrics.dmse(np.full(part.n_states, 1 / part.n_states), 0)):.2f})"
                  f"; {1e3 * secs[m] / len(hist):.1f} ms per triplet")
     qmap = _qualitative_map(sc, hist, part, seed, echo) if hist else []
-    out = Path(output)
-    out.mkdir(parents=True, exist_ok=True)
-    fig_path = out / "scenario.png"
+    fig_path = None
     if hist:
         k = max(range(len(hist)), key=lambda i: hist[i].n_views)
         best = hist[k]
         probs = ests[methods[0]][k].landmark if methods else None
-        _figure(sc, best, part, fig_path, probs, methods[0] if methods else None)
+        fig_path = _figure(sc, best, part, output, fmt, probs, methods[0] if methods else None)
         echo(f"figure: {fig_path} (scenario, and triplet "
              f"{best.landmarks[0]},{best.landmarks[1]}:{best.landmarks[2]} in its AB frame"
              + (f" with the {methods[0]} estimate)" if methods else ")"))
     return {"scenario": sc, "histories": hist, "estimates": ests, "summary": summary,
-            "map": qmap, "figure": fig_path if hist else None}
+            "map": qmap, "figure": fig_path}
 
 
 def _qualitative_map(sc, hist, part, seed, echo, n_unseen: int = 3, support: int = 2) -> list[dict]:
@@ -139,8 +137,9 @@ def _qualitative_map(sc, hist, part, seed, echo, n_unseen: int = 3, support: int
     return rows
 
 
-def _figure(scenario, history, part, path, probabilities=None, method=None):
+def _figure(scenario, history, part, output, fmt, probabilities=None, method=None):
     from qfg.harness.plotting import draw_scenario, draw_triplet, plt
+    from qfg.harness.runner import save_figure
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 5.5))
     draw_scenario(scenario, axes[0], triplet=history)
@@ -148,5 +147,4 @@ def _figure(scenario, history, part, path, probabilities=None, method=None):
     if method is not None:
         axes[1].set_title(axes[1].get_title() + f": {method} estimate")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    return save_figure(fig, output, "scenario", dpi=120, fmt=fmt)

@@ -1,20 +1,21 @@
 """Figures: partitions, scenarios and triplets in their AB frame.
 
-Plotting is the end of the data flow; it imports from every module and nothing imports it.
+Plotting is part of the harness: it imports the library and no library module imports it.
+Importing it chooses no matplotlib backend (the ``qfg`` command sets a file backend at its entry
+point; a notebook keeps its own). Lengths in the AB frame are in units of ``|AB|``.
 """
 
 from __future__ import annotations
 
-import matplotlib
+from pathlib import Path
 
-matplotlib.use("Agg")  # figures are written to files; no display is assumed
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import shapely  # noqa: E402
-from matplotlib.patches import PathPatch  # noqa: E402
-from matplotlib.path import Path as MplPath  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import shapely
+from matplotlib.patches import PathPatch
+from matplotlib.path import Path as MplPath
 
-from qfg import partitions as _partitions  # noqa: E402
+from qfg import partitions as _partitions
 
 __all__ = ["draw_partition", "draw_scenario", "draw_triplet", "partition_figure"]
 
@@ -68,16 +69,21 @@ def draw_partition(partition="edc", ax=None, *, probabilities=None, highlight=No
     ax.set_xlim(xmin, xmax)
     ax.set_ylim(ymin, ymax)
     ax.set_aspect("equal")
+    ax.set_xlabel("x in the AB frame [|AB|]")
+    ax.set_ylabel("y in the AB frame [|AB|]")
     ax.set_title(f"{part.name.upper()} ({part.n_states} states)")
     return ax
 
 
-def partition_figure(partition, path):
-    """Write a PNG of a partition with its labels to ``path``."""
+def partition_figure(partition, path, fmt: str | None = None):
+    """Write a partition with its labels to ``path`` (format from ``fmt`` or the suffix; the
+    folder is created); returns the path."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
     fig, ax = plt.subplots(figsize=(5, 6))
     draw_partition(partition, ax)
     fig.tight_layout()
-    fig.savefig(path, dpi=130)
+    fig.savefig(path, dpi=130, format=fmt or path.suffix.lstrip(".") or "png")
     plt.close(fig)
     return path
 
@@ -98,6 +104,8 @@ def draw_scenario(scenario, ax=None, *, triplet=None):
             for lid in triplet.landmarks:
                 ax.plot([P[v, 0], L[lid, 0]], [P[v, 1], L[lid, 1]], ":", color="0.5", lw=0.7)
     ax.set_aspect("equal")
+    ax.set_xlabel("x [world units]")
+    ax.set_ylabel("y [world units]")
     ax.legend(loc="upper right", fontsize=7)
     ax.set_title("scenario (world frame)")
     return ax

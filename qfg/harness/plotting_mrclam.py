@@ -6,13 +6,10 @@ data path imports it.
 
 from __future__ import annotations
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
 
-matplotlib.use("Agg")  # figures are written to files; no display is assumed
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from qfg.datasets import mrclam as _mrclam  # noqa: E402
+from qfg.datasets import mrclam as _mrclam
 
 __all__ = ["draw_dataset", "dataset_figure"]
 
@@ -88,10 +85,10 @@ def _nearest_fixes(fixes, times):
 
 
 def dataset_figure(dataset, robot, path, **kw):
-    """Write :func:`draw_dataset` as a PNG to ``path``; returns ``path``."""
+    """Write :func:`draw_dataset` to ``path`` (format from its suffix); returns ``path``."""
     fig, ax = plt.subplots(figsize=(9.5, 7))
     draw_dataset(dataset, robot, ax, **kw)
     fig.tight_layout()
-    fig.savefig(path, dpi=130)
+    fig.savefig(path, dpi=130, format=str(path).rsplit(".", 1)[-1] if "." in str(path) else "png")
     plt.close(fig)
     return path

@@ -26,13 +26,9 @@ ORDER = ("single_triplet", "composition", "exact_vs_approx", "propagation", "mrc
 _COMMAND = re.compile(r"(^|\s|`)(\.venv/bin/)?qfg \w", re.MULTILINE)
 
 
-def docs_dir() -> Path:
-    return Path(__file__).resolve().parents[2] / "docs"
-
-
-def sections(results_dir: Path | None = None) -> dict[str, str]:
-    """``{stem: text}`` of ``docs/results/*.md`` in :data:`ORDER`, then the rest by name."""
-    d = Path(results_dir) if results_dir is not None else docs_dir() / "results"
+def sections(results_dir) -> dict[str, str]:
+    """``{stem: text}`` of ``<results_dir>/*.md`` in :data:`ORDER`, then the rest by name."""
+    d = Path(results_dir)
     found = {p.stem: p.read_text() for p in sorted(d.glob("*.md"))} if d.is_dir() else {}
     order = [k for k in ORDER if k in found] + sorted(k for k in found if k not in ORDER)
     return {k: found[k] for k in order}
@@ -69,7 +65,8 @@ def _run_record(runs: list[dict]) -> list[str]:
                 out += ["", "| key | value |", "|---|---|"]
                 for k, v in scal.items():
                     out.append(f"| {k} | {v:.4g} |" if isinstance(v, float) else f"| {k} | {v} |")
-        figs = sorted(Path(r["output"]).glob("*.png"))
+        figs = sorted(p for p in (Path(r["output"]) / "figures").glob("*.*")
+                      if p.suffix in (".png", ".pdf", ".svg"))
         if figs:
             out += ["", "Figures: " + ", ".join(f"`{f}`" for f in figs)]
         out.append("")
@@ -79,9 +76,9 @@ def _run_record(runs: list[dict]) -> list[str]:
 def build_text(secs: dict[str, str], runs: list[dict] | None = None) -> str:
     """The text of ``docs/results.md`` from section texts (and a run record)."""
     out = ["# Results", "",
-           "Assembled by `qfg experiment all` (`qfg/results_doc.py`) from `docs/results/<study>.md`; "
-           "do not edit by hand: edit the section files. Each section names the command that made "
-           "its numbers and figures.", ""]
+           "Assembled by `qfg experiment all --update-docs` (`qfg/harness/results_doc.py`) from "
+           "`docs/results/<study>.md`; do not edit by hand: edit the section files. Each section "
+           "names the command that made its numbers and figures.", ""]
     if secs:
         out.append("Contents: " + ", ".join(f"[{k}](results/{k}.md)" for k in secs))
         out.append("")
@@ -95,15 +92,17 @@ def build_text(secs: dict[str, str], runs: list[dict] | None = None) -> str:
     return "\n".join(out).rstrip("\n") + "\n"
 
 
-def write(path: Path | None = None, runs: list[dict] | None = None,
-          results_dir: Path | None = None) -> Path:
-    """Write ``docs/results.md`` (or ``path``); returns the path. Warns about sections without a
-    command."""
+def write(path, runs: list[dict] | None = None, results_dir=None) -> Path:
+    """Write the results document ``path`` (the repository's ``docs/results.md``) from the section
+    files in ``results_dir`` (default: ``results/`` next to ``path``); returns the path. Warns
+    about sections without a command. Nothing here knows where the repository is: the caller
+    (``qfg experiment all --update-docs``) names the file."""
     import sys
 
+    path = Path(path)
+    results_dir = Path(results_dir) if results_dir is not None else path.parent / "results"
     secs = sections(results_dir)
-    path = Path(path) if path is not None else docs_dir() / "results.md"
     for k in missing_commands(secs):
-        print(f"results_doc: docs/results/{k}.md names no qfg command", file=sys.stderr)
+        print(f"results_doc: {results_dir / k}.md names no qfg command", file=sys.stderr)
     path.write_text(build_text(secs, runs))
     return path

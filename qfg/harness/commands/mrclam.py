@@ -1,6 +1,14 @@
-"""``qfg mrclam PATH``: the MRCLAM study on one dataset directory (paper section 6d)."""
+"""``qfg mrclam PATH``: the MRCLAM study on one dataset directory (paper section 6d).
+
+The dataset is one scenario of a run made by :func:`qfg.harness.runner.run_study`, so the output
+directory follows the rules of ``qfg experiment``: a used directory needs ``--resume`` (a finished
+run is then only summarized again) or ``--overwrite``; it is locked while running; Ctrl-C stops
+with one line.
+"""
 
 from __future__ import annotations
+
+from qfg.harness.commands import add_format, seed_int
 
 
 def _int_list(text: str) -> list[int]:
@@ -26,28 +34,60 @@ def register(sub):
                    help="composition tensor .npz (default: the shipped tensor of the partition)")
     p.add_argument("--no-fix-landmarks", action="store_true",
                    help="score against the landmark ground truth as shipped (no swap check)")
-    p.add_argument("--seed", type=int, default=0, help="solver seed (default 0)")
-    p.add_argument("--output", default=None, help="output directory (default results/mrclam-<name>)")
+    p.add_argument("--seed", type=seed_int, default=0, help="solver seed (default 0)")
+    p.add_argument("--output", default=None, help="output directory (default out/mrclam-<name>)")
+    p.add_argument("--resume", action="store_true", help="continue (or re-summarize) a run in "
+                                                         "--output")
+    p.add_argument("--overwrite", action="store_true", help="start again in a used --output")
     p.add_argument("--no-figures", action="store_true", help="skip the figures")
+    add_format(p)
     p.set_defaults(func=_main)
 
 
+def run_one(task: dict, rng) -> list[dict]:
+    """The runner's scenario: one dataset, solved with the seed given on the command line (not
+    the scenario stream, so that ``--seed`` means what it meant before the runner)."""
+    from qfg.harness.studies import mrclam as study
+
+    T = study._load_tensor(task["partition"], task["tensor"]) if task["tensor"] else None
+    return study.run_dataset(task["path"], robots=task["robots"] or None, method=task["method"],
+                             combine=task["combine"], partition=task["partition"], tensor=T,
+                             fix_landmarks=task["fix_landmarks"], seed=task["seed"])
+
+
 def _main(args):
+    import shlex
+    import sys
     from pathlib import Path
 
+    from qfg.harness import runner
     from qfg.harness.studies import mrclam as study
 
     robots = _int_list(args.robots)
-    T = study._load_tensor("edc", args.tensor) if args.tensor else None
-    rows, det = study.run_dataset(args.path, robots=robots or None, method=args.method,
-                                  combine=args.combine, tensor=T,
-                                  fix_landmarks=not args.no_fix_landmarks, seed=args.seed,
-                                  return_details=True)
-    out = Path(args.output or f"results/mrclam-{Path(args.path).name}")
-    summ = study.write_outputs(out, rows, figures=not args.no_figures,
-                               figure_robot=robots[0] if robots else None, details=det)
-    if det["swaps"]:
-        print(f"landmark ground truth corrected: swapped {det['swaps']} (check_landmarks)")
+    path = Path(args.path)
+    if not path.is_dir():
+        raise ValueError(f"path: {path} is not a directory")
+    params = {"path": str(path.resolve()), "robots": robots, "method": args.method,
+              "combine": args.combine, "partition": "edc", "tensor": args.tensor or "",
+              "fix_landmarks": not args.no_fix_landmarks, "seed": args.seed,
+              "figures": not args.no_figures}
+    out = Path(args.output or f"out/mrclam-{path.resolve().name}")
+    shown = {}
+
+    def summarize(outdir, rows, _params):
+        shown["summary"] = study.write_outputs(outdir, rows, figures=not args.no_figures,
+                                               figure_robot=robots[0] if robots else None)
+
+    one = runner.Study("mrclam", lambda p: [{"index": 0, **p}], run_one, summarize,
+                       "one MRCLAM dataset")
+    rows = runner.run_study(one, params, out, seed=args.seed, resume=args.resume,
+                            overwrite=args.overwrite, progress=False,
+                            command="qfg " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
+                            figure_format=args.format)
+    summ = shown["summary"]
+    swaps = rows[0].get("gt_swaps") if rows else ""
+    if swaps:
+        print(f"landmark ground truth corrected: swapped {swaps} (check_landmarks)")
     print("\n".join(study.table_lines(summ)))
     print(f"{summ['n_triplets']} triplets ({summ['n_seen']} seen, {summ['n_propagated']} "
           f"propagated, {summ['n_reached']} reached) -> {out}")

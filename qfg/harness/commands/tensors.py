@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from qfg.harness.commands import positive_int, seed_int
+
 
 def register(sub):
     p = sub.add_parser("tensors", help="build, inspect and compare composition tensors",
@@ -17,10 +19,13 @@ def register(sub):
                         "qfg.composition.build.SHIPPED_SAMPLES)")
     b.add_argument("--support-samples", type=int, default=None,
                    help="corner samples of C per state (default samples / 4)")
-    b.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    b.add_argument("--workers", type=int, default=1, help="worker processes (default 1)")
-    b.add_argument("--output", default=None,
-                   help="directory (default: the tensors/ directory, or $QFG_TENSORS)")
+    b.add_argument("--seed", type=seed_int, default=0, help="random seed (default 0)")
+    b.add_argument("--workers", type=positive_int, default=1, help="worker processes (default 1)")
+    b.add_argument("--output", default="out/tensors",
+                   help="directory (default out/tensors; the shipped tensors are in "
+                        "qfg.composition.tensors_dir())")
+    b.add_argument("--force", action="store_true",
+                   help="overwrite existing tensor files (needed to replace the shipped ones)")
     b.add_argument("--no-progress", action="store_true", help="no progress bar")
     b.set_defaults(func=_build)
 
@@ -60,13 +65,24 @@ def _build(args):
     from pathlib import Path
 
     from qfg.composition import build as B
-    from qfg.composition import save, tensor_path
+    from qfg.composition import save, tensors_dir
+    from qfg.harness.runner import check_output
 
-    for name in _names(args.partition):
+    names = _names(args.partition)
+    out = Path(args.output)
+    # refuse before computing (a build takes up to half an hour), not after
+    existing = [out / f"{n}.npz" for n in names if (out / f"{n}.npz").exists()]
+    if existing and not args.force:
+        shipped = out.resolve() == tensors_dir().resolve()
+        raise ValueError(f"--output: {', '.join(map(str, existing))} exist"
+                         + (" (the shipped tensors)" if shipped else "")
+                         + "; pass --force to overwrite, or choose another --output")
+    check_output(out)
+    for name in names:
         samples = args.samples if args.samples is not None else B.SHIPPED_SAMPLES.get(name, 4096)
         t = B.build(name, samples, seed=args.seed, support_samples=args.support_samples,
                     workers=args.workers, progress=not args.no_progress)
-        path = (Path(args.output) / f"{name}.npz") if args.output else tensor_path(name)
+        path = out / f"{name}.npz"
         save(path, t)
         print(f"{path}: {t!r}")
         print(f"  build {t.meta['build_seconds']:.1f} s with {t.meta['workers']} worker(s); "

@@ -32,9 +32,9 @@ import numpy as np
 from qfg import metrics
 from qfg.composition import marginal, tensor
 from qfg.geometry import bearing, to_frame, wrap_angle
+from qfg.harness.runner import Study, param_spec, print_table, save_figure, validate_params, write_table
 from qfg.partitions import get as get_partition
 from qfg.partitions import state_of_triplet
-from qfg.harness.runner import Study, write_table
 from qfg.simulation import Scenario, sample_positions, triplet_histories
 
 ESTIMATES = ("composition", "uniform", "deterministic", "oracle")
@@ -50,14 +50,14 @@ DEFAULTS = {
 }
 
 
+PARAMS = param_spec(DEFAULTS, n_per_level={"min": 1}, sigma_bearing_deg={"min": 0.0, "nonempty": True},
+                    heading_ratio={"min": 0.0}, n_views={"min": 1},
+                    partition={"choices": ("edc", "fdc", "lr", "tpcc")},
+                    prior={"choices": ("fast", "truth")})
+
+
 def _params(params: dict) -> dict:
-    unknown = set(params) - set(DEFAULTS)
-    if unknown:
-        raise ValueError(f"params: unknown keys {sorted(unknown)}; known: {sorted(DEFAULTS)}")
-    p = {**DEFAULTS, **params}
-    if p["prior"] not in ("fast", "truth"):
-        raise ValueError(f"prior: expected 'fast' or 'truth', got {p['prior']!r}")
-    return p
+    return validate_params(PARAMS, params)
 
 
 def tasks(params: dict) -> list[dict]:
@@ -171,10 +171,6 @@ def percentile_table(rows: list[dict]) -> list[dict]:
     return out
 
 
-def _write_csv(path: Path, recs: list[dict]) -> None:
-    write_table(path, recs)
-
-
 def _in_windows(r: dict) -> bool:
     return bool(r["c_in_window"] and r["d_in_window"] and r["d_in_bc_window"])
 
@@ -185,7 +181,7 @@ def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
     if not rows:
         return
     table = percentile_table(rows)
-    _write_csv(outdir / "summary.csv", table)
+    write_table(outdir / "summary.csv", table)
     priors = sorted({r["prior"] for r in rows})
     info = {
         "n_scenarios": len(rows),
@@ -206,25 +202,35 @@ def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
                     for e in ESTIMATES for m in METRICS},
     }
     (outdir / "summary.json").write_text(json.dumps(info, indent=2))
-    print(f"composition study: {info['note']}; {len(rows)} scenarios")
-    figures(outdir / "figures", table)
+    print_table(headline_table(table), title=f"composition study: {info['note']}; {len(rows)} "
+                "scenarios; median DMSE of AB:D per bearing noise (deg)")
+    figures(outdir, table)
 
 
-def figures(figdir: Path, table: list[dict]) -> list[Path]:
+def headline_table(table: list[dict]) -> list[dict]:
+    """Median DMSE of AB:D per noise level, one column per estimate (the printed table)."""
+    out = []
+    for sv in sorted({r["sigma_bearing_deg"] for r in table}):
+        rec = {"sigma_v_deg": sv, "n": next(r["n"] for r in table if r["sigma_bearing_deg"] == sv)}
+        for est in ESTIMATES:
+            r = next((r for r in table if r["sigma_bearing_deg"] == sv and r["estimate"] == est), None)
+            rec[est] = r["dmse_p50"] if r else None
+        out.append(rec)
+    return out
+
+
+def figures(outdir: Path, table: list[dict]) -> list[Path]:
     """The paper's Fig. (results_composition1): DMSE, gmd and GT rating vs measurement noise,
-    median with the 25-75 percentile band, composition against uniform (and the others)."""
-    import matplotlib
-    matplotlib.use("Agg")
+    median with the 25-75 percentile band, composition against uniform (and the others);
+    written to ``<outdir>/figures/`` in the run's format."""
     import matplotlib.pyplot as plt
 
-    figdir = Path(figdir)
-    figdir.mkdir(parents=True, exist_ok=True)
     style = {"composition": ("C0", "-", "composition (fast priors)"),
              "uniform": ("0.4", "--", "uniform (no information)"),
              "deterministic": ("C2", ":", "deterministic composition"),
              "oracle": ("C3", "-.", "composition of the true states")}
     paths = []
-    labels = {"dmse": "DMSE", "gmd": "gmd (|AB|)", "gt_rating": "GT rating"}
+    labels = {"dmse": "DMSE (dimensionless)", "gmd": "gmd [|AB|]", "gt_rating": "GT rating (rank)"}
     for met in ("dmse", "gmd", "gt_rating"):
         fig, ax = plt.subplots(figsize=(5.5, 3.8))
         for est, (color, ls, label) in style.items():
@@ -251,12 +257,10 @@ def figures(figdir: Path, table: list[dict]) -> list[Path]:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
         fig.tight_layout()
-        path = figdir / f"composition_{met}.png"
-        fig.savefig(path, dpi=130)
-        plt.close(fig)
-        paths.append(path)
+        paths.append(save_figure(fig, outdir, f"composition_{met}"))
     return paths
 
 
 STUDY = Study(name="composition", tasks=tasks, run_task=run_task, summarize=summarize,
-              description="AB:D inferred by composition from solved AB:C and BC:D (paper 6e)")
+              description="AB:D inferred by composition from solved AB:C and BC:D (paper 6e)",
+              params=PARAMS)

@@ -26,7 +26,6 @@ Run: ``qfg experiment exact-vs-approx --preset quick --output out/exact_vs_appro
 
 from __future__ import annotations
 
-import csv
 import json
 import time
 from pathlib import Path
@@ -34,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from qfg.graph import truth_states
-from qfg.harness.runner import Study
+from qfg.harness.runner import Study, param_spec, print_table, save_figure, write_table
 from qfg.inference import ZeroMassError, exact_marginals
 from qfg.metrics import dmse, information_score
 from qfg.propagation import loopy_bp, propagate, topology_scores
@@ -214,11 +213,7 @@ def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
                 "time_ms_median": 1e3 * float(np.median(col(list(gsub), f"time_{m}"))),
                 "time_ms_p90": 1e3 * float(np.percentile(col(list(gsub), f"time_{m}"), 90)),
             })
-    with open(outdir / "table.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(table[0]) if table else ["graphs"],
-                           lineterminator="\n")
-        w.writeheader()
-        w.writerows(table)
+    write_table(outdir / "table.csv", table, None if table else ["graphs"], digits=None)
     lines = ["| graphs | method | graphs (n) | unseen triplets | TV mean | TV median | TV p90 | "
              "KL mean | log score mean | DMSE mean | ISC mean | time median (ms) |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
@@ -228,6 +223,10 @@ def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
                      f"{t['kl_mean']:.4f} | {t['logscore_mean']:.3f} | {t['dmse_mean']:.4f} | "
                      f"{t['isc_mean']:.4f} | {t['time_ms_median']:.2f} |")
     (outdir / "table.md").write_text("\n".join(lines) + "\n")
+    print_table([{k: t[k] for k in ("method", "n_triplets", "tv_mean", "tv_median", "kl_mean",
+                                    "dmse_mean", "isc_mean", "time_ms_median")}
+                 for t in table if t["graphs"] == "all"],
+                title="exact vs approximate marginals of unseen triplets (all graphs)")
     # does the topology score predict the exact ISC better than Algorithm 2's ISC?
     pred = {}
     reached_ok = [r for r in ok if r["reached"]]
@@ -264,12 +263,8 @@ def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
 
 
 def _figures(outdir, ok, col):
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:  # pragma: no cover
-        return
+    import matplotlib.pyplot as plt
+
     if not ok:
         return
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
@@ -290,8 +285,7 @@ def _figures(outdir, ok, col):
     ax.set_ylabel("fraction of unseen triplets")
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(outdir / "exact_vs_approx.png", dpi=120)
-    plt.close(fig)
+    save_figure(fig, outdir, "exact_vs_approx", dpi=120)
     # topology score against exact and Algorithm 2 ISC (binned medians, quartile bands)
     fig, ax = plt.subplots(figsize=(5, 4))
     x = col(ok, "tsc")
@@ -313,10 +307,17 @@ def _figures(outdir, ok, col):
     ax.set_ylabel("information score (25/50/75 %)")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(outdir / "tsc_vs_isc.png", dpi=120)
-    plt.close(fig)
+    save_figure(fig, outdir, "tsc_vs_isc", dpi=120)
 
 
 STUDY = Study("exact-vs-approx", tasks, run_task, summarize,
               "exact marginals vs Algorithm 2 (both closings), loopy BP (damped or not) and the "
-              "topology score on the propagation study's graphs")
+              "topology score on the propagation study's graphs",
+              params=param_spec(DEFAULTS, n_graphs={"min": 0}, n_landmarks={"min": 4},
+                                n_fc_min={"min": 1}, n_fc_max={"min": 1}, n_candidates={"min": 1},
+                                coverage_rate={"min": 0.0, "max": 1.0}, alpha={"min": 0.0, "max": 1.0},
+                                n_views={"min": 1}, sigma_bearing_deg={"min": 0.0},
+                                sigma_heading_deg={"min": 0.0}, n_bins={"min": 1},
+                                solver={"choices": ("fast", "full", "baseline")},
+                                bp_damping={"min": 0.0, "max": 1.0}, bp_max_iters={"min": 1},
+                                bp_tol={"min": 0.0}))

@@ -33,7 +33,6 @@ Run: ``qfg experiment propagation --preset quick --output results/propagation-qu
 
 from __future__ import annotations
 
-import csv
 import itertools
 import json
 from pathlib import Path
@@ -42,9 +41,9 @@ import numpy as np
 
 from qfg.geometry import bearing, motion_heading, wrap_angle
 from qfg.graph import QualitativeFactorGraph, truth_states
+from qfg.harness.runner import Study, param_spec, print_table, save_figure, validate_params, write_table
 from qfg.metrics import dmse, entropy, gmd, gt_rating
 from qfg.propagation import composition_levels, propagate, topology_scores
-from qfg.harness.runner import Study
 from qfg.simulation import SimulationConfig, sample_positions
 
 DEFAULTS = {
@@ -55,6 +54,13 @@ DEFAULTS = {
     "random_tensor": False,
 }
 
+PARAMS = param_spec(DEFAULTS, n_graphs={"min": 1}, n_landmarks={"min": 4}, n_fc_min={"min": 1},
+                    n_fc_max={"min": 1}, n_candidates={"min": 1},
+                    coverage_rate={"min": 0.0, "max": 1.0}, alpha={"min": 0.0, "max": 1.0},
+                    n_views={"min": 1}, sigma_bearing_deg={"min": 0.0},
+                    sigma_heading_deg={"min": 0.0}, solver={"choices": ("fast", "full", "baseline")},
+                    partition={"choices": ("edc", "fdc", "lr", "tpcc")}, n_bins={"min": 1})
+
 #: Small parameters for the tests (seconds per run, random tensor).
 TEST_PARAMS = {"n_graphs": 4, "n_landmarks": 6, "n_fc_min": 3, "n_fc_max": 8, "n_candidates": 3,
                "random_tensor": True}
@@ -64,10 +70,7 @@ _HEADLINE = ("spearman_tsc_isc", "spearman_cl_isc", "pearson_tsc_isc", "pearson_
 
 def tasks(params: dict) -> list[dict]:
     """One task per graph: the merged parameters (validated) and the graph's index."""
-    unknown = set(params) - set(DEFAULTS)
-    if unknown:
-        raise ValueError(f"params: unknown keys {sorted(unknown)}")
-    p = {**DEFAULTS, **params}
+    p = validate_params(PARAMS, params)
     n_l = int(p["n_landmarks"])
     if n_l < 4:
         raise ValueError(f"n_landmarks: expected >= 4 (a factor needs 4 landmarks), got {n_l}")
@@ -245,10 +248,7 @@ def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
             corr[f"{sname}/pearson_{short}_isc"] = pr
             for b in binned_percentiles(cols[pred][sel], cols["isc"][sel], nb):
                 bins_rows.append({"triplets": sname, "predictor": pred, **b})
-    with open(outdir / "bins.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(bins_rows[0]), lineterminator="\n")
-        w.writeheader()
-        w.writerows(bins_rows)
+    write_table(outdir / "bins.csv", bins_rows, digits=None)
     unseen = ~seen
     reached_u = unseen & (cols["reached"] > 0)
     # why one model beats the other: ISC of reached unseen triplets by (level, TSC with seen = 1);
@@ -287,6 +287,12 @@ def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
         "tensor": _tensor_info(p),
     }
     (outdir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    print_table([{"triplets": s, "predictor": name, "spearman": corr[f"{s}/spearman_{k}_isc"],
+                  "pearson": corr[f"{s}/pearson_{k}_isc"]}
+                 for s in ("unseen", "all") for k, name in (("tsc", "topology score"),
+                                                           ("cl", "composition level"))],
+                title=f"propagation study: {len(graphs)} graphs, {len(rows)} triplets; correlation "
+                      "of each predictor with the information score")
     _figures(outdir, rows, cols, bins_rows, summary, nb)
 
 
@@ -303,12 +309,7 @@ def _tensor_info(p):
 
 
 def _figures(outdir, rows, cols, bins_rows, summary, nb):
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:  # pragma: no cover
-        return
+    import matplotlib.pyplot as plt
 
     def band(ax, triplets, pred, color, label):
         bs = [b for b in bins_rows if b["triplets"] == triplets and b["predictor"] == pred
@@ -325,11 +326,11 @@ def _figures(outdir, rows, cols, bins_rows, summary, nb):
         ax.plot([0, 1], [0, 1], ":", color="grey", lw=0.8)
         ax.set_title(f"{sname} triplets: Spearman {_fmt(c[f'{sname}/spearman_tsc_isc'])}, "
                      f"Pearson {_fmt(c[f'{sname}/pearson_tsc_isc'])}", fontsize=8)
-        ax.set_xlabel("topology score bin")
-    axes[0].set_ylabel("information score (25/50/75 %)")
+        ax.set_xlabel("topology score bin (dimensionless, 0-1)")
+        ax.legend(fontsize=7)
+    axes[0].set_ylabel("information score (25/50/75 %, 0-1)")
     fig.tight_layout()
-    fig.savefig(outdir / "decay_model_correlation.png", dpi=120)
-    plt.close(fig)
+    save_figure(fig, outdir, "decay_model_correlation", dpi=120)
     # the two models side by side (paper fig. comareModels: TSC with seen at 1 vs normalized CL);
     # top row all triplets as in the paper, bottom row unseen triplets only
     fig, axes = plt.subplots(2, 2, figsize=(9, 7), sharey=True)
@@ -342,12 +343,11 @@ def _figures(outdir, rows, cols, bins_rows, summary, nb):
             ax.set_title(f"{sname} triplets, {label}\nSpearman "
                          f"{_fmt(c[f'{sname}/spearman_{short}_isc'])}, Pearson "
                          f"{_fmt(c[f'{sname}/pearson_{short}_isc'])}", fontsize=8)
-            ax.set_xlabel(f"{label} bin")
+            ax.set_xlabel(f"{label} bin (0-1)")
             ax.set_xlim(0, 1)
-        axes[row, 0].set_ylabel(f"information score, {sname} triplets")
+        axes[row, 0].set_ylabel(f"information score, {sname} triplets (0-1)")
     fig.tight_layout()
-    fig.savefig(outdir / "tsc_vs_cl.png", dpi=120)
-    plt.close(fig)
+    save_figure(fig, outdir, "tsc_vs_cl", dpi=120)
     _example_graphs(outdir, rows, nb, plt)
 
 
@@ -395,10 +395,11 @@ def _example_graphs(outdir, rows, nb, plt, n_examples: int = 4):
         ax.hist([r["tsc1"] for r in rs], bins=nb, range=(0, 1), color="C0")
         ax.set_title(f"connectivity score {rs[0]['connectivity']:.3f}", fontsize=8)
         ax.set_xlabel("topology score (seen = 1)")
+        ax.set_ylabel("triplets")
     fig.tight_layout()
-    fig.savefig(outdir / "example_graphs.png", dpi=110)
-    plt.close(fig)
+    save_figure(fig, outdir, "example_graphs", dpi=110)
 
 
 STUDY = Study("propagation", tasks, run_task, summarize,
-              "factor-graph propagation: topology score vs composition level vs ISC (paper 6f)")
+              "factor-graph propagation: topology score vs composition level vs ISC (paper 6f)",
+              params=PARAMS)

@@ -33,8 +33,8 @@ from pathlib import Path
 import numpy as np
 
 from qfg import metrics
+from qfg.harness.runner import Study, param_spec, save_figure, write_table
 from qfg.partitions import get as get_partition
-from qfg.harness.runner import Study, write_table
 from qfg.simulation import random_triplet_history
 from qfg.solvers import solve_triplet
 
@@ -271,8 +271,6 @@ def _band(ax, recs, met, x, method):
 
 
 def figures(figdir: Path, grid: list[dict], params: dict) -> list[Path]:
-    import matplotlib
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     p = _params(params)
@@ -298,9 +296,7 @@ def figures(figdir: Path, grid: list[dict], params: dict) -> list[Path]:
             ax.grid(alpha=0.3)
             ax.legend(fontsize=8)
             fig.tight_layout()
-            path = figdir / f"{met}_vs_noise.png"
-            fig.savefig(path, dpi=120)
-            plt.close(fig)
+            path = save_figure(fig, figdir.parent, f"{met}_vs_noise", dpi=120)
             paths.append(path)
 
     # the paper's Figs. mmResults / azResults: fast variant, one noise source at a time
@@ -323,9 +319,7 @@ def figures(figdir: Path, grid: list[dict], params: dict) -> list[Path]:
             fig.suptitle(f"fast variant: sensitivity to {tag} noise alone (median, 25-75%)",
                          fontsize=10)
             fig.tight_layout()
-            path = figdir / f"fast_{tag}_noise.png"
-            fig.savefig(path, dpi=120)
-            plt.close(fig)
+            path = save_figure(fig, figdir.parent, f"fast_{tag}_noise", dpi=120)
             paths.append(path)
 
     # median DMSE over the whole grid
@@ -347,9 +341,7 @@ def figures(figdir: Path, grid: list[dict], params: dict) -> list[Path]:
                     ax.text(j, i, f"{Z[i, j]:.2f}", ha="center", va="center", fontsize=6,
                             color="w" if Z[i, j] < 0.6 else "k")
         fig.colorbar(im, ax=axes.tolist(), shrink=0.8)
-        path = figdir / "dmse_grid.png"
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
+        path = save_figure(fig, figdir.parent, "dmse_grid", dpi=120)
         paths.append(path)
     return paths
 
@@ -359,8 +351,6 @@ def hypothesis_figure(history, path, *, method: str = "full", seed: int = 0, par
     hypotheses of every view so far (one colour per view, size ~ weight), C hypotheses (red), the
     truth (stars and triangles), the estimate shading the partition. Views are added to a
     :class:`qfg.solvers.TripletSolver`, so each panel is the incremental estimate."""
-    import matplotlib
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     from qfg.harness.plotting import draw_partition
@@ -407,4 +397,9 @@ def hypothesis_figure(history, path, *, method: str = "full", seed: int = 0, par
 
 
 STUDY = Study("single-triplet", tasks, run_task, summarize,
-              "single-triplet solvers vs noise: Table 1 and the figures of section 6c")
+              "single-triplet solvers vs noise: Table 1 and the figures of section 6c",
+              params=param_spec(DEFAULTS, n_scenarios={"min": 1},
+                                sigma_v_deg={"min": 0.0, "nonempty": True},
+                                sigma_w_deg={"min": 0.0, "nonempty": True}, headline={"min": 0.0},
+                                methods={"choices": METHODS, "nonempty": True}, n_views={"min": 1},
+                                partition={"choices": ("edc", "fdc", "lr", "tpcc")}))
