@@ -1,0 +1,99 @@
+"""Reference solver: ESS, time per triplet and calibration on data drawn from its own prior.
+
+``run()`` (the benchmark suite's entry) times 3-view triplets at sigma_v = 2 deg, sigma_w = 5 deg.
+Run as a script for the full table (ESS per noise level and view count, calibration):
+
+    .venv/bin/python -m benchmarks.bench_reference --triplets 40 --views 3 5 10 --seed 7
+
+Calibration: configurations from ``qfg.priors.sample_measurements`` (the solver's own model and
+prior), solved by the reference; a calibrated posterior has ``E[1(top = truth)] = E[p_top]``, so
+``z_top = sum(1(top = truth) - p_top) / sqrt(sum p_top (1 - p_top))`` is about N(0, 1); likewise
+per probability bin over every state (``z_bin``, variance ``sum P_bin (1 - P_bin)`` per triplet,
+P_bin the triplet's total probability in the bin's states).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from qfg import metrics, partitions, priors
+from qfg.solvers._reference import solve_reference
+
+NOISE = ((0.5, 2.0), (2.0, 5.0), (4.0, 10.0))
+BINS = (0.0, 0.05, 0.2, 0.5, 0.8, 0.95, 1.0 + 1e-9)
+
+
+def evaluate(n_views, sb_deg, sh_deg, n_triplets, seed, **options):
+    """Solve ``n_triplets`` triplets drawn from the world prior; per-triplet rows."""
+    part = partitions.get("edc")
+    sb, sh = np.deg2rad(sb_deg), np.deg2rad(sh_deg)
+    rng = np.random.default_rng(seed)
+    phi, psi, conf, _ = priors.sample_measurements("world", rng, n_views, sb, sh, n_triplets)
+    truth = part.state_of(conf[:, 0])
+    rows = []
+    for i in range(n_triplets):
+        t = time.perf_counter()
+        out = solve_reference(phi[i], psi[i], sb, sh, rng=np.random.default_rng([seed, i]),
+                              **options)
+        rows.append({"p": out["landmark"], "truth": int(truth[i]), "ess": out["ess"],
+                     "ess_final": out["ess_rounds"][-1], "err": float(out["mc_error"].max()),
+                     "time": time.perf_counter() - t, "degenerate": out["degenerate"]})
+    return rows
+
+
+def calibration(rows):
+    P = np.array([r["p"] for r in rows])
+    g = np.array([r["truth"] for r in rows])
+    top = P.argmax(axis=1)
+    pt = P.max(axis=1)
+    z_top = float(np.sum((top == g) - pt) / np.sqrt(max(np.sum(pt * (1 - pt)), 1e-12)))
+    onehot = np.arange(P.shape[1])[None, :] == g[:, None]
+    zb = []
+    for lo, hi in zip(BINS[:-1], BINS[1:], strict=True):
+        inb = (P >= lo) & (P < hi)
+        pb = np.sum(P * inb, axis=1)
+        hit = np.sum(onehot & inb, axis=1)
+        var = np.sum(pb * (1 - pb))
+        zb.append(float(np.sum(hit - pb) / np.sqrt(var)) if var > 0 else 0.0)
+    return {"z_top": z_top, "z_bins": zb, "log_score": float(np.mean(metrics.log_score(P, g))),
+            "brier": float(np.mean(metrics.brier(P, g))), "top1": float(np.mean(top == g))}
+
+
+def run():
+    """Benchmark-suite rows: median seconds per 3-view triplet at 2/5 deg (default options)."""
+    rows = evaluate(3, 2.0, 5.0, 10, seed=2024)
+    ts = np.array([r["time"] for r in rows])
+    return [{"name": "reference, single call (3 views, 2/5 deg)", "value": float(np.median(ts)),
+             "unit": "s/triplet", "target": "seconds",
+             "note": f"median of 10, p90 {np.percentile(ts, 90):.1f} s, median ESS "
+                     f"{np.median([r['ess'] for r in rows]):.0f}"}]
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--triplets", type=int, default=40)
+    ap.add_argument("--views", type=int, nargs="+", default=[3, 5, 10])
+    ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument("--n-samples", type=int, default=None)
+    args = ap.parse_args(argv)
+    opts = {} if args.n_samples is None else {"n_samples": args.n_samples}
+    print("| views | sigma_v/sigma_w (deg) | median ESS | 10th pct ESS | ESS<30 | median max MC err "
+          "| median s | z_top | z per bin | log score | Brier | top-1 |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for n in args.views:
+        for sb, sh in NOISE:
+            rows = evaluate(n, sb, sh, args.triplets, args.seed, **opts)
+            ess = np.array([r["ess"] for r in rows])
+            c = calibration(rows)
+            print(f"| {n} | {sb:g}/{sh:g} | {np.median(ess):.0f} | {np.percentile(ess, 10):.0f} "
+                  f"| {np.sum(ess < 30)} | {np.median([r['err'] for r in rows]):.4f} "
+                  f"| {np.median([r['time'] for r in rows]):.1f} | {c['z_top']:+.2f} "
+                  f"| {' '.join(f'{z:+.1f}' for z in c['z_bins'])} | {c['log_score']:.3f} "
+                  f"| {c['brier']:.3f} | {c['top1']:.2f} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
