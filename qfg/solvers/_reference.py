@@ -69,6 +69,9 @@ REFERENCE_DEFAULTS = {
 
 _LOG2PI = np.log(2 * np.pi)
 
+#: Largest noise sigma used (radians); the wrapped normal is uniform beyond it.
+SIGMA_CAP = 10.0
+
 
 # ---------------------------------------------------------------------------------------------
 # densities
@@ -508,6 +511,9 @@ def solve_reference(bearings, headings, sigma_bearing, sigma_heading, partition=
               non_negative("bearing_floor", opts["bearing_floor"]))
     sw = max(non_negative("sigma_heading", sigma_heading),
              non_negative("heading_floor", opts["heading_floor"]))
+    # a wrapped normal with sigma >= 10 rad is uniform to within 2 exp(-50): cap there so that
+    # absurd sigmas (1e285) mean "uninformative" instead of overflowing
+    sv, sw = min(sv, SIGMA_CAP), min(sw, SIGMA_CAP)
     if sv == 0:
         raise ValueError("bearing_floor: must be > 0 when sigma_bearing is 0")
     if h is not None and h.size and sw == 0:
