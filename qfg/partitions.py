@@ -176,9 +176,11 @@ def _disk(cx, cy, r, quad_segs):
 def _edc_lookup(p):
     x, y = p[..., 0], p[..., 1]
     right = x >= 0
-    x2 = x * x
-    near_a = x2 + y * y <= 1.0
-    near_b = x2 + (y - 1.0) ** 2 <= 1.0
+    # A square beyond float64 (|x| > 1e154) is inf, which correctly reads as "far".
+    with np.errstate(over="ignore"):
+        x2 = x * x
+        near_a = x2 + y * y <= 1.0
+        near_b = x2 + (y - 1.0) ** 2 <= 1.0
     band = 3 - ((y >= 0).astype(np.int8) + (y >= 0.5) + (y >= 1.0))
     code = band * 8 + right * 4 + near_a * 2 + near_b
     return _EDC_LUT[code]
@@ -273,7 +275,8 @@ def _tpcc_lookup(p):
     # angle of C - B counter-clockwise from the direction B - A = +y
     theta = np.mod(np.arctan2(-vx, vy), 2.0 * np.pi)
     sector = np.minimum((theta * (4.0 / np.pi)).astype(np.int64), 7)
-    far = (vx * vx + vy * vy) >= 1.0
+    with np.errstate(over="ignore"):  # inf (|v| > 1e154) correctly reads as "far"
+        far = (vx * vx + vy * vy) >= 1.0
     return sector + 8 * far
 
 

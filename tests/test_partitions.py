@@ -158,3 +158,16 @@ def test_state_of_triplet_is_invariant_under_any_power_of_two_scale(seed, expone
         return
     np.testing.assert_array_equal(state_of_triplet(A * scale, B * scale, C * scale),
                                   state_of_triplet(A, B, C))
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_state_of_far_points_at_any_scale(name):
+    # Points beyond |p| ~ 1e154 square to inf: same state as the same direction at a large but
+    # ordinary distance, with no overflow warning (pytest turns RuntimeWarnings into errors).
+    part = partitions.get(name)
+    # directions away from the TPCC sector boundaries (multiples of 45 degrees)
+    d = np.array([[1.0, 0.7], [-1.0, 0.3], [0.2, -1.0], [-0.5, 2.0], [1.7, -1.2]])
+    d /= np.abs(d).max(axis=1, keepdims=True)
+    want = part.state_of(d * 1e6)
+    for scale in (1e160, 1e200, 1e300, 1.7e308):
+        np.testing.assert_array_equal(part.state_of(d * scale), want)
