@@ -1,12 +1,13 @@
 # Quick start on a fresh machine with python3:  make demo   |   make test
 # Each target creates .venv if missing and installs qfg (editable) with what it needs.
+# Outputs go under out/; only the *-update targets rewrite tracked files.
 
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.qfg-installed
 
-.PHONY: demo test lint bench clean
+.PHONY: demo test lint bench bench-update clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -23,8 +24,13 @@ test: $(STAMP)
 lint: $(STAMP)
 	$(BIN)/ruff check .
 
+# results and their page in out/benchmarks; the tracked record is left alone
 bench: $(STAMP)
-	$(BIN)/python -m benchmarks
+	$(BIN)/python -m benchmarks --output out/benchmarks
+
+# the same, recorded: benchmarks/results/*.json and docs/benchmarks.md rewritten
+bench-update: $(STAMP)
+	$(BIN)/python -m benchmarks --update
 
 clean:
-	rm -rf $(VENV) out .pytest_cache .ruff_cache
+	rm -rf $(VENV) out .pytest_cache .ruff_cache build

@@ -1,4 +1,5 @@
-"""Run benchmarks and rebuild docs/benchmarks.md."""
+"""Run benchmarks; results go to out/benchmarks (or --output). Only ``--update`` (``make
+bench-update``) rewrites the recorded results benchmarks/results/*.json and docs/benchmarks.md."""
 
 from __future__ import annotations
 
@@ -38,7 +39,7 @@ def topics() -> list[str]:
                   if m.name.startswith("bench_"))
 
 
-def run_topic(topic: str) -> dict:
+def run_topic(topic: str, results: Path = RESULTS) -> dict:
     mod = importlib.import_module(f"benchmarks.bench_{topic}")
     print(f"== {topic}", flush=True)
     rows = mod.run()
@@ -46,18 +47,18 @@ def run_topic(topic: str) -> dict:
         print(f"   {r['name']}: {r['value']:.4g} {r['unit']}  {r.get('note', '')}", flush=True)
     res = {"topic": topic, "machine": machine(), "rows": rows,
            "command": f"python -m benchmarks {topic}", "doc": (mod.__doc__ or "").strip()}
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / f"{topic}.json").write_text(json.dumps(res, indent=2) + "\n")
+    results.mkdir(parents=True, exist_ok=True)
+    (results / f"{topic}.json").write_text(json.dumps(res, indent=2) + "\n")
     return res
 
 
-def render() -> str:
+def render(results: Path = RESULTS) -> str:
     out = ["# Benchmarks", "",
            "Measured by `python -m benchmarks [topic ...]` (`make bench` runs all). Each section names "
            "the machine and date it was measured on and the command that made it. The machine is "
            "shared and noisy (2 cores): compare ratios within one section rather than absolute "
            "times across sections.", ""]
-    for f in sorted(RESULTS.glob("*.json")):
+    for f in sorted(results.glob("*.json")):
         res = json.loads(f.read_text())
         m = res["machine"]
         out += [f"## {res['topic']}", ""]
@@ -76,16 +77,23 @@ def render() -> str:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__)
     ap.add_argument("topics", nargs="*", help=f"topics (default all): {', '.join(topics())}")
+    ap.add_argument("--output", default="out/benchmarks",
+                    help="directory for the results and their page (default out/benchmarks)")
+    ap.add_argument("--update", action="store_true",
+                    help="record the results in benchmarks/results/ and rebuild docs/benchmarks.md "
+                         "(make bench-update)")
     args = ap.parse_args(argv)
     chosen = args.topics or topics()
     unknown = set(chosen) - set(topics())
     if unknown:
         ap.error(f"unknown topic(s) {sorted(unknown)}; known: {topics()}")
     sys.path.insert(0, str(HERE.parent))
+    results = RESULTS if args.update else Path(args.output)
     for t in chosen:
-        run_topic(t)
-    DOC.write_text(render())
-    print(f"wrote {DOC}")
+        run_topic(t, results)
+    doc = DOC if args.update else results / "benchmarks.md"
+    doc.write_text(render(results))
+    print(f"wrote {doc}")
     return 0
 
 
