@@ -1,6 +1,6 @@
 """Frames and plane geometry, vectorized over leading array dimensions.
 
-Conventions (``../shared/docs/conventions.md``):
+Conventions (``docs/conventions.md``):
 
 * The AB frame is the similarity transform that sends A to (0, 0) and B to (0, 1).
 * A pose is ``(x, y, alpha)``; ``alpha`` is the heading in radians, counter-clockwise from +x.
