@@ -10,7 +10,9 @@ from qfg.harness.studies import get_study
 from qfg.harness.studies import single_triplet as st
 
 TINY = {"n_scenarios": 2, "sigma_v_deg": [0.0, 2.0], "sigma_w_deg": [0.0, 5.0],
-        "headline": [2.0, 5.0]}
+        "headline": [2.0, 5.0], "reference_noise": [[2.0, 5.0]],
+        "options": {"reference": {"n_samples": 1500, "rounds": 1}, "full": {"n_samples": 200}},
+        "views_sweep": [2, 4]}
 
 
 def test_presets_and_tasks():
@@ -30,21 +32,40 @@ def test_presets_and_tasks():
 
 def test_tiny_run(tmp_path):
     rows = runner.run_study(st.STUDY, TINY, tmp_path / "a", seed=3, progress=False)
-    assert len(rows) == 2 * 4 * 3
+    methods = st.DEFAULTS["methods"]
+    main = [r for r in rows if not r["sweep"]]
+    # every combination and method, plus the reference at its one combination
+    assert len(main) == 2 * (4 * len(methods) + 1)
+    assert sum(r["method"] == "reference" for r in main) == 2
+    assert all((r["sigma_v_deg"], r["sigma_w_deg"]) == (2.0, 5.0)
+               for r in main if r["method"] == "reference")
+    sweep = [r for r in rows if r["sweep"]]
+    assert sorted({r["n_views"] for r in sweep}) == [2, 4] and len(sweep) == 2 * 2 * len(methods)
     for r in rows:
         assert r["method"] in st.METHODS
         assert 0 <= r["dmse"] <= np.sqrt(2) + 1e-9 and r["gt_rating"] >= 1
         assert r["time_s"] > 0
+        p = np.array([float(v) for v in r["p"].split()])
+        assert abs(p.sum() - 1) < 1e-4
+        # the scores in a row are those of its probabilities
+        assert abs(r["log_score"] - np.log(max(p[r["gt_state"]], 1e-4))) < 1e-4
+        assert abs(r["brier"] - (np.sum(p**2) - 2 * p[r["gt_state"]] + 1)) < 1e-4
     # the noise grid shares one geometry per scenario
-    by = {(r["scenario"], r["method"]): r["gt_state"] for r in rows}
-    for r in rows:
+    by = {(r["scenario"], r["method"]): r["gt_state"] for r in main}
+    for r in main:
         assert r["gt_state"] == by[(r["scenario"], r["method"])]
     assert (tmp_path / "a" / "table1.md").exists()
     for name in ("dmse_vs_noise", "gmd_vs_noise", "entropy_vs_noise", "gt_rating_vs_noise",
-                 "fast_motion_noise", "fast_measurement_noise", "dmse_grid"):
-        assert (tmp_path / "a" / "figures" / f"{name}.png").exists()
+                 "fast_motion_noise", "fast_measurement_noise", "dmse_grid", "views_sweep",
+                 *(f"reliability_{m}" for m in methods + ["reference"])):
+        assert (tmp_path / "a" / "figures" / f"{name}.png").exists(), name
+    for name in ("scores.md", "views.md", "views.csv"):
+        assert (tmp_path / "a" / name).exists()
     summary = json.loads((tmp_path / "a" / "summary.json").read_text())
-    assert set(summary["headline_dmse_p50"]) == set(st.METHODS)
+    assert set(summary["headline_dmse_p50"]) == set(methods) | {"reference"}
+    b = summary["calibration_bound"]
+    assert b["n"] == 2 and 0 <= b["median_entropy_5e-3"]["bound"] <= 1 / 0.9
+    assert {v["n_views"] for v in summary["views"]} == {2, 4}
     # same seed, same rows (timings excluded), whatever the worker count
     runner.run_study(st.STUDY, TINY, tmp_path / "b", seed=3, workers=2, progress=False)
     a = list(csv.DictReader(open(tmp_path / "a" / "rows.csv")))

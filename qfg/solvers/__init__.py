@@ -9,7 +9,9 @@ One entry point, :func:`solve_triplet`, with these methods (paper section 4, Tab
 * ``"fast-paper"``: the paper's faster variant taken literally, measured bearings and headings
   taken as exact and samples representing only the prior (:mod:`._fast`);
 * ``"baseline"``: the same Bayesian model without motion factors, views independent
-  (:mod:`._baseline`).
+  (:mod:`._baseline`);
+* ``"reference"``: the exact posterior by adaptive importance sampling with its Monte Carlo error
+  (:mod:`._reference`, seconds per triplet): the yardstick the others are measured against.
 
 Every method takes ``prior=`` (a name or a :class:`qfg.priors.Prior`; default ``"world"``, the
 exact prior of the simulator's world).
@@ -43,10 +45,11 @@ __all__ = ["solve_triplet", "solve_triplets", "TripletSolver", "TripletEstimate"
 
 
 def _model(method, meas):
-    """The model actually solved: without headings the motion factors are absent."""
+    """The model actually solved: without headings the motion factors are absent (the
+    reference solver handles that case itself)."""
     if method not in METHODS:
         raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
-    if method != "baseline" and meas.headings is None and meas.n_views > 1:
+    if method not in ("baseline", "reference") and meas.headings is None and meas.n_views > 1:
         return "baseline"
     return method
 
@@ -107,6 +110,8 @@ _SIS = ("full", "fast")
 def _solve(model, meas, part, opts, root):
     """(estimate, hypotheses) of one triplet: the same start/step/finish path as
     :class:`TripletSolver`, so that incremental and batch solves agree exactly."""
+    if model == "reference":
+        return _reference_estimate(meas, part, opts, root), None
     solver = TripletSolver._from_parts(model, part, opts, root, meas.sigma_bearing,
                                        meas.sigma_heading)
     for i in range(meas.n_views):
@@ -124,6 +129,25 @@ def _solve_fast_batch(metas, part, opts):
     for i in range(1, n):
         st = _fast.step(st, b[:, i], np.array([m.headings[i - 1] for m in metas]))
     return [e for e, _ in _fast.finish(st)]
+
+
+def _reference_estimate(meas, part, opts, root) -> TripletEstimate:
+    """``method="reference"``: :func:`qfg.solvers._reference.solve_reference` as an estimate
+    (``mc_error`` the largest standard error of the landmark probabilities)."""
+    from ._reference import solve_reference
+
+    o = {k: v for k, v in opts.items() if k != "prior"}
+    out = solve_reference(meas.bearings, meas.headings, meas.sigma_bearing, meas.sigma_heading,
+                          part, opts["prior"], np.random.default_rng(root), **o)
+    reasons = [out["reason"]] if out["degenerate"] and out["reason"] else (
+        ["reference solver flagged the answer"] if out["degenerate"] else [])
+    return TripletEstimate(
+        landmark=np.asarray(out["landmark"], dtype=float),
+        cameras=np.asarray(out["cameras"], dtype=float), n_hypotheses=int(out["n_samples"]),
+        degenerate=bool(out["degenerate"]), reason="; ".join(reasons), method="reference",
+        partition=part.name, n_views=meas.n_views, ess=float(out["ess"]),
+        mc_error=float(np.max(out["mc_error"])), prior=C.prior_name(opts),
+        options=C.public_options(opts))
 
 
 def _solve_sis_batch(model, metas, roots, part, opts):
@@ -317,7 +341,13 @@ class TripletSolver:
                                  "previous view")
             heading = float(C.check_headings([heading], 2)[0])
         part, opts = self.partition, self.options
-        if self.method in _SIS:
+        if self.method == "reference":
+            # solved from scratch at estimate(): keep the measurements
+            b = phi[None, :] if first else np.vstack([self._state.bearings, phi])
+            h = None if first or heading is None else np.append(
+                self._state.headings if self._state.headings is not None else [], heading)
+            self._state = C.Measurements(b, h, self._sb, self._sh)
+        elif self.method in _SIS:
             if first:
                 self._state = _sis.start(phi[None, :], np.array([self._sb]), np.array([self._sh]),
                                          (self._root,), opts, part, self.method)
@@ -342,7 +372,10 @@ class TripletSolver:
         if self._state is None:
             raise ValueError("bearings: no view added yet (call add_view first)")
         if self._cache is None:
-            if self.method in _SIS:
+            if self.method == "reference":
+                self._cache = (_reference_estimate(self._state, self.partition, self.options,
+                                                   self._root), None)
+            elif self.method in _SIS:
                 self._cache = _sis.finish(self._state, hypotheses=True)[0]
             elif self.method == "fast-paper":
                 self._cache = _fast.finish(self._state, hypotheses=True)[0]
@@ -355,8 +388,12 @@ class TripletSolver:
         return self._finish()[0]
 
     def hypotheses(self) -> C.Hypotheses:
-        """The weighted hypotheses behind :meth:`estimate` (:class:`Hypotheses`)."""
-        return self._finish()[1]
+        """The weighted hypotheses behind :meth:`estimate` (:class:`Hypotheses`); ValueError for
+        ``method="reference"``, which keeps none."""
+        hyp = self._finish()[1]
+        if hyp is None:
+            raise ValueError("method: the reference solver keeps no hypotheses")
+        return hyp
 
     def __repr__(self) -> str:
         return (f"TripletSolver(method={self.method!r}, partition={self.partition.name!r}, "

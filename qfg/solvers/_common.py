@@ -16,7 +16,7 @@ from .._validate import as_float_array, non_negative, positive_int
 from ..geometry import LOCUS_EPS, heading_on_locus, locus_point, triangulate_lsq, wrap_angle
 
 #: Methods :func:`qfg.solvers.solve_triplet` knows.
-METHODS = ("full", "fast", "fast-paper", "baseline")
+METHODS = ("full", "fast", "fast-paper", "baseline", "reference")
 
 #: Prior names the solvers accept (besides any :class:`qfg.priors.Prior` object): see
 #: :func:`qfg.priors.get`. ``"world"`` (default) is the exact prior of the simulator's world.
@@ -144,6 +144,7 @@ DEFAULTS = {
         "n_samples": 600,            # first-view camera samples per triplet (x motion_samples
                                      # when both sigmas are 0)
         "motion_samples": 8,         # noise draws per hypothesis and view (motion step)
+        "motion_spread": 1.0,        # noise drawn this many times wider (weights corrected)
         "max_hypotheses": 3000,      # cap after pruning (systematic resampling down to it)
         "prune_ratio": 1e-6,         # drop hypotheses lighter than this x the heaviest
         "landmark_samples": 4,       # C samples per trajectory (intermediate and final weights)
@@ -156,6 +157,7 @@ DEFAULTS = {
     "fast": {
         "n_samples": 64,
         "motion_samples": 4,
+        "motion_spread": 1.0,
         "max_hypotheses": 256,
         "prune_ratio": 1e-6,
         "landmark_samples": 2,
@@ -189,11 +191,19 @@ DEFAULTS = {
 }
 
 
+def reference_defaults() -> dict:
+    """Options of ``method="reference"`` (:data:`qfg.solvers._reference.REFERENCE_DEFAULTS` and
+    the prior)."""
+    from ._reference import REFERENCE_DEFAULTS
+
+    return dict(REFERENCE_DEFAULTS, prior="world")
+
+
 def resolve_options(method: str, options: dict) -> dict:
     """Defaults of ``method`` updated with ``options``; unknown or bad options raise ValueError."""
     if method not in METHODS:
         raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
-    opts = dict(DEFAULTS[method])
+    opts = dict(DEFAULTS[method]) if method != "reference" else reference_defaults()
     unknown = sorted(set(options) - set(opts))
     if unknown:
         raise ValueError(f"{unknown[0]}: not an option of method {method!r}; "
@@ -208,6 +218,11 @@ def resolve_options(method: str, options: dict) -> dict:
             opts[k] = positive_int(k, opts[k])
     if "refine_levels" in opts:
         opts["refine_levels"] = positive_int("refine_levels", opts["refine_levels"], minimum=0)
+    if "motion_spread" in opts:
+        ms = non_negative("motion_spread", opts["motion_spread"])
+        if ms < 1:
+            raise ValueError(f"motion_spread: expected a number >= 1, got {ms}")
+        opts["motion_spread"] = ms
     for k in ("bearing_floor", "heading_floor", "match_sigmas", "jacobian_cap"):
         if k in opts:
             opts[k] = non_negative(k, opts[k])
@@ -315,6 +330,7 @@ def get_partition(partition):
 
 #: spawn-key purposes
 STREAM_CAMERAS, STREAM_RESAMPLE, STREAM_ONE_VIEW, STREAM_LANDMARKS, STREAM_POSTERIOR = 0, 1, 2, 3, 4
+STREAM_RETRY = 5
 
 
 def root_seed(seed) -> np.random.SeedSequence:
@@ -376,8 +392,19 @@ def log_landmark_volume(cameras, L, sigma) -> np.ndarray:
     return np.minimum(lv, LOG_VOLUME_CAP)
 
 
+#: Quadrature points in rho of the world prior when the solvers are given its name (the prior
+#: object's default is 128): the log density then differs by at most ~0.02 between
+#: configurations (``tests/test_solvers.py``), far below the solvers' Monte Carlo error, at a
+#: quarter of the cost.
+SOLVER_N_RHO = 32
+
+
 def resolve_prior(prior) -> "_priors.Prior":
-    """A :class:`qfg.priors.Prior` from a name or a Prior (ValueError naming ``prior``)."""
+    """A :class:`qfg.priors.Prior` from a name or a Prior (ValueError naming ``prior``); the name
+    ``"world"`` gives the exact world-box prior with :data:`SOLVER_N_RHO` quadrature points. A
+    Prior object is used as given."""
+    if isinstance(prior, str) and prior == "world":
+        return _priors.WorldBoxPrior(n_rho=SOLVER_N_RHO)
     return _priors.get(prior)
 
 
@@ -774,7 +801,8 @@ DEPTH_SPREAD = 0.5
 def geometry_reasons(bearings, sigma_bearing=0.0) -> list[str]:
     """Flags from the measurements alone: cameras on (or within the bearing noise of) line AB."""
     g = wrap_angle(bearings[:, 1] - bearings[:, 0])
-    tol = max(LOCUS_EPS, float(np.sin(min(float(sigma_bearing), np.pi / 2))))
+    # within a tenth of the bearing noise: the arc is then not known to be finite
+    tol = max(LOCUS_EPS, float(np.sin(min(0.1 * float(sigma_bearing), np.pi / 2))))
     bad = [int(i) for i in np.flatnonzero(np.abs(np.sin(g)) < tol)]
     if not bad:
         return []

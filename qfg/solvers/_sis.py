@@ -189,7 +189,8 @@ def _prune(st: SISState, view: int) -> SISState:
         # every survivor of an over-full triplet carries the mean weight, the total is unchanged
         mx = _segment_max(st.tid, total, T)
         w = np.exp(total - np.where(np.isfinite(mx), mx, 0.0)[st.tid])
-        mean_log = mx + np.log(np.bincount(st.tid, weights=w, minlength=T) / cap)
+        with np.errstate(divide="ignore"):
+            mean_log = mx + np.log(np.bincount(st.tid, weights=w, minlength=T) / cap)
         idx = np.concatenate([keep_under, idx_over])
         idx = idx[np.argsort(st.tid[idx], kind="stable")]
         new = _take(st, idx)
@@ -237,9 +238,57 @@ def start(bearings0, sigma_bearing, sigma_heading, roots, opts, part, method) ->
 
 
 def step(state: SISState, phi, psi) -> SISState:
-    """Add one view to T triplets: ``phi`` (T, 3), ``psi`` (T,)."""
+    """Add one view to T triplets: ``phi`` (T, 3), ``psi`` (T,). A triplet whose hypotheses
+    all die (every ray misses its locus arc) is proposed again with the noise drawn
+    ``RETRY_SPREAD`` times wider (importance-weighted), before it is given up."""
     phi = np.asarray(phi, dtype=float).reshape(-1, 3)
     psi = np.asarray(psi, dtype=float).reshape(-1)
+    T, i = state.n_triplets, state.n_views
+    st = _extend(state, phi, psi, state.opts["motion_spread"], C.STREAM_CAMERAS)
+    alive = np.bincount(st.tid, minlength=T) > 0
+    retry = ~alive & (state.lost == 0)
+    if np.any(retry):
+        sub = _extend(_subset(state, retry), phi[retry], psi[retry], RETRY_SPREAD,
+                      C.STREAM_RETRY)
+        st = _merge(st, sub, np.flatnonzero(retry))
+        alive = np.bincount(st.tid, minlength=T) > 0
+    return replace(st, lost=np.where((state.lost == 0) & ~alive, i + 1, state.lost))
+
+
+#: Noise spread of the second proposal for a triplet that lost every hypothesis.
+RETRY_SPREAD = 4.0
+
+
+def _subset(st: SISState, mask) -> SISState:
+    """The triplets ``mask`` (T,) of a state, renumbered."""
+    rows = np.flatnonzero(mask[st.tid])
+    new_id = np.cumsum(mask) - 1
+    return replace(st, bearings=st.bearings[mask], headings=st.headings[mask],
+                   sigma_bearing=st.sigma_bearing[mask], sigma_heading=st.sigma_heading[mask],
+                   roots=tuple(r for r, m in zip(st.roots, mask) if m), tid=new_id[st.tid[rows]],
+                   poses=st.poses[rows], lw_base=st.lw_base[rows], lp_x=st.lp_x[rows],
+                   lw_c=st.lw_c[rows], same_pose=st.same_pose[mask], lost=st.lost[mask])
+
+
+def _merge(st: SISState, sub: SISState, where) -> SISState:
+    """``st`` with the hypotheses of triplets ``where`` replaced by those of ``sub``."""
+    keep = ~np.isin(st.tid, where)
+    tid = np.concatenate([st.tid[keep], where[sub.tid]])
+    order = np.argsort(tid, kind="stable")
+
+    def cat(a, b):
+        return np.concatenate([a[keep], b])[order]
+
+    return replace(st, tid=tid[order], poses=cat(st.poses, sub.poses),
+                   lw_base=cat(st.lw_base, sub.lw_base), lp_x=cat(st.lp_x, sub.lp_x),
+                   lw_c=cat(st.lw_c, sub.lw_c))
+
+
+def _extend(state: SISState, phi, psi, spread: float, purpose: int) -> SISState:
+    """The motion step and the intermediate C weights for one more view. The heading and A/B
+    bearing noise is drawn ``spread`` times wider than the model's (weights corrected by the
+    likelihood over the proposal density), which keeps hypotheses alive when the kept ones are
+    slightly off."""
     opts, T, i = state.opts, state.n_triplets, state.n_views
     bearings = np.concatenate([state.bearings, phi[:, None, :]], axis=1)
     headings = np.concatenate([state.headings, psi[:, None]], axis=1)
@@ -252,20 +301,24 @@ def step(state: SISState, phi, psi) -> SISState:
     def draw(rng, m):
         return (rng.standard_normal((m, 3)),)
 
-    (z,) = _per_triplet(state.roots, i, C.STREAM_CAMERAS, counts, draw)
+    (z,) = _per_triplet(state.roots, i, purpose, counts, draw)
     par = np.repeat(np.arange(tid.size), r[tid])
     ct = tid[par]
     sb, sh = state.sigma_bearing[ct], state.sigma_heading[ct]
-    th = prev[par, 2] + psi[ct] + sh * z[:, 0]
-    pa = phi[ct, 0] + sb * z[:, 1]
-    pb = phi[ct, 1] + sb * z[:, 2]
+    th = prev[par, 2] + psi[ct] + spread * sh * z[:, 0]
+    pa = phi[ct, 0] + spread * sb * z[:, 1]
+    pb = phi[ct, 1] + spread * sb * z[:, 2]
+    # likelihood over proposal of the drawn noise: N(x; s) / N(x; spread s) per drawn component
+    noisy = np.stack([sh, sb, sb], axis=1) > 0
+    lcorr = np.sum(np.where(noisy, -0.5 * z * z * (spread * spread - 1.0) + np.log(spread), 0.0),
+                   axis=1)
     circ = locus_circle(pa, pb)
     pts, valid = ray_circle_intersection(prev[par, :2], th, circ.center, circ.radius, circ.side)
     j, b = np.nonzero(valid)
     X = pts[j, b]
     lpx = C.point_log_prior(opts["prior"], X)
     lw = state.lw_base[par[j]] + C.log_ray_jacobian(X, prev[par[j], :2], th[j]) + lpx \
-        - np.log(r[ct[j]])
+        + lcorr[j] - np.log(r[ct[j]])
     alpha = wrap_angle(np.arctan2(-X[:, 1], -X[:, 0]) - pa[j])
     new_pose = np.concatenate([X, alpha[:, None]], axis=-1)
     # same-pose triplets: the one child is the parent's pose again, weight unchanged
@@ -287,9 +340,7 @@ def step(state: SISState, phi, psi) -> SISState:
                  same_pose=np.concatenate([state.same_pose, same[:, None]], axis=1))
     if ntid.size:
         st = replace(st, lw_c=_log_intermediate_c(st, ntid, poses, bearings[..., 2], i))
-    st = _prune(st, i)
-    alive = np.bincount(st.tid, minlength=T) > 0
-    return replace(st, lost=np.where((state.lost == 0) & ~alive, i + 1, state.lost))
+    return _prune(st, i)
 
 
 def finish(state: SISState, hypotheses: bool = False):

@@ -38,19 +38,26 @@ from qfg.partitions import get as get_partition
 from qfg.simulation import random_triplet_history
 from qfg.solvers import solve_triplet
 
-METHODS = ("full", "fast", "baseline")
-METRICS = ("dmse", "gt_rating", "gmd", "gt_likelihood", "gt_likelihood_ratio", "entropy",
-           "likelihood_ratio", "information_score")
+METHODS = ("full", "fast", "fast-paper", "baseline", "reference")
+METRICS = ("dmse", "gt_rating", "gmd", "gt_likelihood", "gt_likelihood_ratio", "log_score",
+           "brier", "entropy", "likelihood_ratio", "information_score")
 
 DEFAULTS = {
     "n_scenarios": 300,
     "sigma_v_deg": [0.0, 1.0, 2.0, 4.0, 7.0, 10.0],
     "sigma_w_deg": [0.0, 2.0, 5.0, 10.0, 14.0, 20.0],
     "headline": [2.0, 5.0],
-    "methods": list(METHODS),
+    "methods": ["full", "fast", "fast-paper", "baseline"],
     "n_views": 3,
     "partition": "edc",
     "options": {},          # per-method solver options, e.g. {"full": {"n_samples": 300}}
+    # the exact-posterior reference solver (seconds per triplet): only at these [sigma_v,
+    # sigma_w] combinations, for the first reference_scenarios scenarios (0: all)
+    "reference_noise": [],
+    "reference_scenarios": 0,
+    # views sweep: at the headline noise, every method of ``methods`` also solves the first k
+    # views of a geometry with views_max views, for every k listed
+    "views_sweep": [],
 }
 
 #: The paper's Table 1 (EDC, sigma_v = 2 deg, sigma_w = 5 deg): 25th, 50th, 75th percentiles.
@@ -72,6 +79,12 @@ def _params(params: dict) -> dict:
     bad = [m for m in p["methods"] if m not in METHODS]
     if bad:
         raise ValueError(f"methods: unknown {bad}; known: {list(METHODS)}")
+    for c in p["reference_noise"]:
+        if len(c) != 2 or min(c) < 0:
+            raise ValueError(f"reference_noise: expected [sigma_v_deg, sigma_w_deg] pairs >= 0, "
+                             f"got {c!r}")
+    if any(int(k) < 1 for k in p["views_sweep"]):
+        raise ValueError(f"views_sweep: expected view counts >= 1, got {p['views_sweep']!r}")
     return p
 
 
@@ -79,9 +92,44 @@ def tasks(params: dict) -> list[dict]:
     """One task per geometry; each runs every noise combination and method."""
     p = _params(params)
     grid = [[float(sv), float(sw)] for sv in p["sigma_v_deg"] for sw in p["sigma_w_deg"]]
+    nref = int(p["reference_scenarios"]) or int(p["n_scenarios"])
     return [{"scenario": i, "grid": grid, "methods": list(p["methods"]),
              "n_views": int(p["n_views"]), "partition": p["partition"],
-             "options": p["options"]} for i in range(int(p["n_scenarios"]))]
+             "options": p["options"],
+             "reference_noise": [[float(a), float(b)] for a, b in p["reference_noise"]]
+             if i < nref else [],
+             "views_sweep": sorted(int(k) for k in p["views_sweep"]),
+             "headline": [float(v) for v in p["headline"]]}
+            for i in range(int(p["n_scenarios"]))]
+
+
+def _row(h, est, method, sv, sw, part, dt, n_views, sweep=False) -> dict:
+    g, gc = h.truth.state, h.truth.camera_states
+    row = {"sigma_v_deg": sv, "sigma_w_deg": sw, "method": method, "n_views": n_views,
+           "sweep": sweep, "gt_state": int(g), "map_state": int(np.argmax(est.landmark)),
+           "p_max": float(est.landmark.max()),
+           "c_in_window": bool(part.in_window(h.truth.C_ab))}
+    vals = metrics.evaluate(est.landmark, g, part.centroids)
+    row.update({name: (int(v) if name == "gt_rating" else float(v))
+                for name, v in vals.items() if name != "truth_under_1pct"})
+    row["camera_top1"] = float(np.mean(metrics.gt_rating(est.cameras, gc[:n_views]) == 1))
+    row["camera_dmse"] = float(np.mean(metrics.dmse(est.cameras, gc[:n_views])))
+    row["n_hypotheses"] = int(est.n_hypotheses)
+    row["ess"] = float(est.ess)
+    row["mc_error"] = float(est.mc_error)
+    row["degenerate"] = bool(est.degenerate)
+    row["reason"] = est.reason
+    row["model"] = est.method
+    row["time_s"] = dt
+    # the probabilities themselves, for reliability tables and the calibration bound
+    row["p"] = " ".join(f"{v:.6g}" for v in est.landmark)
+    return row
+
+
+def _solve(h, method, part, seed, opts):
+    t0 = time.perf_counter()
+    est = solve_triplet(h, method=method, partition=part, seed=seed, **opts)
+    return est, time.perf_counter() - t0
 
 
 def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
@@ -89,32 +137,52 @@ def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
     # one geometry (and one set of standard-normal noise draws) for every combination
     geometry_seed = int(rng.integers(2**63))
     solver_root = np.random.SeedSequence(int(rng.integers(2**63)))
+    n = task["n_views"]
+    refs = {tuple(c) for c in task.get("reference_noise", [])}
     rows = []
     for c, (sv, sw) in enumerate(task["grid"]):
-        h = random_triplet_history(np.random.default_rng(geometry_seed), task["n_views"],
+        h = random_triplet_history(np.random.default_rng(geometry_seed), n,
                                    np.deg2rad(sv), np.deg2rad(sw), partition=part)
-        g, gc = h.truth.state, h.truth.camera_states
-        for k, method in enumerate(task["methods"]):
+        methods = list(task["methods"]) + (["reference"] if (sv, sw) in refs
+                                           and "reference" not in task["methods"] else [])
+        for method in methods:
+            if method == "reference" and (sv, sw) not in refs:
+                continue
             opts = task["options"].get(method, {})
-            seed = np.random.SeedSequence(solver_root.entropy, spawn_key=(c, k))
-            t0 = time.perf_counter()
-            est = solve_triplet(h, method=method, partition=part, seed=seed, **opts)
-            dt = time.perf_counter() - t0
-            row = {"sigma_v_deg": sv, "sigma_w_deg": sw, "method": method,
-                   "gt_state": int(g), "map_state": int(np.argmax(est.landmark)),
-                   "p_max": float(est.landmark.max()),
-                   "c_in_window": bool(part.in_window(h.truth.C_ab))}
-            vals = metrics.evaluate(est.landmark, g, part.centroids)
-            row.update({name: (int(v) if name == "gt_rating" else float(v))
-                        for name, v in vals.items()})
-            row["camera_top1"] = float(np.mean(metrics.gt_rating(est.cameras, gc) == 1))
-            row["camera_dmse"] = float(np.mean(metrics.dmse(est.cameras, gc)))
-            row["n_hypotheses"] = int(est.n_hypotheses)
-            row["degenerate"] = bool(est.degenerate)
-            row["model"] = est.method
-            row["time_s"] = dt
-            rows.append(row)
+            seed = np.random.SeedSequence(solver_root.entropy,
+                                          spawn_key=(c, METHODS.index(method)))
+            est, dt = _solve(h, method, part, seed, opts)
+            rows.append(_row(h, est, method, sv, sw, part, dt, n))
+    sweep = task.get("views_sweep", [])
+    if sweep:
+        # one geometry with max(sweep) views at the headline noise; the first k views of it
+        sv, sw = task["headline"]
+        kmax = max(sweep)
+        hmax = random_triplet_history(np.random.default_rng(geometry_seed + 1), kmax,
+                                      np.deg2rad(sv), np.deg2rad(sw), partition=part)
+        for k in sweep:
+            h = _first_views(hmax, k)
+            for method in task["methods"]:
+                if method == "reference":
+                    continue
+                opts = task["options"].get(method, {})
+                seed = np.random.SeedSequence(solver_root.entropy,
+                                              spawn_key=(1000 + k, METHODS.index(method)))
+                est, dt = _solve(h, method, part, seed, opts)
+                rows.append(_row(h, est, method, sv, sw, part, dt, k, sweep=True))
     return rows
+
+
+def _first_views(h, k):
+    """The history of the first k views of ``h`` (the same geometry and noise draws)."""
+    from dataclasses import replace
+
+    truth = replace(h.truth, poses_ab=h.truth.poses_ab[:k], poses_world=h.truth.poses_world[:k],
+                    camera_states=h.truth.camera_states[:k])
+    kw = {}
+    if getattr(h, "views", None) is not None:
+        kw["views"] = h.views[:k]
+    return replace(h, bearings=h.bearings[:k], headings=h.headings[:k - 1], truth=truth, **kw)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -128,6 +196,7 @@ def _q(v):
 
 def grid_table(rows: list[dict]) -> list[dict]:
     """Per (sigma_v, sigma_w, method): n and the 25/50/75th percentiles of every metric."""
+    rows = [r for r in rows if not r.get("sweep")]
     keys = sorted({(r["sigma_v_deg"], r["sigma_w_deg"], r["method"]) for r in rows},
                   key=lambda k: (k[0], k[1], METHODS.index(k[2])))
     by = {}
@@ -143,9 +212,32 @@ def grid_table(rows: list[dict]) -> list[dict]:
             q = _q([r[met] for r in sub])
             rec.update({f"{met}_p25": q[0], f"{met}_p50": q[1], f"{met}_p75": q[2]})
         rec["top1"] = float(np.mean([r["gt_rating"] == 1 for r in sub]))
+        rec.update(_scores(sub))
         rec["degenerate"] = int(sum(r["degenerate"] for r in sub))
         out.append(rec)
     return out
+
+
+def _scores(sub: list[dict]) -> dict:
+    """Proper scores and calibration of a set of rows: mean log p(truth) (clipped at 1e-4) with
+    its standard error, mean Brier score, how often a state given more than 0.9 is wrong, the
+    mean top probability, and the expected calibration error of the top state (10 bins)."""
+    ls = np.array([r["log_score"] for r in sub])
+    out = {"log_score_mean": float(ls.mean()),
+           "log_score_se": float(ls.std(ddof=1) / np.sqrt(ls.size)) if ls.size > 1 else 0.0,
+           "brier_mean": float(np.mean([r["brier"] for r in sub])),
+           "confidently_wrong": float(np.mean([r["p_max"] > 0.9 and r["map_state"] != r["gt_state"]
+                                               for r in sub])),
+           "p_max_mean": float(np.mean([r["p_max"] for r in sub]))}
+    if all("p" in r for r in sub):
+        P, g = _probs(sub)
+        out["ece_top"] = metrics.expected_calibration_error(P, g, 10, "top")
+    return out
+
+
+def _probs(sub):
+    P = np.array([[float(v) for v in r["p"].split()] for r in sub])
+    return P, np.array([int(r["gt_state"]) for r in sub])
 
 
 def _write_csv(path: Path, recs: list[dict]) -> None:
@@ -161,90 +253,249 @@ def _fmt(x):
 
 
 def table1(grid: list[dict], headline) -> tuple[list[dict], str]:
-    """Table 1: percentiles at the headline combination, ours next to the paper's."""
+    """Table 1: percentiles at the headline combination, ours next to the paper's (the paper has
+    full, fast and baseline; fast-paper and reference have no paper column)."""
     sv, sw = headline
-    recs, lines = [], []
-    lines.append("| metric (p25, p50, p75) | " + " | ".join(
-        f"{m} (ours) | {m} (paper)" for m in METHODS) + " |")
-    lines.append("|---|" + "---|---|" * len(METHODS))
     cells = {m: next((r for r in grid if r["sigma_v_deg"] == sv and r["sigma_w_deg"] == sw
                       and r["method"] == m), None) for m in METHODS}
+    methods = [m for m in METHODS if cells[m]]
+    recs, lines = [], []
+    head = []
+    for m in methods:
+        head += [f"{m} (ours)"] + ([f"{m} (paper)"] if m in PAPER_TABLE1 else [])
+    lines.append("| metric (p25, p50, p75) | " + " | ".join(head) + " |")
+    lines.append("|---|" + "---|" * len(head))
     for met, label in (("dmse", "DMSE"), ("gmd", "gmd"), ("entropy", "entropy"),
                        ("gt_rating", "GT rating")):
         row = [label]
-        for m in METHODS:
+        for m in methods:
             r = cells[m]
-            ours = ", ".join(_fmt(r[f"{met}_p{p}"]) for p in (25, 50, 75)) if r else "-"
-            paper = PAPER_TABLE1[m].get(met)
-            row += [ours, ", ".join(_fmt(v) for v in paper) if paper else "-"]
-            if r:
-                recs.append({"metric": met, "method": m, "p25": r[f"{met}_p25"],
-                             "p50": r[f"{met}_p50"], "p75": r[f"{met}_p75"],
-                             "paper": list(paper) if paper else None})
+            row.append(", ".join(_fmt(r[f"{met}_p{p}"]) for p in (25, 50, 75)))
+            paper = PAPER_TABLE1.get(m, {}).get(met)
+            if m in PAPER_TABLE1:
+                row.append(", ".join(_fmt(v) for v in paper) if paper else "-")
+            recs.append({"metric": met, "method": m, "p25": r[f"{met}_p25"],
+                         "p50": r[f"{met}_p50"], "p75": r[f"{met}_p75"],
+                         "paper": list(paper) if paper else None})
         lines.append("| " + " | ".join(row) + " |")
     row = ["time per triplet (median)"]
-    for m in METHODS:
+    for m in methods:
         r = cells[m]
-        row += [f"{r['time_s_p50'] * 1e3:.1f} ms" if r else "-",
-                f"{PAPER_TABLE1[m]['time_s']:g} s (MATLAB)"]
-        if r:
-            recs.append({"metric": "time_s", "method": m, "p25": r["time_s_p25"],
-                         "p50": r["time_s_p50"], "p75": r["time_s_p75"],
-                         "paper": PAPER_TABLE1[m]["time_s"]})
+        row.append(f"{r['time_s_p50'] * 1e3:.1f} ms")
+        if m in PAPER_TABLE1:
+            row.append(f"{PAPER_TABLE1[m]['time_s']:g} s (MATLAB)")
+        recs.append({"metric": "time_s", "method": m, "p25": r["time_s_p25"],
+                     "p50": r["time_s_p50"], "p75": r["time_s_p75"],
+                     "paper": PAPER_TABLE1.get(m, {}).get("time_s")})
     lines.append("| " + " | ".join(row) + " |")
-    n = next((r["n"] for r in cells.values() if r), 0)
+    n = next((cells[m]["n"] for m in methods), 0)
     head = (f"sigma_v = {sv:g} deg, sigma_w = {sw:g} deg, {n} scenarios per method; "
             "percentiles 25, 50, 75.")
     return recs, head + "\n\n" + "\n".join(lines) + "\n"
 
 
+def scores_table(grid: list[dict], combos) -> str:
+    """Markdown: proper scores and calibration per combination and method."""
+    lines = ["| sigma_v/sigma_w (deg) | method | n | mean log p(truth) | mean Brier | top-1 | "
+             "confidently wrong | mean p_max | ECE (top) | median DMSE | median entropy |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for sv, sw in combos:
+        for r in grid:
+            if r["sigma_v_deg"] == sv and r["sigma_w_deg"] == sw:
+                lines.append(
+                    f"| {sv:g}/{sw:g} | {r['method']} | {r['n']} | {r['log_score_mean']:.3f} "
+                    f"+- {r['log_score_se']:.3f} | {r['brier_mean']:.3f} | {r['top1']:.3f} | "
+                    f"{r['confidently_wrong']:.3f} | {r['p_max_mean']:.3f} | "
+                    f"{r.get('ece_top', float('nan')):.3f} | {r['dmse_p50']:.3f} | "
+                    f"{r['entropy_p50']:.3g} |")
+    return "\n".join(lines) + "\n"
+
+
+def calibration_bound(rows: list[dict], headline) -> dict | None:
+    """How often a calibrated forecaster can be nearly certain, from the reference rows at the
+    headline. A calibrated forecast F is the conditional expectation of the exact posterior P
+    given F (tower property: F = E[1{truth} | F] = E[P | F]). Where F's top state has
+    probability > 1 - eps, E[1 - P_s | F] < eps, so (Markov) P_s >= 1 - delta except with
+    probability eps / delta there:
+
+        Pr(F_max > 1 - eps) <= Pr(P_max >= 1 - delta) / (1 - eps / delta).
+
+    The paper's median entropy 5e-3 needs Pr(F_max > 0.9994) >= 1/2 (entropy 5e-3 nats forces
+    1 - p_max < 6e-4); its 25th-percentile DMSE of 0 (< 0.005 as printed) needs
+    Pr(p_truth > 0.9975) >= 1/4. With delta = 10 eps both bounds are about 1.11
+    Pr(P_max >= 1 - 10 eps), read from the reference solver's posteriors."""
+    sv, sw = headline
+    ref = [r for r in rows if r["method"] == "reference" and not r.get("sweep")
+           and r["sigma_v_deg"] == sv and r["sigma_w_deg"] == sw]
+    if not ref:
+        return None
+    pm = np.array([r["p_max"] for r in ref])
+    out = {"n": len(ref)}
+    for name, eps, need in (("median_entropy_5e-3", 6e-4, 0.5), ("p25_dmse_0", 2.5e-3, 0.25)):
+        frac = float(np.mean(pm >= 1 - 10 * eps))
+        out[name] = {"eps": eps, "delta": 10 * eps, "frac_reference_p_max_ge_1_minus_delta": frac,
+                     "bound": frac / (1 - 0.1), "needed": need}
+    out["frac_reference_p_max_ge_0.99"] = float(np.mean(pm >= 0.99))
+    out["reference_entropy_p50"] = float(np.median([r["entropy"] for r in ref]))
+    out["reference_dmse_p25"] = float(np.percentile([r["dmse"] for r in ref], 25))
+    return out
+
+
+def views_table(rows: list[dict]) -> tuple[list[dict], str]:
+    """Scores per number of views (the views sweep rows)."""
+    sw_rows = [r for r in rows if r.get("sweep")]
+    keys = sorted({(r["n_views"], r["method"]) for r in sw_rows},
+                  key=lambda k: (METHODS.index(k[1]), k[0]))
+    recs = []
+    for k, m in keys:
+        sub = [r for r in sw_rows if r["n_views"] == k and r["method"] == m]
+        rec = {"method": m, "n_views": k, "n": len(sub), **_scores(sub),
+               "top1": float(np.mean([r["gt_rating"] == 1 for r in sub])),
+               "flagged_no_survivor": float(np.mean(["survived" in str(r.get("reason", ""))
+                                                     for r in sub])),
+               "degenerate": float(np.mean([r["degenerate"] for r in sub])),
+               "dmse_p50": float(np.median([r["dmse"] for r in sub])),
+               "time_ms_p50": float(np.median([r["time_s"] for r in sub]) * 1e3)}
+        recs.append(rec)
+    lines = ["| method | views | n | mean log p(truth) | mean Brier | top-1 | confidently wrong | "
+             "no hypothesis survived | flagged | median DMSE | median ms |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in recs:
+        lines.append(f"| {r['method']} | {r['n_views']} | {r['n']} | {r['log_score_mean']:.3f} "
+                     f"+- {r['log_score_se']:.3f} | {r['brier_mean']:.3f} | {r['top1']:.3f} | "
+                     f"{r['confidently_wrong']:.3f} | {r['flagged_no_survivor']:.3f} | "
+                     f"{r['degenerate']:.3f} | {r['dmse_p50']:.3f} | {r['time_ms_p50']:.1f} |")
+    return recs, "\n".join(lines) + "\n"
+
+
 def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
-    """grid.csv, table1.csv/md, summary.json and figures/*.png."""
+    """grid.csv, table1.csv/md, scores.md, views.csv/md, summary.json and figures/*.png."""
     p = _params(params)
     outdir = Path(outdir)
     if not rows:
         return
+    main = [r for r in rows if not r.get("sweep")]
     grid = grid_table(rows)
     _write_csv(outdir / "grid.csv", grid)
     recs, md = table1(grid, p["headline"])
     _write_csv(outdir / "table1.csv", [{**r, "paper": json.dumps(r["paper"])} for r in recs])
     (outdir / "table1.md").write_text(md)
     hv, hw = p["headline"]
+    combos = [(hv, hw)] + [d for d in _diagonal(p) if d != (hv, hw)]
+    (outdir / "scores.md").write_text(scores_table(grid, combos))
+    vrecs, vmd = views_table(rows)
+    if vrecs:
+        _write_csv(outdir / "views.csv", vrecs)
+        (outdir / "views.md").write_text(vmd)
+    present = [m for m in METHODS if any(r["method"] == m for r in main)]
     head = {m: next((r for r in grid if r["sigma_v_deg"] == hv and r["sigma_w_deg"] == hw
-                     and r["method"] == m), None) for m in METHODS}
-    hrows = {m: [r for r in rows if r["method"] == m and r["sigma_v_deg"] == hv
-                 and r["sigma_w_deg"] == hw] for m in METHODS}
+                     and r["method"] == m), None) for m in present}
     info = {
         "n_rows": len(rows),
         "n_scenarios": len({r["scenario"] for r in rows}) if "scenario" in rows[0] else None,
         "grid": {"sigma_v_deg": p["sigma_v_deg"], "sigma_w_deg": p["sigma_w_deg"]},
         "headline": p["headline"],
-        "degenerate": {m: int(sum(r["degenerate"] for r in rows if r["method"] == m))
-                       for m in METHODS},
+        "reference_noise": p["reference_noise"],
+        "degenerate": {m: int(sum(r["degenerate"] for r in main if r["method"] == m))
+                       for m in present},
         "headline_dmse_p50": {m: (r["dmse_p50"] if r else None) for m, r in head.items()},
         "headline_top1": {m: (r["top1"] if r else None) for m, r in head.items()},
         "headline_time_ms_p50": {m: (r["time_s_p50"] * 1e3 if r else None)
                                  for m, r in head.items()},
-        # calibration at the headline: log-likelihood of the truth (clipped at 1e-9) and how often
-        # a state given more than 0.9 is not the true one
-        "headline_mean_log_p_truth": {
-            m: _mean([np.log(max(r["gt_likelihood"], 1e-9)) for r in hrows[m]]) for m in METHODS},
-        "headline_confidently_wrong": {
-            m: _mean([r["p_max"] > 0.9 and r["map_state"] != r["gt_state"] for r in hrows[m]])
-            for m in METHODS},
-        "headline_mean_p_max": {m: _mean([r["p_max"] for r in hrows[m]]) for m in METHODS},
+        # proper scores and calibration at the headline (log p(truth) clipped at 1e-4)
+        "headline_mean_log_p_truth": {m: (r["log_score_mean"] if r else None)
+                                      for m, r in head.items()},
+        "headline_mean_brier": {m: (r["brier_mean"] if r else None) for m, r in head.items()},
+        "headline_confidently_wrong": {m: (r["confidently_wrong"] if r else None)
+                                       for m, r in head.items()},
+        "headline_mean_p_max": {m: (r["p_max_mean"] if r else None) for m, r in head.items()},
+        "headline_ece_top": {m: (r.get("ece_top") if r else None) for m, r in head.items()},
+        "calibration_bound": calibration_bound(rows, p["headline"]),
         "noiseless_top1": {m: next((r["top1"] for r in grid if r["sigma_v_deg"] == 0
                                     and r["sigma_w_deg"] == 0 and r["method"] == m), None)
-                           for m in METHODS},
+                           for m in present},
         "noiseless_camera_top1_mean": {
-            m: (float(np.mean([r["camera_top1"] for r in rows if r["method"] == m
+            m: (float(np.mean([r["camera_top1"] for r in main if r["method"] == m
                                and r["sigma_v_deg"] == 0 and r["sigma_w_deg"] == 0]))
                 if any(r["method"] == m and r["sigma_v_deg"] == 0 and r["sigma_w_deg"] == 0
-                       for r in rows) else None) for m in METHODS},
+                       for r in main) else None) for m in present},
+        "views": vrecs,
     }
     (outdir / "summary.json").write_text(json.dumps(info, indent=2))
     figures(outdir / "figures", grid, p)
+    reliability_figures(outdir, main, p["headline"])
+    if vrecs:
+        views_figure(outdir, vrecs)
     print(md)
+
+
+def reliability_figures(outdir: Path, rows: list[dict], headline) -> list[Path]:
+    """One reliability diagram per method at the headline: the top state (confidence = its
+    probability, accuracy = how often it is the truth) and every state (probability against
+    frequency true), 10 bins, with the binomial standard error of each bin."""
+    import matplotlib.pyplot as plt
+
+    sv, sw = headline
+    paths = []
+    for m in METHODS:
+        sub = [r for r in rows if r["method"] == m and r["sigma_v_deg"] == sv
+               and r["sigma_w_deg"] == sw and "p" in r]
+        if not sub:
+            continue
+        P, g = _probs(sub)
+        rel = metrics.reliability(P, g, 10)
+        fig, axes = plt.subplots(1, 2, figsize=(8.5, 3.9))
+        for ax, (conf, acc, cnt, title) in zip(axes, (
+                (rel.top_confidence, rel.top_accuracy, rel.top_count, "most likely state"),
+                (rel.all_confidence, rel.all_frequency, rel.all_count, "every state")),
+                strict=True):
+            ok = cnt > 0
+            se = np.sqrt(np.clip(conf * (1 - conf), 0, None) / np.maximum(cnt, 1))
+            ax.plot([0, 1], [0, 1], color="0.6", lw=1, ls="--", label="calibrated")
+            ax.errorbar(conf[ok], acc[ok], yerr=2 * se[ok], fmt="o-", ms=4, capsize=2,
+                        label="observed (+-2 se of a calibrated bin)")
+            for x, y, c in zip(conf[ok], acc[ok], cnt[ok], strict=True):
+                ax.annotate(str(int(c)), (x, y), fontsize=6, xytext=(3, -9),
+                            textcoords="offset points")
+            ax.set_xlim(0, 1)
+            ax.set_ylim(-0.02, 1.02)
+            ax.set_xlabel("predicted probability")
+            ax.set_ylabel("frequency true")
+            ax.set_title(title, fontsize=9)
+            ax.grid(alpha=0.3)
+        axes[0].legend(fontsize=7, loc="upper left")
+        fig.suptitle(f"{m}: reliability at sigma_v = {sv:g} deg, sigma_w = {sw:g} deg "
+                     f"({len(sub)} scenarios; numbers: estimates per bin)", fontsize=9)
+        fig.tight_layout()
+        paths.append(save_figure(fig, outdir, f"reliability_{m}", dpi=120))
+    return paths
+
+
+def views_figure(outdir: Path, vrecs: list[dict]) -> Path:
+    """Mean log p(truth) (with 2 standard errors) and the confidently-wrong rate against the
+    number of views."""
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(9, 3.6))
+    for m in METHODS:
+        rs = sorted((r for r in vrecs if r["method"] == m), key=lambda r: r["n_views"])
+        if not rs:
+            continue
+        color, marker, label = _STYLE[m]
+        x = [r["n_views"] for r in rs]
+        axes[0].errorbar(x, [r["log_score_mean"] for r in rs],
+                         yerr=[2 * r["log_score_se"] for r in rs], color=color, marker=marker,
+                         ms=4, capsize=2, label=label)
+        axes[1].plot(x, [r["confidently_wrong"] for r in rs], color=color, marker=marker, ms=4,
+                     label=label)
+    axes[0].set_ylabel("mean log p(truth) (clip 1e-4)")
+    axes[1].set_ylabel("confidently wrong (p_max > 0.9)")
+    for ax in axes:
+        ax.set_xlabel("views")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7)
+    fig.tight_layout()
+    return save_figure(fig, outdir, "views_sweep", dpi=120)
 
 
 def _mean(v):
@@ -256,7 +507,9 @@ def _diagonal(p):
 
 
 _STYLE = {"full": ("C0", "o", "ours (full)"), "fast": ("C1", "s", "ours (fast)"),
-          "baseline": ("0.35", "^", "baseline (no motion)")}
+          "fast-paper": ("C3", "v", "fast, paper-literal"),
+          "baseline": ("0.35", "^", "baseline (no motion)"),
+          "reference": ("k", "*", "reference (exact posterior)")}
 _LABEL = {"dmse": "DMSE", "gmd": "gmd (|AB|)", "entropy": "entropy (nats)",
           "gt_rating": "GT rating", "gt_likelihood": "GT likelihood"}
 
