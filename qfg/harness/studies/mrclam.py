@@ -43,7 +43,7 @@ import numpy as np
 
 from qfg import metrics
 from qfg.datasets import mrclam as _mrclam
-from qfg.harness.runner import Study, figure_format, param_spec, save_figure
+from qfg.harness.runner import Study, figure_format, param_spec, save_figure, write_table
 from qfg.partitions import get as get_partition
 
 METRICS = ("dmse", "gmd", "entropy", "gt_rating")
@@ -285,15 +285,7 @@ def table_lines(summ: dict) -> list[str]:
 
 
 def _write_csv(path: Path, rows: list[dict]):
-    import csv
-
-    cols: list[str] = []
-    for r in rows:
-        cols += [k for k in r if k not in cols]
-    with open(path, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=cols)
-        w.writeheader()
-        w.writerows(rows)
+    write_table(path, rows, digits=None)
 
 
 def write_outputs(outdir, rows: list[dict], *, figures: bool = True, figure_robot=None,
