@@ -152,7 +152,9 @@ def test_state_of_triplet_is_invariant_under_any_power_of_two_scale(seed, expone
         return
     C = rng.uniform(-6, 6, (30, 2))
     scale = 2.0 ** exponent
-    if np.linalg.norm(A - B) * scale <= 1e-8:  # A and B coincide at that scale: refused
+    # |B - A|^2 <= COINCIDENT_EPS (1e-18) at that scale: A and B coincide, refused (in logs, as
+    # the scaled square may be out of range)
+    if 2 * (np.log2(np.linalg.norm(A - B)) + exponent) <= np.log2(1e-18):
         with pytest.raises(ValueError, match="coincide"):
             state_of_triplet(A * scale, B * scale, C * scale)
         return
