@@ -5,10 +5,10 @@ box with the minimum distance (:func:`qfg.simulation.sample_positions`); the fir
 poses see A, B, C, the others B, C, D, so AB:C and BC:D have histories and AB:D is never seen.
 Bearings get N(0, sigma_v^2) noise and the motion headings N(0, sigma_w^2), sigma_w =
 ``heading_ratio`` x sigma_v. AB:C and BC:D are solved by the fast single-triplet solver
-(``qfg.solvers.solve_triplets(..., method="fast")``); if ``qfg.solvers`` cannot be imported, or with
-``prior = "truth"``, their ground-truth one-hot vectors are used instead and the output says so
-(``prior`` column, summary.json). AB:D is then the composition marginal
-``P(k) ~ sum_ij V1(i) V2(j) T(i, j, k)`` with the shipped tensor.
+(``qfg.solvers.solve_triplets(..., method="fast")``); with ``prior = "truth"`` their ground-truth
+one-hot vectors are used instead and the output says so (``prior`` column, summary.json). AB:D
+is then the composition marginal ``P(k) ~ sum_ij V1(i) V2(j) T(i, j, k)`` with the shipped
+tensor.
 
 Estimates of AB:D scored against its true state (DMSE, gmd, GT rating, entropy):
 
@@ -36,6 +36,7 @@ from qfg.harness.runner import Study, param_spec, print_table, save_figure, vali
 from qfg.partitions import get as get_partition
 from qfg.partitions import state_of_triplet
 from qfg.simulation import Scenario, sample_positions, triplet_histories
+from qfg.solvers import solve_triplets
 
 ESTIMATES = ("composition", "uniform", "deterministic", "oracle")
 METRICS = ("dmse", "gmd", "gt_rating", "entropy")
@@ -90,14 +91,6 @@ def simulate(rng, n_views: int, sigma_bearing: float, sigma_heading: float) -> S
                     sigma_bearing=sigma_bearing, sigma_heading=sigma_heading)
 
 
-def _solver():
-    try:
-        from qfg.solvers import solve_triplets
-    except ImportError:  # pragma: no cover - only before the solvers exist
-        return None
-    return solve_triplets
-
-
 def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
     part = get_partition(task["partition"])
     T = tensor(part.name)
@@ -112,9 +105,8 @@ def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
     eye = np.eye(m)
 
     t0 = time.perf_counter()
-    solve = _solver() if task["prior"] == "fast" else None
-    if solve is not None:
-        est = solve([h1, h2], method="fast", partition=part, seed=int(rng.integers(2**63)))
+    if task["prior"] == "fast":
+        est = solve_triplets([h1, h2], method="fast", partition=part, seed=int(rng.integers(2**63)))
         V1, V2, prior = est[0].landmark, est[1].landmark, "fast"
         degenerate = bool(est[0].degenerate or est[1].degenerate)
     else:
