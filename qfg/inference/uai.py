@@ -210,7 +210,9 @@ def read_uai_graph(path):
         else:
             raise ValueError(f"path: sidecar factor role {role!r} is neither prior nor composition")
     m = model.cards[0] if model.n else 0
-    g = QualitativeFactorGraph(model.partition, tensor=T if T is not None else np.ones((m,) * 3))
+    if T is None:  # no composition factor: the partition's tensor (lazily), or a placeholder
+        T = None if model.partition else np.ones((m,) * 3)
+    g = QualitativeFactorGraph(model.partition, tensor=T)
     for v, t in enumerate(model.names):
         g.add_triplet(t, priors.get(v))
     for c in comps:
