@@ -26,7 +26,7 @@ from hypothesis import strategies as st
 from qfg import composition as qc
 from qfg import metrics, solvers
 from qfg.graph import QualitativeFactorGraph
-from qfg.propagation import exact_marginals, loopy_bp, propagate
+from qfg.propagation import compare_unseen, exact_marginals, loopy_bp, propagate
 
 #: Tolerance on the row sums of returned distributions.
 SUM_TOL = 1e-9
@@ -303,6 +303,39 @@ def test_solve_triplet_rejects_bad_input_naming_it(method, target, how, seed):
 
 
 @pytest.mark.parametrize("method", METHODS)
+@settings(max_examples=4, deadline=None, phases=NO_SHRINK)
+@given(data=st.data(), seed=st.integers(0, 2**31 - 1))
+def test_incremental_solver_estimates_are_distributions(method, data, seed):
+    sb, sh = data.draw(ordinary_sigmas), data.draw(ordinary_sigmas)
+    s = solvers.TripletSolver(method, sigma_bearing=sb, sigma_heading=sh, seed=seed,
+                              **SOLVER_OPTIONS[method])
+    for i in range(3):
+        b = data.draw(st.lists(ordinary_angles, min_size=3, max_size=3))
+        s.add_view(b, None if i == 0 else data.draw(ordinary_angles))
+        _estimate_ok(s.estimate(), i + 1)
+
+
+def _incremental_case(method):
+    marks = []
+    if method == "baseline":
+        marks = [pytest.mark.xfail(strict=True, reason=(
+            "solvers: TripletSolver('baseline').add_view(bearings, heading) accepts a heading of "
+            "nan, inf, 'abc' or [0.1, 0.2] (solve_triplet with method='baseline' rejects "
+            "headings=[inf])"))]
+    return pytest.param(method, marks=marks)
+
+
+@pytest.mark.parametrize("method", [_incremental_case(m) for m in METHODS])
+@pytest.mark.parametrize("heading", [np.nan, np.inf, "abc", [0.1, 0.2]])
+def test_incremental_solver_rejects_bad_views(method, heading):
+    s = solvers.TripletSolver(method, sigma_bearing=0.02, sigma_heading=0.05, seed=0,
+                              **SOLVER_OPTIONS[method])
+    raises_naming(lambda: s.add_view([np.nan, 0.0, 1.0]), "bearings")
+    s.add_view([0.3, 1.2, 0.8])
+    raises_naming(lambda: s.add_view([0.35, 1.25, 0.85], heading), "heading")
+
+
+@pytest.mark.parametrize("method", METHODS)
 def test_solvers_empty_inputs(method):
     assert solvers.solve_triplets([], method=method, **SOLVER_OPTIONS[method]) == []
     raises_naming(lambda: solvers.solve_triplet(np.zeros((0, 3)), method=method,
@@ -406,6 +439,21 @@ def test_graph_inference_positive_factors_have_mass(method, gm):
     # span 1e-300..1e300 and must be rescaled, and a product of 24 factors may need logs).
     g, m = _graph_case(method, gm)
     _graph_rows_or_named(GRAPH_METHODS[method], g, m, allow_zero_mass=False)
+
+
+@settings(max_examples=10, deadline=None)
+@given(gm=small_graphs(), engine=st.sampled_from(["junction", "contract", "gtsam"]))
+def test_compare_unseen_rows_are_distributions(gm, engine):
+    g, m = _graph_case(engine, gm)
+    rows = compare_unseen(g, engine=engine)
+    assert [r["triplet"] for r in rows] == [t for t, p in zip(g.triplets, g.priors, strict=True)
+                                          if p is None]
+    for r in rows:
+        assert_distributions(r["propagated"], m)
+        if r["exact"] is not None:
+            assert_distributions(r["exact"], m)
+        else:
+            assert r["exact_error"]
 
 
 def test_graph_inference_on_an_empty_graph():
