@@ -328,3 +328,14 @@ def test_marginals_carry_the_partition_name():
     g = QualitativeFactorGraph("lr", tensor=T)
     g.add_triplet((0, 1, 2), [0.9, 0.1])
     assert exact_marginals(g).partition == "lr" and propagate(g).partition == "lr"
+
+
+def test_results_pickle_round_trip():
+    import pickle
+
+    rng = np.random.default_rng(2)
+    g = factor_graph(rng, rand_T(rng, 3), n_land=5, n_fc=2)
+    for r in (exact_marginals(g), loopy_bp(g), k_best(g, 2)):
+        back = pickle.loads(pickle.dumps(r))
+        np.testing.assert_array_equal(np.asarray(back.probabilities), np.asarray(r.probabilities))
+        assert back.triplets == r.triplets

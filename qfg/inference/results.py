@@ -54,7 +54,7 @@ def _frozen_array(a) -> np.ndarray:
     return a
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Marginals:
     """(n, m) marginal distributions labelled by triplet.
 
@@ -99,6 +99,10 @@ class Marginals:
             info[k] = v
         object.__setattr__(self, "info", MappingProxyType(info))
         object.__setattr__(self, "_rows", {t: v for v, t in enumerate(ts)})
+
+    def __reduce__(self):  # picklable (processes, Dask): the read-only views are rebuilt
+        return (type(self), (self.triplets, self.partition, np.asarray(self.probabilities),
+                             self.method, dict(self.info)))
 
     # ------------------------------------------------------------- mapping-like
     def row(self, triplet) -> int:
@@ -165,7 +169,7 @@ class Marginals:
                 f"n={len(self)}, m={self.probabilities.shape[1]}, info={sorted(self.info)})")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Assignment:
     """Joint assignments of all triplet states with their probabilities (MAP and K-best).
 
