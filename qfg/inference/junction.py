@@ -477,8 +477,8 @@ class JunctionTree:
                 psi = np.zeros(shape) if log else np.ones(shape)
             elif psi.shape != shape:
                 psi = np.broadcast_to(psi, shape).copy()
-            mx = float(psi.max())
             if log:
+                mx = float(psi.max())
                 if mx == -np.inf:
                     raise self._zero_mass(v)
                 psi -= mx
@@ -488,12 +488,12 @@ class JunctionTree:
                 umx = float(u.max())
                 u -= umx
             else:
-                if not mx > 0:
-                    return None  # underflow or no mass: the log domain decides
                 e_psi[v] = (len(self._fac_ex[v]) + len(self._child_ex[v])) * _TAU + sum(
                     e_up[c] for c in self.children[v])
                 u = psi.sum(axis=0)
                 umx = float(u.max())
+                if not umx > 0:
+                    return None  # underflow or no mass: the log domain decides
                 u /= umx
                 e_up[v] = shape[0] * e_psi[v] / umx
             logz += math.log(umx) if not log else umx
