@@ -174,7 +174,8 @@ def finish(state: BaselineState):
     opts, part, meas = state.opts, state.part, state.meas
     n, m = meas.n_views, part.n_states
     reasons = list(state.reasons)
-    reasons[:0] = C.geometry_reasons(meas.bearings, meas.sigma_bearing)
+    reasons[:0] = C.geometry_reasons(meas.bearings, meas.sigma_bearing, meas.headings,
+                                     meas.sigma_heading)
     w = C.normalize_log(state.lw)
     landmark, ok = C.state_histogram(part, state.candidates, w)
     N = state.candidates.shape[0]

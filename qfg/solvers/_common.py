@@ -149,7 +149,7 @@ DEFAULTS = {
         "prune_ratio": 1e-6,         # drop hypotheses lighter than this x the heaviest
         "landmark_samples": 4,       # C samples per trajectory (intermediate and final weights)
         "ray_fraction": 0.25,        # share of C samples drawn along a line of sight
-        "posterior_samples": 256,    # trajectories resampled for the exact-prior final weights
+        "posterior_samples": 512,    # trajectories resampled for the exact-prior final weights
         "one_view_samples": 16,      # C samples per trajectory with a single view
         "bearing_floor": np.deg2rad(0.05),
         "prior": "world",
@@ -164,7 +164,8 @@ DEFAULTS = {
         "ray_fraction": 0.5,
         "posterior_samples": 32,
         "one_view_samples": 8,
-        "bearing_floor": np.deg2rad(0.05),
+        "bearing_floor": np.deg2rad(0.5),   # wider than full's: with its small budget the
+                                            # noiseless posterior's narrow peaks are missed
         "prior": "world",
     },
     "fast-paper": {
@@ -589,7 +590,15 @@ def _laplace(X, theta):
     """Least-squares triangulation of lines of sight (J, n) and ``H = sum_t g_t g_t^T`` there
     (``g_t = grad_L f(L, X_t)``, ``|g_t| = 1 / d_t``), with a tiny ridge so that H is always
     invertible. Returns (L* (J, 2), ok, h00, h01, h11, det H, least squared camera distance)."""
-    Ls, ok = triangulate_lsq(X, theta)
+    # least squares over lines with unit normals nv = (-sin, cos): (sum nv nv^T) L = sum nv nv^T o
+    sn, cs = np.sin(theta), np.cos(theta)
+    a, b, c = np.sum(sn * sn, axis=1), -np.sum(sn * cs, axis=1), np.sum(cs * cs, axis=1)
+    proj = -sn * X[..., 0] + cs * X[..., 1]              # nv . o per line
+    v0, v1 = np.sum(-sn * proj, axis=1), np.sum(cs * proj, axis=1)
+    dm = a * c - b * b
+    ok = np.abs(dm) > 1e-12
+    sd = np.where(ok, dm, 1.0)
+    Ls = np.stack([(c * v0 - b * v1) / sd, (a * v1 - b * v0) / sd], axis=-1)
     # a triangulation far beyond the world (near-parallel lines) is no better than none
     ok = ok & np.all(np.abs(Ls) < 1e6, axis=-1)
     Ls = np.where(ok[:, None], Ls, X.mean(axis=1))
@@ -798,16 +807,27 @@ SAME_POSE_TOL = 1e-9
 DEPTH_SPREAD = 0.5
 
 
-def geometry_reasons(bearings, sigma_bearing=0.0) -> list[str]:
-    """Flags from the measurements alone: cameras on (or within the bearing noise of) line AB."""
+def geometry_reasons(bearings, sigma_bearing=0.0, headings=None, sigma_heading=0.0
+                     ) -> list[str]:
+    """Flags from the measurements alone: cameras on (or within a tenth of the bearing noise of)
+    line AB; travel along the line of sight to C between every pair of views (``psi_i`` equal to
+    ``phi_C,i`` or opposite, within ``hypot(sigma_v, sigma_w)``): the lines of sight to C may
+    then coincide, leaving C's depth to the prior."""
+    out = []
     g = wrap_angle(bearings[:, 1] - bearings[:, 0])
     # within a tenth of the bearing noise: the arc is then not known to be finite
     tol = max(LOCUS_EPS, float(np.sin(min(0.1 * float(sigma_bearing), np.pi / 2))))
     bad = [int(i) for i in np.flatnonzero(np.abs(np.sin(g)) < tol)]
-    if not bad:
-        return []
-    return ["camera on line AB (phi_A = phi_B or opposite, within the bearing noise) in view(s) "
-            + ", ".join(str(b + 1) for b in bad)]
+    if bad:
+        out.append("camera on line AB (phi_A = phi_B or opposite, within the bearing noise) in "
+                   "view(s) " + ", ".join(str(b + 1) for b in bad))
+    if headings is not None and len(headings) >= 1:
+        d = wrap_angle(np.asarray(headings) - bearings[:-1, 2])
+        off = np.minimum(np.abs(d), np.pi - np.abs(d))
+        if np.all(off <= max(1e-6, float(np.hypot(sigma_bearing, sigma_heading)))):
+            out.append("lines of sight to C may coincide: the camera travels along its line of "
+                       "sight to C between every pair of views")
+    return out
 
 
 def nominal_degenerate(bearings) -> list[int]:

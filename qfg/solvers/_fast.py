@@ -261,7 +261,8 @@ def finish(state: FastState, hypotheses: bool = False):
     cb = np.searchsorted(tid, np.arange(T + 1))
     out = []
     for t in range(T):
-        reasons = C.geometry_reasons(state.bearings[t], state.sigma_bearing[t])
+        reasons = C.geometry_reasons(state.bearings[t], state.sigma_bearing[t],
+                                     state.headings[t], state.sigma_heading[t])
         cw = c_w[cb[t]:cb[t + 1]]
         alive = cw > 0
         if not np.any(alive):

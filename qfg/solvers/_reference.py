@@ -65,12 +65,17 @@ REFERENCE_DEFAULTS = {
     "bearing_floor": np.deg2rad(0.05),   # sigmas used are max(sigma, floor): zero noise works
     "heading_floor": np.deg2rad(0.05),
     "min_ess": 30.0,              # below this the answer is flagged
+    "laplace": True,              # refine poorly sampled components by Newton (Laplace)
 }
 
 _LOG2PI = np.log(2 * np.pi)
 
 #: Largest noise sigma used (radians); the wrapped normal is uniform beyond it.
 SIGMA_CAP = 10.0
+_DEBUG = False
+
+#: Scale factor on the Laplace standard deviations of C's proposal (2-D: inflating is cheap).
+C_INFLATE = 1.3
 
 
 # ---------------------------------------------------------------------------------------------
@@ -210,6 +215,30 @@ def _draw_seq(L, rng, N, d0=0):
 # C given the cameras
 
 
+def _c_laplace(L, X, alpha):
+    """Laplace approximation of the C-bearing likelihood given cameras (N, n >= 2): centre
+    (least-squares intersection of the lines of sight, one Gauss-Newton step on the angular
+    residuals), unscaled information ``H = sum_j g_j g_j^T`` (precision H / sigma_v^2) and
+    whether it is usable (every direction pinned to within 1e3 |AB|)."""
+    beta = alpha + L.phi[None, :, 2]
+    c0, okt = triangulate_lsq(X, beta)
+    d = c0[:, None, :] - X
+    r2 = np.maximum(np.sum(d * d, -1), 1e-300)
+    g = np.stack([-d[..., 1], d[..., 0]], -1) / r2[..., None]
+    res = wrap_angle(beta - np.arctan2(d[..., 1], d[..., 0]))
+    Hm = np.einsum("nji,njk->nik", g, g)
+    det = Hm[:, 0, 0] * Hm[:, 1, 1] - Hm[:, 0, 1] ** 2
+    tr = Hm[:, 0, 0] + Hm[:, 1, 1]
+    lmin = 0.5 * (tr - np.sqrt(np.maximum(tr * tr - 4 * det, 0.0)))
+    good = okt & (lmin > (L.sv / 1e3) ** 2) & np.isfinite(det) & (det > 0)
+    sdet = np.where(good, det, 1.0)
+    gr = np.einsum("nji,nj->ni", g, res)
+    step = np.stack([Hm[:, 1, 1] * gr[:, 0] - Hm[:, 0, 1] * gr[:, 1],
+                     -Hm[:, 0, 1] * gr[:, 0] + Hm[:, 0, 0] * gr[:, 1]], -1) / sdet[:, None]
+    mu = c0 + np.where(good[:, None], step, 0.0)
+    return mu, Hm, good
+
+
 def _c_terms(L, X, alpha, rng, lam_ray):
     """Draw C given cameras; returns C (N, 2) and log [prod_j L_jC(C) / q_C(C | cameras)]."""
     N, n = alpha.shape
@@ -227,24 +256,12 @@ def _c_terms(L, X, alpha, rng, lam_ray):
     use_lap = np.zeros(N, bool)
     c = c_ray
     if n >= 2:
-        c0, okt = triangulate_lsq(X, beta)
-        d = c0[:, None, :] - X
-        r2 = np.maximum(np.sum(d * d, -1), 1e-300)
-        g = np.stack([-d[..., 1], d[..., 0]], -1) / r2[..., None]
-        res = wrap_angle(beta - np.arctan2(d[..., 1], d[..., 0]))
-        Hm = np.einsum("nji,njk->nik", g, g)
+        mu, Hm, good = _c_laplace(L, X, alpha)
         det = Hm[:, 0, 0] * Hm[:, 1, 1] - Hm[:, 0, 1] ** 2
-        tr = Hm[:, 0, 0] + Hm[:, 1, 1]
-        lmin = 0.5 * (tr - np.sqrt(np.maximum(tr * tr - 4 * det, 0.0)))
-        # the Laplace component only where every direction is pinned to within 1e3 |AB|
-        good = okt & (lmin > (sv / 1e3) ** 2) & np.isfinite(det) & (det > 0)
         sdet = np.where(good, det, 1.0)
         Hinv = np.stack([np.stack([Hm[:, 1, 1], -Hm[:, 0, 1]], -1),
                          np.stack([-Hm[:, 0, 1], Hm[:, 0, 0]], -1)], -2) / sdet[:, None, None]
-        # one Gauss-Newton step on the angular residuals
-        step = np.einsum("nik,nk->ni", Hinv, np.einsum("nji,nj->ni", g, res))
-        mu = c0 + np.where(good[:, None], step, 0.0)
-        cov = Hinv * (sv * REFERENCE_DEFAULTS["inflate"]) ** 2
+        cov = Hinv * (sv * C_INFLATE) ** 2
         # 2 x 2 Cholesky by hand: rows that are not numerically positive definite lose the
         # Laplace component
         l00 = np.sqrt(np.maximum(cov[:, 0, 0], 0.0))
@@ -335,7 +352,7 @@ class _Mixture:
         return logsumexp(np.stack(parts, -1), axis=-1)
 
 
-def _fit(L, v, r, wn, max_components, inflate):
+def _fit(L, v, r, wn, max_components, inflate, refine=None):
     """t components fitted to a weighted sample: one per root pattern and separated w_1
     cluster (gaps wider than 0.5 in logit w_1)."""
     keep = wn > 1e-6 * wn.max()
@@ -370,9 +387,16 @@ def _fit(L, v, r, wn, max_components, inflate):
         R = S / np.outer(sS, sS)
         R = (ess * R + 2.0 * np.eye(d)) / (ess + 2.0)
         np.fill_diagonal(R, 1.0)
-        cov = R * np.outer(sd, sd) * inflate ** 2
-        chol = np.linalg.cholesky(cov + 1e-12 * np.diag(var))
-        comps.append((mass, mean, chol, roots))
+        cov = R * np.outer(sd, sd)
+        if refine is not None and ess < 20 * d:
+            # too few effective draws for a d-dimensional covariance: Laplace at the mode(s)
+            parts = refine(mean, cov, roots, v[p], ww)
+        else:
+            parts = [(1.0, mean, cov)]
+        for share, mu, cv in parts:
+            cv = cv * inflate ** 2
+            chol = np.linalg.cholesky(cv + 1e-12 * np.diag(np.diag(cv)))
+            comps.append((mass * share, mu, chol, roots))
     return comps
 
 
@@ -399,13 +423,121 @@ def _round(L, prior, part, rng, mix, N, lam_ray):
     return v, r, X, c, lw
 
 
-def _fit_pool(L, pool, opts):
+def _fit_pool(L, pool, opts, prior=None):
     if not pool:
         return []
     v = np.concatenate([p[0] for p in pool])
     r = np.concatenate([p[1] for p in pool])
     w = np.concatenate([p[2] for p in pool])
-    return _fit(L, v, r, w / w.sum(), int(opts["max_components"]), float(opts["inflate"]))
+    refine = None
+    if opts["laplace"] and L.n >= 2 and prior is not None:
+        def refine(mean, cov, roots, vs, ws):
+            return _laplace_split(L, prior, mean, cov, roots, vs, ws)
+    return _fit(L, v, r, w / w.sum(), int(opts["max_components"]), float(opts["inflate"]),
+                refine)
+
+
+def _log_marginal(L, prior, v, r):
+    """log of the target with C integrated out by Laplace, at camera variables v (N, 3n) with
+    root pattern r (N, n): the objective whose mode and curvature refine a component."""
+    X, alpha, logjac, _, valid, _ = _construct(L, v, r)
+    mu, Hm, good = _c_laplace(L, X, alpha)
+    d = mu[:, None, :] - X
+    res = L.phi[None, :, 2] - (np.arctan2(d[..., 1], d[..., 0]) - alpha)
+    det = Hm[:, 0, 0] * Hm[:, 1, 1] - Hm[:, 0, 1] ** 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lc = (np.sum(_log_wn(res, L.sv), axis=1) + np.log(2 * np.pi * L.sv ** 2)
+              - 0.5 * np.log(np.where(good, det, 1.0)))
+    lik = (np.sum(_log_std_normal(v[:, 1::3]) + _log_std_normal(v[:, 2::3]), axis=1)
+           + np.sum(np.where(L.anchor[None, :], 0.0, _log_std_normal(v[:, 0::3])), axis=1))
+    out = np.full(v.shape[0], -np.inf)
+    ok = valid & good & np.isfinite(lc)
+    if np.any(ok):
+        pts = np.concatenate([mu[ok, None, :], X[ok]], axis=1)
+        out[ok] = prior.log_density(pts) - L.n * _LOG2PI + logjac[ok] + lc[ok] + lik[ok]
+    return np.where(np.isnan(out), -np.inf, out)
+
+
+def _laplace_split(L, prior, mean, cov, roots, vs, ws, depth=3):
+    """Laplace components for a cluster of weighted draws ``vs`` (K, d), ``ws`` (K,) (sum 1):
+    where the curvature at the cluster's mean points up along some direction, the cluster holds
+    two modes: split its draws by the side of that direction and recurse (``depth`` times at
+    most). Returns [(share, mean, cov)]."""
+    res = _laplace(L, prior, mean, cov, roots)
+    if res[0] != "split" or depth == 0 or vs.shape[0] < 4:
+        return [(1.0, res[1], res[2])] if res[0] != "split" else [(1.0, mean, cov)]
+    side = (vs - mean) @ res[1] > 0
+    out = []
+    for sel in (side, ~side):
+        w = ws[sel]
+        if w.sum() <= 1e-9 or sel.sum() < 2:
+            continue
+        wn = w / w.sum()
+        m = wn @ vs[sel]
+        dv = vs[sel] - m
+        S = (dv * wn[:, None]).T @ dv
+        # keep the parent's spread where the half has too few draws to say
+        ess = 1.0 / np.sum(wn ** 2)
+        C = (ess * S + 2.0 * cov) / (ess + 2.0)
+        for sh, mu, cv in _laplace_split(L, prior, m, C, roots, vs[sel], wn, depth - 1):
+            out.append((w.sum() * sh, mu, cv))
+    tot = sum(o[0] for o in out)
+    return [(o[0] / tot, o[1], o[2]) for o in out] if out else [(1.0, mean, cov)]
+
+
+def _laplace(L, prior, mean, cov, roots, iters=4):
+    """Newton ascent of :func:`_log_marginal` from ``mean`` (finite differences with steps of
+    0.2 of the current standard deviations, line search), then the inverse of the negative
+    Hessian as covariance: ("ok", mean, cov). ("split", direction, None) when the curvature at
+    the start points up (the start lies between modes); ("keep", mean, cov) with the inputs if
+    anything is not finite or not negative definite later."""
+    d = mean.shape[0]
+    rr = np.zeros((1, L.n), dtype=np.int64)
+    rr[0, :roots.shape[0]] = roots
+    iu, ju = np.triu_indices(d, k=1)
+    x, C = mean.copy(), cov
+    for it in range(iters + 1):
+        h = 0.2 * np.sqrt(np.maximum(np.diag(C), 1e-12))
+        E = np.diag(h)
+        # centre, +-e_i, and the four corners (+-e_i +-e_j) for every pair i < j
+        pts = [x[None, :], x + E, x - E,
+               x + E[iu] + E[ju], x + E[iu] - E[ju], x - E[iu] + E[ju], x - E[iu] - E[ju]]
+        F = _log_marginal(L, prior, np.concatenate(pts), np.repeat(rr, sum(len(p) for p in pts),
+                                                                   axis=0))
+        if not np.all(np.isfinite(F)):
+            if _DEBUG:
+                print("    nonfinite", np.sum(~np.isfinite(F)), F.size, it)
+            return "keep", mean, cov
+        f0 = F[0]
+        fp, fm = F[1:1 + d], F[1 + d:1 + 2 * d]
+        k = 1 + 2 * d
+        npair = iu.size
+        fpp, fpm = F[k:k + npair], F[k + npair:k + 2 * npair]
+        fmp, fmm = F[k + 2 * npair:k + 3 * npair], F[k + 3 * npair:]
+        g = (fp - fm) / (2 * h)
+        Hs = np.zeros((d, d))
+        Hs[np.arange(d), np.arange(d)] = (fp - 2 * f0 + fm) / h ** 2
+        off = (fpp - fpm - fmp + fmm) / (4 * h[iu] * h[ju])
+        Hs[iu, ju] = off
+        Hs[ju, iu] = off
+        lam, V = np.linalg.eigh(-Hs)
+        if not np.all(np.isfinite(lam)):
+            return "keep", mean, cov
+        if lam.min() <= 0:
+            if _DEBUG:
+                print("    eig", np.sort(lam)[:4], it)
+            if it == 0:
+                return "split", V[:, int(np.argmin(lam))], None
+            return "keep", mean, cov
+        C = (V / lam) @ V.T
+        if it == iters:
+            break
+        step = C @ g
+        ts = np.array([1.0, 0.5, 0.25, 0.0])
+        cand = x[None, :] + ts[:, None] * step[None, :]
+        Fc = _log_marginal(L, prior, cand, np.repeat(rr, ts.size, axis=0))
+        x = cand[int(np.argmax(np.where(np.isfinite(Fc), Fc, -np.inf)))]
+    return "ok", x, C
 
 
 def _combine(finals, N):
@@ -573,9 +705,9 @@ def _solve(L, pr, part, rng, opts, N, rounds, lam, lam_ray):
                     finals.append(_summaries(part, X, c, lw) + (X, c))
             if k + 1 >= max(nr, max_rounds) or (k + 1 >= nr and ess >= target):
                 if not final:
-                    comps = _fit_pool(Lj, pool[-3:], opts)
+                    comps = _fit_pool(Lj, pool[-3:], opts, pr)
                 break
-            comps = _fit_pool(Lj, pool[-3:], opts)
+            comps = _fit_pool(Lj, pool[-3:], opts, pr)
     summ = _combine(finals, N)
     m = part.n_states
     reasons = []

@@ -82,43 +82,46 @@ class SISState:
         return (self.sigma_bearing == 0) & (self.sigma_heading == 0)
 
 
-def _per_triplet(roots, view, purpose, counts, draw):
-    """Concatenate ``draw(rng_t, count_t)`` over triplets (each from its own stream); ``draw``
-    returns a tuple of arrays with leading axis count_t."""
-    parts = [draw(C.stream(roots[t], view, purpose), int(counts[t]))
-             for t in range(len(roots))]
+def _gens(roots, view, purpose):
+    """One generator per triplet for (view, purpose); every draw of that stage comes from it, in
+    a fixed order, so a triplet's numbers do not depend on the batch."""
+    return [C.stream(r, view, purpose) for r in roots]
+
+
+def _per_triplet(gens, counts, draw):
+    """Concatenate ``draw(gen_t, count_t)`` over triplets; ``draw`` returns a tuple of arrays
+    with leading axis count_t."""
+    parts = [draw(g, int(c)) for g, c in zip(gens, counts, strict=True)]
     return tuple(np.concatenate([p[k] for p in parts]) for k in range(len(parts[0])))
 
 
-def _landmark_draws(roots, view, purpose, tid, T, n, k, ray_fraction):
+def _landmark_draws(gens, tid, n, k, ray_fraction):
     kr = k if n == 1 else min(k, int(round(k * ray_fraction)))
     kg = k - kr
-    counts = np.bincount(tid, minlength=T)
+    counts = np.bincount(tid, minlength=len(gens))
 
     def draw(rng, m):
         return (rng.standard_normal((m, kg, 2)), rng.integers(0, n, size=(m, kr)),
                 rng.standard_normal((m, kr)), rng.random((m, kr)))
 
-    z, t, e, u = _per_triplet(roots, view, purpose, counts, draw)
+    z, t, e, u = _per_triplet(gens, counts, draw)
     return {"z": z, "t": t, "eps": e, "u": u}
 
 
-def _c_weight(state_like, tid, poses, bearings_c, view, purpose, k):
+def _c_weight(state_like, tid, poses, bearings_c, gens, k):
     """(L, log q, log lik, spread) for hypotheses (N, i, 3) of triplets ``tid``."""
-    T = len(state_like.roots)
     n = poses.shape[1]
-    draws = _landmark_draws(state_like.roots, view, purpose, tid, T, n, k,
-                            state_like.opts["ray_fraction"])
+    draws = _landmark_draws(gens, tid, n, k, state_like.opts["ray_fraction"])
     return C.sample_landmarks(None, poses, bearings_c[tid], state_like.sigma_v()[tid], k,
                               state_like.opts["ray_fraction"], draws=draws)
 
 
 #: Depth spread below which the intermediate C weight uses the Laplace approximation; above it
 #: (C's depth poorly resolved, e.g. lines of sight that nearly coincide) it is sampled.
-_LAPLACE_SPREAD = 0.1
+_LAPLACE_SPREAD = 0.25
 
 
-def _log_intermediate_c(state_like, tid, poses, bearings_c, view):
+def _log_intermediate_c(state_like, tid, poses, bearings_c, gens):
     """log of C's integral with the per-point prior, for the intermediate weights: Laplace about
     the triangulation where C's depth is resolved, a :func:`._common.sample_landmarks` estimate
     elsewhere."""
@@ -129,8 +132,8 @@ def _log_intermediate_c(state_like, tid, poses, bearings_c, view):
     hard = np.flatnonzero(~(spread < _LAPLACE_SPREAD))
     if hard.size:
         k = state_like.opts["landmark_samples"]
-        L, log_q, log_lik, _ = _c_weight(state_like, tid[hard], poses[hard], bearings_c, view,
-                                         C.STREAM_LANDMARKS, k)
+        L, log_q, log_lik, _ = _c_weight(state_like, tid[hard], poses[hard], bearings_c, gens,
+                                         k)
         lw = C.point_log_prior(prior, L) + log_lik - log_q
         lw = np.where(np.isnan(lw), -np.inf, lw)
         out[hard] = C.logsumexp(lw, axis=1) - np.log(k)
@@ -166,11 +169,11 @@ def _systematic(tid, logw, T, counts_out, offsets):
     return np.minimum(idx, hi)
 
 
-def _offsets(roots, view, purpose):
-    return np.array([C.stream(r, view, purpose).random() for r in roots])
+def _offsets(gens):
+    return np.array([g.random() for g in gens])
 
 
-def _prune(st: SISState, view: int) -> SISState:
+def _prune(st: SISState, gens) -> SISState:
     T = st.n_triplets
     total = st.lw_base + st.lw_c
     mx = _segment_max(st.tid, total, T)
@@ -180,10 +183,11 @@ def _prune(st: SISState, view: int) -> SISState:
     st = _take(st, np.flatnonzero(keep))
     cap = st.opts["max_hypotheses"]
     counts = np.bincount(st.tid, minlength=T)
+    # drawn for every triplet every time, so that a triplet's later draws do not depend on others
+    off = _offsets(gens)
     if counts.size and counts.max() > cap:
         over = counts > cap
         total = st.lw_base + st.lw_c
-        off = _offsets(st.roots, view, C.STREAM_RESAMPLE)
         idx_over = _systematic(st.tid, total, T, np.where(over, cap, 0), off)
         keep_under = np.flatnonzero(~over[st.tid])
         # every survivor of an over-full triplet carries the mean weight, the total is unchanged
@@ -217,7 +221,8 @@ def start(bearings0, sigma_bearing, sigma_heading, roots, opts, part, method) ->
     def draw(rng, m):
         return rng.standard_normal((m, 2)), (rng.permutation(m) + rng.random(m)) / m
 
-    z, u = _per_triplet(roots, 0, C.STREAM_CAMERAS, M, draw)
+    gens = _gens(roots, 0, C.STREAM_CAMERAS)
+    z, u = _per_triplet(gens, M, draw)
     tid = np.repeat(np.arange(T), M)
     pa = b0[tid, 0] + sb[tid] * z[:, 0]
     pb = b0[tid, 1] + sb[tid] * z[:, 1]
@@ -232,7 +237,7 @@ def start(bearings0, sigma_bearing, sigma_heading, roots, opts, part, method) ->
                   tid=tid, poses=poses, lw_base=lw, lp_x=C.point_log_prior(opts["prior"], X),
                   lw_c=np.zeros(tid.size), same_pose=np.zeros((T, 1), dtype=bool),
                   lost=np.zeros(T, dtype=int))
-    st = _prune(st, 0)
+    st = _prune(st, gens)
     alive = np.bincount(st.tid, minlength=T) > 0
     return replace(st, lost=np.where(alive, 0, 1))
 
@@ -301,7 +306,8 @@ def _extend(state: SISState, phi, psi, spread: float, purpose: int) -> SISState:
     def draw(rng, m):
         return (rng.standard_normal((m, 3)),)
 
-    (z,) = _per_triplet(state.roots, i, purpose, counts, draw)
+    gens = _gens(state.roots, i, purpose)
+    (z,) = _per_triplet(gens, counts, draw)
     par = np.repeat(np.arange(tid.size), r[tid])
     ct = tid[par]
     sb, sh = state.sigma_bearing[ct], state.sigma_heading[ct]
@@ -339,8 +345,8 @@ def _extend(state: SISState, phi, psi, spread: float, purpose: int) -> SISState:
                  lp_x=state.lp_x[parent] + lpx, lw_c=np.zeros(ntid.size),
                  same_pose=np.concatenate([state.same_pose, same[:, None]], axis=1))
     if ntid.size:
-        st = replace(st, lw_c=_log_intermediate_c(st, ntid, poses, bearings[..., 2], i))
-    return _prune(st, i)
+        st = replace(st, lw_c=_log_intermediate_c(st, ntid, poses, bearings[..., 2], gens))
+    return _prune(st, gens)
 
 
 def finish(state: SISState, hypotheses: bool = False):
@@ -357,13 +363,14 @@ def finish(state: SISState, hypotheses: bool = False):
     total = state.lw_base + state.lw_c
     M = opts["posterior_samples"]
     alive = np.bincount(state.tid, weights=np.isfinite(total), minlength=T) > 0
-    off = _offsets(state.roots, n, C.STREAM_POSTERIOR)
+    gens = _gens(state.roots, n, C.STREAM_POSTERIOR)
+    off = _offsets(gens)
     idx = _systematic(state.tid, total, T, np.where(alive, M, 0), off)
     tid, poses = state.tid[idx], state.poses[idx]
     k = opts["one_view_samples"] if n == 1 else opts["landmark_samples"]
     if tid.size:
-        L, log_q, log_lik, spread = _c_weight(state, tid, poses, state.bearings[..., 2], n,
-                                              C.STREAM_POSTERIOR, k)
+        L, log_q, log_lik, spread = _c_weight(state, tid, poses, state.bearings[..., 2], gens,
+                                              k)
         lp = np.empty(L.shape[:2])
         keep_mask = ~state.same_pose[tid]
         # the prior of the distinct points: views taken as "not moved" repeat a camera
@@ -398,7 +405,8 @@ def finish(state: SISState, hypotheses: bool = False):
     cb = np.searchsorted(tid, np.arange(T + 1))
     out = []
     for t in range(T):
-        reasons = C.geometry_reasons(state.bearings[t], state.sigma_bearing[t])
+        reasons = C.geometry_reasons(state.bearings[t], state.sigma_bearing[t],
+                                     state.headings[t], state.sigma_heading[t])
         sp = np.flatnonzero(state.same_pose[t])
         if sp.size:
             reasons.append("view(s) " + ", ".join(str(v + 1) for v in sp)
@@ -409,7 +417,7 @@ def finish(state: SISState, hypotheses: bool = False):
                            if v else "every hypothesis has zero weight")
             out.append(C.uniform_estimate(state.method, part, n, "; ".join(reasons), opts))
             continue
-        if n >= 2 and unresolved[t] > 0.5:
+        if n >= 2 and unresolved[t] > 0.5 and not any("coincide" in r for r in reasons):
             reasons.append("lines of sight to C (nearly) coincide: its depth along them is set "
                            "by the prior")
         wt = w[lb[t]:lb[t + 1]]
