@@ -182,8 +182,10 @@ def triplet_histories(dataset: MRCLAMDataset, robot, *, min_views: int = 3,
 
     ``min_travel=0.02`` keeps every view of a pass where the robot moved (``min_travel=0`` also
     keeps steps where it stood still, whose headings are noise: docs/mrclam.md); with
-    ``max_views=None`` (default) a pass is not cut, so ``max_gap`` alone sets how long passes are. ``drop_repeated`` leaves out views that
-    repeat the view before exactly (the logger's repeated frames: the same measurement twice).
+    ``max_views=None`` (default) a pass is not cut, so ``max_gap`` alone sets how long passes
+    are. ``drop_repeated`` leaves out views that repeat the view before exactly (the logger's
+    repeated frames: the same measurement twice).
+
     Every segment gives the six orderings of its three landmarks; a triplet seen in several passes
     gives several histories. Sorted by (landmarks, first view time).
     """
