@@ -224,7 +224,8 @@ SOLVER_OPTIONS = {method: {k: v for k, v in {**_BUDGET, **(_REFERENCE_BUDGET if 
 ordinary_angles = st.floats(-np.pi, np.pi)
 extreme_angles = st.one_of(ordinary_angles, positive_entries, positive_entries.map(lambda x: -x))
 ordinary_sigmas = st.one_of(st.just(0.0), st.floats(0.001, 0.2))
-extreme_sigmas = st.one_of(st.just(0.0), positive_entries)
+extreme_sigmas = st.one_of(st.sampled_from([0.0, 5e-324, 1e-300, 1e100, 1e155, 1e300]),
+                           positive_entries)
 REGIMES = {"ordinary": (ordinary_angles, ordinary_sigmas),
            "extreme_sigmas": (ordinary_angles, extreme_sigmas),
            "extreme_angles": (extreme_angles, ordinary_sigmas)}
@@ -274,6 +275,32 @@ def test_solve_triplet_returns_distributions(method, regime, n, data, seed):
         return
     event("solved")
     _estimate_ok(est, n)
+
+
+SIGMA_EDGES = (0.0, 5e-324, 1e-300, 1e10, 1e100, 1e155, 1e300)
+
+
+def _sigma_case(method, which, sigma):
+    marks = []
+    if method in ("full", "fast") and which == "sigma_bearing" and sigma >= 1e100:
+        marks = [pytest.mark.xfail(strict=True, reason=SOLVER_XFAIL[(method, "extreme_sigmas")])]
+    return pytest.param(method, which, sigma, marks=marks, id=f"{method}-{which}-{sigma:.0e}")
+
+
+@pytest.mark.parametrize("method, which, sigma", [
+    _sigma_case(m, w, v) for m in METHODS for w in ("sigma_bearing", "sigma_heading")
+    for v in SIGMA_EDGES])
+def test_solve_triplet_at_sigma_edges(method, which, sigma):
+    # The fixed edges behind the extreme_sigmas regime above, one case each for the handover.
+    b = np.array([[0.3, 1.2, 0.8], [0.35, 1.25, 0.85], [0.4, 1.3, 0.9]])
+    kw = {"sigma_bearing": 0.02, "sigma_heading": 0.05, which: sigma}
+    try:
+        est = solvers.solve_triplet(b, [0.1, 0.1], method=method, seed=0, **kw,
+                                    **SOLVER_OPTIONS[method])
+    except ValueError as exc:
+        assert which in str(exc), str(exc)
+        return
+    _estimate_ok(est, 3)
 
 
 @settings(max_examples=20, deadline=None)
