@@ -116,7 +116,9 @@ def test_experiment_input_errors_are_one_line_and_exit_2(tmp_path, capsys):
 def _toy_cli(args, out, **kw):
     """``qfg experiment toy-slow ...`` in a child process (its own session, so a SIGINT to the
     group is what Ctrl-C in a terminal sends), the toy studies registered."""
-    code = (f"import sys; sys.path.insert(0, {str(HERE)!r}); import toy_study\n"
+    # a shell started in the background hands its jobs SIGINT ignored; a terminal does not
+    code = ("import signal; signal.signal(signal.SIGINT, signal.default_int_handler)\n"
+            f"import sys; sys.path.insert(0, {str(HERE)!r}); import toy_study\n"
             "import qfg.harness.studies as S\n"
             "S.studies = lambda: {s.name: s for s in (toy_study.SLOW, toy_study.FAILING)}\n"
             "from qfg.harness.cli import main\n"
