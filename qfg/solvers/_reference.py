@@ -51,7 +51,7 @@ __all__ = ["solve_reference", "REFERENCE_DEFAULTS"]
 #: Options of :func:`solve_reference` (angles in radians). Chosen on development seeds
 #: (benchmarks/bench_reference.py): ESS per triplet in docs/priors.md.
 REFERENCE_DEFAULTS = {
-    "n_samples": 20_000,          # draws per round
+    "n_samples": 10_000,          # draws per round
     "rounds": 3,                  # rounds of the first stage (1 = sequential proposal only)
     "first_stage": 3,             # views in the first stage
     "stage_rounds": 1,            # least rounds of every later stage (one view added per stage)
@@ -65,7 +65,8 @@ REFERENCE_DEFAULTS = {
     "bearing_floor": np.deg2rad(0.05),   # sigmas used are max(sigma, floor): zero noise works
     "heading_floor": np.deg2rad(0.05),
     "min_ess": 30.0,              # below this the answer is flagged
-    "laplace": True,              # refine poorly sampled components by Newton (Laplace)
+    "laplace": True,              # refine poorly sampled components by Newton (Laplace; the
+                                  # four heaviest clusters, split where the curvature says two modes)
 }
 
 _LOG2PI = np.log(2 * np.pi)
@@ -388,7 +389,7 @@ def _fit(L, v, r, wn, max_components, inflate, refine=None):
         R = (ess * R + 2.0 * np.eye(d)) / (ess + 2.0)
         np.fill_diagonal(R, 1.0)
         cov = R * np.outer(sd, sd)
-        if refine is not None and ess < 20 * d:
+        if refine is not None and ess < 20 * d and len(comps) < 4:
             # too few effective draws for a d-dimensional covariance: Laplace at the mode(s)
             parts = refine(mean, cov, roots, v[p], ww)
         else:
