@@ -73,18 +73,20 @@ def solve_triplet(bearings, headings=None, *, method: str = "full", partition="e
         headings: (n - 1,) radians, direction of travel from view i to view i+1 relative to the
             heading at view i. None (or a history with ``has_motion=False``): no motion model, the
             ``baseline`` model is solved whatever ``method`` says (the result's ``method`` tells).
-        method: ``"full"``, ``"fast"`` or ``"baseline"``.
+        method: ``"full"``, ``"fast"``, ``"fast-paper"``, ``"baseline"`` or ``"reference"``.
         partition: partition name or :class:`qfg.partitions.Partition`.
         sigma_bearing, sigma_heading: noise standard deviations (radians, >= 0; zero works: the
-            likelihood widths have floors, see ``bearing_floor``/``heading_floor``).
+            likelihood widths have floors, see ``bearing_floor``).
         seed: None, int, SeedSequence or Generator. Same seed, same estimate.
         **options: method options (``qfg.solvers.DEFAULTS[method]``), e.g. ``n_samples``.
 
     Returns:
-        :class:`TripletEstimate`: ``landmark`` (m,), ``cameras`` (n, m), hypotheses, flags.
+        :class:`TripletEstimate`: ``landmark`` (m,), ``cameras`` (n, m), diagnostics, flags
+        (the hypotheses behind it: :class:`TripletSolver`).
 
     The model (AB frame, paper eqs. MsrLkl, MotionModel): ``phi ~ N(f(L, X), sigma_v^2)``,
-    ``psi_i ~ N(g(X_{i+1}, X_i), sigma_w^2)``, uniform prior over positions and headings; the
+    ``psi_i ~ N(g(X_{i+1}, X_i), sigma_w^2)``, uniform headings and ``prior`` (option; default the
+    exact world prior) over the configuration [C, X_1..X_n]; the
     state probabilities integrate ``P(X_{1:n}, L_C | H)`` over each state (eqs. slam1/2).
 
     >>> est = solve_triplet([[0.3, 1.2, 0.8]], sigma_bearing=0.02, method="fast")
@@ -257,7 +259,7 @@ class TripletSolver:
     with the same seed, exactly (every view draws from its own random stream).
 
     Args:
-        method: ``"full"``, ``"fast"`` or ``"baseline"`` (as :func:`solve_triplet`).
+        method: one of :data:`METHODS` (as :func:`solve_triplet`).
         partition: partition name or :class:`qfg.partitions.Partition`.
         sigma_bearing, sigma_heading: noise standard deviations (radians, >= 0).
         seed: None, int, SeedSequence or Generator.
