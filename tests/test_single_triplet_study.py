@@ -59,13 +59,16 @@ def test_tiny_run(tmp_path):
                  "fast_motion_noise", "fast_measurement_noise", "dmse_grid", "views_sweep",
                  *(f"reliability_{m}" for m in methods + ["reference"])):
         assert (tmp_path / "a" / "figures" / f"{name}.png").exists(), name
-    for name in ("scores.md", "views.md", "views.csv"):
+    for name in ("scores.md", "views.md", "views.csv", "reference.md"):
         assert (tmp_path / "a" / name).exists()
     summary = json.loads((tmp_path / "a" / "summary.json").read_text())
     assert set(summary["headline_dmse_p50"]) == set(methods) | {"reference"}
     b = summary["calibration_bound"]
     assert b["n"] == 2 and 0 <= b["median_entropy_5e-3"]["bound"] <= 1 / 0.9
     assert {v["n_views"] for v in summary["views"]} == {2, 4}
+    agree = {r["method"]: r for r in summary["against_reference"]}
+    assert set(agree) == set(methods) and all(r["n"] == 2 and r["kl_mean"] >= -1e-9
+                                              for r in agree.values())
     # same seed, same rows (timings excluded), whatever the worker count
     runner.run_study(st.STUDY, TINY, tmp_path / "b", seed=3, workers=2, progress=False)
     a = list(csv.DictReader(open(tmp_path / "a" / "rows.csv")))

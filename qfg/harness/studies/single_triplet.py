@@ -341,6 +341,43 @@ def calibration_bound(rows: list[dict], headline) -> dict | None:
     return out
 
 
+def reference_table(rows: list[dict]) -> tuple[list[dict], str]:
+    """Every method against the reference, paired by scenario, at each combination where the
+    reference ran: mean log-score difference (method - reference) with its standard error, mean
+    KL(reference || method) and mean total variation of the landmark distributions."""
+    main = [r for r in rows if not r.get("sweep") and "p" in r and "scenario" in r]
+    ref = {(r["scenario"], r["sigma_v_deg"], r["sigma_w_deg"]): r for r in main
+           if r["method"] == "reference"}
+    combos = sorted({(k[1], k[2]) for k in ref})
+    recs = []
+    for sv, sw in combos:
+        for m in METHODS:
+            if m == "reference":
+                continue
+            pairs = [(r, ref[(r["scenario"], sv, sw)]) for r in main
+                     if r["method"] == m and r["sigma_v_deg"] == sv and r["sigma_w_deg"] == sw
+                     and (r["scenario"], sv, sw) in ref]
+            if not pairs:
+                continue
+            d = np.array([a["log_score"] - b["log_score"] for a, b in pairs])
+            P = np.array([[float(v) for v in a["p"].split()] for a, _ in pairs])
+            R = np.array([[float(v) for v in b["p"].split()] for _, b in pairs])
+            kl = np.sum(R * (np.log(np.maximum(R, 1e-12)) - np.log(np.maximum(P, 1e-6))), axis=1)
+            recs.append({"sigma_v_deg": sv, "sigma_w_deg": sw, "method": m, "n": len(pairs),
+                         "log_score_diff": float(d.mean()),
+                         "log_score_diff_se": float(d.std(ddof=1) / np.sqrt(d.size))
+                         if d.size > 1 else 0.0,
+                         "kl_mean": float(kl.mean()),
+                         "tv_mean": float(0.5 * np.abs(P - R).sum(axis=1).mean())})
+    lines = ["| sigma_v/sigma_w (deg) | method | n | mean log p(truth) - reference's | "
+             "mean KL(reference, method) | mean total variation |", "|---|---|---|---|---|---|"]
+    for r in recs:
+        lines.append(f"| {r['sigma_v_deg']:g}/{r['sigma_w_deg']:g} | {r['method']} | {r['n']} | "
+                     f"{r['log_score_diff']:+.3f} +- {r['log_score_diff_se']:.3f} | "
+                     f"{r['kl_mean']:.3f} | {r['tv_mean']:.3f} |")
+    return recs, "\n".join(lines) + "\n"
+
+
 def views_table(rows: list[dict]) -> tuple[list[dict], str]:
     """Scores per number of views (the views sweep rows)."""
     sw_rows = [r for r in rows if r.get("sweep")]
@@ -383,6 +420,9 @@ def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
     hv, hw = p["headline"]
     combos = [(hv, hw)] + [d for d in _diagonal(p) if d != (hv, hw)]
     (outdir / "scores.md").write_text(scores_table(grid, combos))
+    rrecs, rmd = reference_table(rows)
+    if rrecs:
+        (outdir / "reference.md").write_text(rmd)
     vrecs, vmd = views_table(rows)
     if vrecs:
         _write_csv(outdir / "views.csv", vrecs)
@@ -411,6 +451,7 @@ def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
         "headline_mean_p_max": {m: (r["p_max_mean"] if r else None) for m, r in head.items()},
         "headline_ece_top": {m: (r.get("ece_top") if r else None) for m, r in head.items()},
         "calibration_bound": calibration_bound(rows, p["headline"]),
+        "against_reference": rrecs,
         "noiseless_top1": {m: next((r["top1"] for r in grid if r["sigma_v_deg"] == 0
                                     and r["sigma_w_deg"] == 0 and r["method"] == m), None)
                            for m in present},
