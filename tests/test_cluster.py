@@ -57,7 +57,7 @@ def test_propagation_study_on_local_cluster_equals_1_and_2_workers(tmp_path, clu
     from qfg.harness.cluster import DaskExecutor
     from qfg.harness.studies import propagation
 
-    params = propagation.TEST_PARAMS
+    params = toy_study.PROPAGATION_SMALL
     st = propagation.STUDY
     runner.run_study(st, params, tmp_path / "w1", seed=3, workers=1, progress=False)
     runner.run_study(st, params, tmp_path / "w2", seed=3, workers=2, progress=False)

@@ -8,13 +8,14 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from toy_study import PROPAGATION_SMALL
 
 from qfg.graph import QualitativeFactorGraph
 from qfg.harness import runner
 from qfg.harness.studies import propagation as P
 from qfg.propagation import topology_scores
 
-PARAMS = P.TEST_PARAMS
+PARAMS = PROPAGATION_SMALL
 
 
 def _table():

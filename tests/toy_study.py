@@ -30,3 +30,8 @@ def all_fail_tasks(params):
 
 
 FAILING = Study("toy-failing", all_fail_tasks, run_task, None, "every scenario fails")
+
+
+#: Small propagation-study parameters (seconds per run; a seeded random tensor, not the file).
+PROPAGATION_SMALL = {"n_graphs": 4, "n_landmarks": 6, "n_fc_min": 3, "n_fc_max": 8,
+                     "n_candidates": 3, "random_tensor": True}

@@ -61,9 +61,6 @@ PARAMS = param_spec(DEFAULTS, n_graphs={"min": 1}, n_landmarks={"min": 4}, n_fc_
                     sigma_heading_deg={"min": 0.0}, solver={"choices": ("fast", "full", "baseline")},
                     partition={"choices": ("edc", "fdc", "lr", "tpcc")}, n_bins={"min": 1})
 
-#: Small parameters for the tests (seconds per run, random tensor).
-TEST_PARAMS = {"n_graphs": 4, "n_landmarks": 6, "n_fc_min": 3, "n_fc_max": 8, "n_candidates": 3,
-               "random_tensor": True}
 
 _HEADLINE = ("spearman_tsc_isc", "spearman_cl_isc", "pearson_tsc_isc", "pearson_cl_isc")
 
