@@ -245,8 +245,8 @@ def figures(outdir: Path, table: list[dict]) -> list[Path]:
                       % (table[-1]["sigma_heading_deg"] / table[-1]["sigma_bearing_deg"]
                          if table[-1]["sigma_bearing_deg"] else float("nan")))
         ax.set_ylabel(labels[met])
-        ax.set_title(f"AB:D by composition: {labels[met].split(' ')[0]} (median, 25-75%)",
-                     fontsize=10)
+        title = {"dmse": "DMSE", "gmd": "gmd", "gt_rating": "GT rating"}[met]
+        ax.set_title(f"AB:D by composition: {title} (median, 25-75%)", fontsize=10)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
         fig.tight_layout()
