@@ -20,6 +20,8 @@ import pytest
 
 import qfg
 
+pytestmark = pytest.mark.skipif(os.name != "posix", reason="virtual environments laid out as bin/")
+
 REPO = Path(qfg.__file__).resolve().parent.parent
 SKIP = {".git", ".venv", "out", "results", "build", "dist", ".hypothesis", ".pytest_cache",
         ".ruff_cache", "__pycache__"}
