@@ -461,6 +461,12 @@ class OutputLock:
         return bool(holder) and holder.get("host") == _host() and not _pid_alive(holder.get("pid", 0))
 
     def acquire(self) -> OutputLock:
+        try:
+            return self._acquire()
+        except OSError as exc:  # e.g. a read-only directory: one line, not a traceback
+            raise RunnerError(f"output: cannot lock {self.path}: {exc.strerror or exc}") from None
+
+    def _acquire(self) -> OutputLock:
         me = {"pid": os.getpid(), "host": _host(), "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
         give_up = time.monotonic() + self.stale_wait
         for _ in range(1000):
