@@ -11,7 +11,7 @@ import numpy as np
 
 from qfg.datasets import mrclam as _mrclam
 
-__all__ = ["draw_dataset", "dataset_figure"]
+__all__ = ["draw_dataset", "dataset_figure", "reliability_figure", "curve_figure"]
 
 
 def draw_dataset(dataset, robot, ax=None, *, history=None, time_range=None,
@@ -92,3 +92,59 @@ def dataset_figure(dataset, robot, path, **kw):
     fig.savefig(path, dpi=130, format=str(path).rsplit(".", 1)[-1] if "." in str(path) else "png")
     plt.close(fig)
     return path
+
+
+def reliability_figure(groups, *, bins: int = 10, title: str = "reliability"):
+    """Calibration of estimates: for each group ``name -> (P (n, m), truths (n,))`` the top-state
+    reliability (mean confidence of the most likely state against how often it is the truth) and
+    the all-states one (every (estimate, state) probability against its frequency), from
+    :func:`qfg.metrics.reliability`; the diagonal is perfect calibration, and the marker size
+    grows with the bin's count. Returns the figure."""
+    from qfg import metrics
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4.6))
+    for name, (P, g) in groups.items():
+        r = metrics.reliability(P, g, bins)
+        ece = metrics.expected_calibration_error(P, g, bins)
+        for ax, conf, acc, cnt in ((axes[0], r.top_confidence, r.top_accuracy, r.top_count),
+                                   (axes[1], r.all_confidence, r.all_frequency, r.all_count)):
+            ok = cnt > 0
+            ax.plot(conf[ok], acc[ok], "-", lw=1, alpha=0.7)
+            ax.scatter(conf[ok], acc[ok], s=8 + 60 * np.sqrt(cnt[ok] / cnt.max()),
+                       label=f"{name} (n = {len(g)}, ECE {ece:.2f})" if ax is axes[0] else name)
+    for ax, lab in ((axes[0], "most likely state"), (axes[1], "every state")):
+        ax.plot([0, 1], [0, 1], "k:", lw=1)
+        ax.set_xlim(0, 1)
+        ax.set_ylim(0, 1)
+        ax.set_aspect("equal")
+        ax.set_xlabel("predicted probability (bin mean)")
+        ax.set_ylabel("observed frequency")
+        ax.set_title(f"{lab}", fontsize=9)
+        ax.legend(fontsize=7, loc="upper left")
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def curve_figure(recs):
+    """Scores of seen triplets (and cameras) against the views kept per pass, with the uniform and
+    prior-alone baselines dashed: records of ``qfg.harness.studies.mrclam.views_curve``."""
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4))
+    keys = (("log_score", "mean log p(truth) (clip 1e-4)"), ("brier", "mean Brier"),
+            ("truth_under_1pct", "truth under 1%"))
+    series = {}
+    for r in recs:
+        series.setdefault((r["dataset"], r["mode"], r["kind"]), []).append(r)
+    for (ds, mode, kind), rs in series.items():
+        rs = sorted(rs, key=lambda r: r["views_median"])
+        x = [r["views_median"] for r in rs]
+        for ax, (k, lab) in zip(axes, keys, strict=True):
+            line, = ax.plot(x, [r[k] for r in rs], "o-", label=f"{ds} {mode} {kind}")
+            for pre, ls in (("uniform_", "--"), ("prior_", ":")):
+                ax.plot(x, [r[pre + k] for r in rs], ls, color=line.get_color(), lw=0.8)
+            ax.set_title(lab, fontsize=9)
+            ax.set_xlabel("median views per history")
+    axes[0].legend(fontsize=7)
+    fig.suptitle("scores vs views per pass (dashed: uniform, dotted: prior alone)", fontsize=10)
+    fig.tight_layout()
+    return fig

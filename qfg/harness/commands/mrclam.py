@@ -11,11 +11,11 @@ from __future__ import annotations
 from qfg.harness.commands import add_format, seed_int
 
 
-def _int_list(text: str) -> list[int]:
+def _int_list(text: str, option: str = "--robots") -> list[int]:
     try:
         return [int(x) for x in text.split(",") if x.strip()]
     except ValueError:
-        raise ValueError(f"--robots: expected comma-separated robot numbers, got {text!r}") from None
+        raise ValueError(f"{option}: expected comma-separated integers, got {text!r}") from None
 
 
 def register(sub):
@@ -28,8 +28,23 @@ def register(sub):
     p.add_argument("--robots", default="", help="comma-separated robot numbers (default: all)")
     p.add_argument("--method", default="fast", choices=("fast", "full", "baseline"),
                    help="single-triplet solver (robots without odometry: baseline; default fast)")
-    p.add_argument("--combine", default="product", choices=("product", "mean", "best"),
-                   help="how several histories of one ordered triplet combine (default product)")
+    p.add_argument("--mode", default="honest", choices=("honest", "paper"),
+                   help="honest: measured bearings and odometry (default); paper: bearings and "
+                        "headings from motion capture (paper emulation; dataset 6)")
+    p.add_argument("--prior", default="arena", choices=("arena", "world"),
+                   help="world-box prior on the arena's extent (default) or the simulator's box")
+    p.add_argument("--combine", default="prior-once", choices=("prior-once", "product"),
+                   help="how several histories of one ordered triplet combine (default: at the "
+                        "state level with the prior counted once)")
+    p.add_argument("--min-travel", type=float, default=0.02,
+                   help="metres between kept views of a pass (default 0.02: every view with motion)")
+    p.add_argument("--max-gap", type=float, default=10.0,
+                   help="seconds a triplet may go unseen within one pass (default 10)")
+    p.add_argument("--max-views", type=int, default=0,
+                   help="keep the first N views of each pass (default 0: all)")
+    p.add_argument("--curve", default="",
+                   help="comma-separated view caps (0 = all), e.g. 3,5,8,0: also score the seen "
+                        "triplets with each pass cut to that many views (curve.csv, curve figure)")
     p.add_argument("--tensor", default=None,
                    help="composition tensor .npz (default: the shipped tensor of the partition)")
     p.add_argument("--no-fix-landmarks", action="store_true",
@@ -51,8 +66,11 @@ def run_one(task: dict, rng) -> list[dict]:
 
     T = study._load_tensor(task["partition"], task["tensor"]) if task["tensor"] else None
     return study.run_dataset(task["path"], robots=task["robots"] or None, method=task["method"],
-                             combine=task["combine"], partition=task["partition"], tensor=T,
-                             fix_landmarks=task["fix_landmarks"], seed=task["seed"])
+                             mode=task["mode"], prior=task["prior"], combine=task["combine"],
+                             partition=task["partition"], tensor=T,
+                             fix_landmarks=task["fix_landmarks"], seed=task["seed"],
+                             min_travel=task["min_travel"], max_gap=task["max_gap"],
+                             max_views=task["max_views"])
 
 
 def _main(args):
@@ -68,7 +86,8 @@ def _main(args):
     if not path.is_dir():
         raise ValueError(f"path: {path} is not a directory")
     params = {"path": str(path.resolve()), "robots": robots, "method": args.method,
-              "combine": args.combine, "partition": "edc", "tensor": args.tensor or "",
+              "mode": args.mode, "prior": args.prior, "combine": args.combine,
+              "min_travel": args.min_travel, "max_gap": args.max_gap, "max_views": args.max_views, "partition": "edc", "tensor": args.tensor or "",
               "fix_landmarks": not args.no_fix_landmarks, "seed": args.seed,
               "figures": not args.no_figures}
     out = Path(args.output or f"out/mrclam-{path.resolve().name}")
@@ -89,6 +108,17 @@ def _main(args):
     if swaps:
         print(f"landmark ground truth corrected: swapped {swaps} (check_landmarks)")
     print("\n".join(study.table_lines(summ)))
-    print(f"{summ['n_triplets']} triplets ({summ['n_seen']} seen, {summ['n_propagated']} "
-          f"propagated, {summ['n_reached']} reached) -> {out}")
+    s = summ.get(args.mode, {})
+    print(f"{s.get('seen', {}).get('n', 0)} seen, {s.get('propagated', {}).get('n', 0)} "
+          f"propagated ({s.get('n_reached', 0)} reached), {s.get('camera', {}).get('n', 0)} "
+          f"camera views scored -> {out}")
+    if args.curve:
+        caps = _int_list(args.curve, "--curve")
+        recs = study.views_curve(path, caps, robots=robots or None, method=args.method,
+                                 mode=args.mode, prior=args.prior, combine=args.combine,
+                                 min_travel=args.min_travel, max_gap=args.max_gap,
+                                 fix_landmarks=not args.no_fix_landmarks, seed=args.seed)
+        study.write_curve(out, recs, figures=not args.no_figures)
+        for line in study.curve_lines(recs):
+            print(line)
     return 0

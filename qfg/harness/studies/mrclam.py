@@ -1,32 +1,39 @@
-"""MRCLAM study (paper section 6d, Table 2): qualitative mapping on real data.
+"""MRCLAM study (paper section 6d, Table 2): qualitative mapping on real data, scored so that it
+cannot flatter.
 
 For one MRCLAM dataset directory (:func:`run_dataset`):
 
-1. Load it (:func:`qfg.datasets.mrclam.load`) and check the landmark ground truth against the
-   measurements (:func:`~qfg.datasets.mrclam.check_landmarks`); landmark pairs seen at each
-   other's ground-truth position are swapped back before scoring (dataset 1: subjects 11 and 17).
-   The swaps applied are in every row (``gt_swaps``) and in ``summary.json``.
-2. Every triplet history of the chosen robots (:func:`~qfg.datasets.mrclam.triplet_histories`,
-   loader defaults) is solved with :func:`qfg.solvers.solve_triplets` (``method``); a robot without
-   odometry is solved without motion model (``baseline``), and the row's ``method`` says so.
-3. Several histories of one ordered triplet (several passes or robots) are combined by
-   ``combine``: ``"product"`` (default) ``P(S | H_1..H_r) ~ prod_h P(S | H_h)``, renormalized -- the
-   passes' measurements are independent given the landmarks, so their likelihoods multiply (the
-   solver's state prior, uniform positions in its window, is counted r times instead of once: an
-   approximation that sharpens, documented in docs/results/mrclam.md); if the product is zero
-   everywhere (contradicting passes), the mean of the estimates is used and ``combine_fallback``
-   is set. ``"mean"``: the mixture; ``"best"``: the estimate of least entropy.
-4. The whole qualitative map: every ordered triplet of the dataset's landmarks
-   (:func:`qfg.graph.full_map`, 15 landmarks: 2730 triplets, 32760 composition factors), the
-   combined estimates as priors, the rest propagated by Algorithm 2
-   (:func:`qfg.propagation.propagate`).
-5. Scoring against the landmark ground truth (:func:`qfg.graph.truth_states`): DMSE, gmd, entropy,
-   GT rating (:mod:`qfg.metrics`) of the seen triplets (their combined estimate) and of the unseen
-   ones (after propagation), each next to the uniform estimate.
+1. Load it (:func:`qfg.datasets.mrclam.load`); landmark pairs seen at each other's ground-truth
+   position (:func:`~qfg.datasets.mrclam.check_landmarks`) are swapped back before scoring
+   (dataset 1: subjects 11 and 17); the swaps are in every row (``gt_swaps``).
+2. Histories (:func:`~qfg.datasets.mrclam.triplet_histories`): every view of a pass where the
+   robot moved (``min_travel`` = 0.02 m), passes split only where the triplet goes unseen for
+   ``max_gap`` = 10 s (docs/mrclam.md: beyond that the odometry's direction drifts by 8 deg).
+   ``max_views`` truncates each pass to its first views (the curve of scores against views).
+3. ``mode``: ``"honest"`` solves the measured bearings and odometry headings; ``"paper"``
+   (paper emulation, needs motion capture: dataset 6) replaces them by the bearings and headings
+   computed from the captured poses (:func:`paper_history`), to show what clean inputs give.
+4. The prior (``prior``): ``"arena"`` (default) is :class:`qfg.priors.WorldBoxPrior` with the
+   box of the arena (:func:`arena_extent`: the landmarks' and the robots' area); ``"world"`` the
+   simulator's 6 x 7 m box. Every history is solved with :func:`qfg.solvers.solve_triplets`
+   under it; robots without odometry get the baseline model (the row's ``method``).
+5. Histories of one ordered triplet (separate passes, other robots) are combined at the state
+   level with the prior counted once (:func:`qfg.combine.combine_posteriors`, ``combine=
+   "prior-once"``); ``"product"`` (the plain product of posteriors) is kept to measure the
+   difference.
+6. The whole qualitative map (:func:`qfg.graph.full_map`, every ordered triplet), the combined
+   estimates as priors, the rest propagated by Algorithm 2 (:func:`qfg.propagation.propagate`).
+7. Scores (:mod:`qfg.metrics`) against the landmark ground truth (:func:`qfg.graph.truth_states`)
+   of seen and propagated triplets: the probability of the truth, log score (clip 1e-4), Brier,
+   GT rating with ties split, truth under 1%, DMSE, entropy, flagged and uniform estimates; each
+   beside two baselines: ``uniform_*`` and ``prior_*`` (the state distribution the prior alone
+   gives, :func:`qfg.combine.prior_state_distribution`). With motion capture, every view of every
+   history is also scored as a camera state (rows of kind ``"camera"``).
 
-Rows: one per ordered triplet (``kind`` = ``"seen"`` or ``"propagated"``). ``summarize`` writes
-``triplets.csv``, ``summary.json`` (``{"n_triplets", "seen": {metric: [p25, p50, p75]},
-"propagated": {...}, "uniform_seen", "uniform_propagated", "datasets": {name: ...}}``) and figures.
+Rows: one per ordered triplet (``kind`` ``"seen"`` / ``"propagated"``) and one per scored camera
+view (``"camera"``); ``probabilities`` holds the estimate (m numbers, ``;``-separated) so that
+summaries and calibration figures are computed from the rows alone. :func:`write_outputs` writes
+``triplets.csv``, ``cameras.csv``, ``summary.json``, ``table.md`` and figures.
 
 Command: ``qfg mrclam PATH`` (one dataset); ``qfg experiment mrclam --preset paper`` (every
 dataset under ``data``, one runner task each).
@@ -34,6 +41,7 @@ dataset under ``data``, one runner task each).
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from dataclasses import dataclass
@@ -42,64 +50,42 @@ from pathlib import Path
 import numpy as np
 
 from qfg import metrics
+from qfg.combine import combine_posteriors, prior_state_distribution, product_of_posteriors
 from qfg.datasets import mrclam as _mrclam
 from qfg.harness.runner import Study, figure_format, param_spec, save_figure, write_table
 from qfg.partitions import get as get_partition
+from qfg.priors import WorldBoxPrior
+from qfg.priors import get as get_prior
 
-METRICS = ("dmse", "gmd", "entropy", "gt_rating")
-COMBINE = ("product", "mean", "best")
+COMBINE = ("prior-once", "product")
 METHODS = ("fast", "full", "baseline")
-EDC_WINDOW_CORNERS = ((-2.0, -2.0), (2.0, 3.0))
+MODES = ("honest", "paper")
+PRIORS = ("arena", "world")
+KINDS = ("seen", "propagated", "camera")
+#: Scores of every row, each also with the ``uniform_`` and ``prior_`` baselines.
+SCORES = ("p_truth", "log_score", "brier", "gt_rating", "truth_under_1pct")
+#: Samples behind each prior's state distribution (standard error <= 1.2e-3 per state).
+PRIOR_SAMPLES = 200_000
 
 DEFAULTS = {
     "data": "",                            # directory holding MRCLAM_Dataset* ("": $QFG_MRCLAM_DIR)
     "datasets": [],                        # dataset numbers (empty: every one found)
     "robots": [],                          # robot numbers (empty: every robot)
     "method": "fast",
-    "combine": "product",
+    "mode": "honest",
+    "prior": "arena",
+    "combine": "prior-once",
     "partition": "edc",
     "fix_landmarks": True,                 # swap back landmark pairs found by check_landmarks
     "tensor": "",                          # .npz file; "" = the shipped tensor of the partition
+    "min_travel": 0.02,                    # m between kept views (0.02: every view with motion)
+    "max_gap": 10.0,                       # s unseen that ends a pass
+    "max_views": 0,                        # first views of each pass kept (0: all)
+    "propagate": True,                     # map and propagate (False: seen triplets only)
 }
 
 
-# ----------------------------------------------------------------------------- combination
-def combine_estimates(vectors, how: str = "product") -> tuple[np.ndarray, bool]:
-    """Combine r estimates (r, m) of one triplet into one (m,) vector; returns (vector, fallback).
-
-    ``product``: ``prod_h p_h`` renormalized (independent evidence); when it is zero everywhere,
-    the mean is returned with ``fallback=True``. ``mean``: ``sum_h p_h / r``. ``best``: the row of
-    least entropy (:func:`qfg.metrics.entropy`).
-
-    >>> combine_estimates([[0.5, 0.5], [0.8, 0.2]])[0].round(2).tolist()
-    [0.8, 0.2]
-    """
-    if how not in COMBINE:
-        raise ValueError(f"combine: expected one of {COMBINE}, got {how!r}")
-    P = metrics._probs(np.atleast_2d(np.asarray(vectors, dtype=float)))
-    if P.ndim != 2 or P.shape[0] == 0:
-        raise ValueError(f"vectors: expected shape (r, m) with r >= 1, got {P.shape}")
-    if how == "best":
-        return P[int(np.argmin(metrics.entropy(P)))].copy(), False
-    mean = P.mean(axis=0)
-    if how == "mean":
-        return mean / mean.sum(), False
-    # product in logs with a per-row max shift: r small, but entries can be tiny
-    with np.errstate(divide="ignore"):
-        logp = np.log(P).sum(axis=0)
-    if not np.isfinite(logp).any():
-        return mean / mean.sum(), True
-    w = np.exp(logp - logp.max())
-    return w / w.sum(), False
-
-
-# ----------------------------------------------------------------------------- one dataset
-def _load_tensor(partition: str, path: str | None):
-    from qfg.composition import load, tensor
-
-    return load(path, partition) if path else tensor(partition)
-
-
+# ----------------------------------------------------------------------------- data, prior
 def prepare(path, *, fix_landmarks: bool = True):
     """Load a dataset directory; returns (dataset with ground truth fixed, swaps applied)."""
     ds = _mrclam.load(path)
@@ -109,24 +95,108 @@ def prepare(path, *, fix_landmarks: bool = True):
     return ds, tuple(tuple(int(x) for x in s) for s in swaps)
 
 
-def histories(ds, robots=None, **options):
-    """Triplet histories of ``robots`` (None / empty: every robot), robot-major, with the robot."""
+def arena_extent(ds, *, max_residual: float = 0.15) -> dict:
+    """The arena's axis-aligned box: the landmarks' ground truth and the robots' positions.
+
+    Robot positions come from motion capture when the dataset has it, else from landmark fixes
+    (:func:`qfg.datasets.mrclam.landmark_fixes`, rms residual <= ``max_residual`` m); the 0.5th
+    and 99.5th percentiles of the robot positions are used, so that a few bad fixes cannot widen
+    the box. Returns ``{"x": (lo, hi), "y": (lo, hi), "width", "height", "robots_from"}`` (m).
+    """
+    pts = [ds.landmark_xy]
+    src = "fixes"
+    for r, rd in ds.robots.items():
+        if rd.groundtruth is not None:
+            pts.append(rd.groundtruth[:, 1:3])
+            src = "motion capture"
+        else:
+            f = _mrclam.landmark_fixes(ds, r, min_landmarks=3)
+            pts.append(f.poses[f.residual <= max_residual, :2])
+    lm = ds.landmark_xy
+    rob = np.concatenate(pts[1:]) if len(pts) > 1 else lm
+    lo = np.minimum(lm.min(axis=0), np.percentile(rob, 0.5, axis=0))
+    hi = np.maximum(lm.max(axis=0), np.percentile(rob, 99.5, axis=0))
+    return {"x": (float(lo[0]), float(hi[0])), "y": (float(lo[1]), float(hi[1])),
+            "width": float(hi[0] - lo[0]), "height": float(hi[1] - lo[1]), "robots_from": src}
+
+
+def make_prior(ds, name: str = "arena"):
+    """``"arena"``: :class:`~qfg.priors.WorldBoxPrior` on :func:`arena_extent`'s box (metres; d_min
+    stays 0.01 m); ``"world"``: the simulator's box (:func:`qfg.priors.get`)."""
+    if name not in PRIORS:
+        raise ValueError(f"prior: expected one of {PRIORS}, got {name!r}")
+    if name == "world":
+        return get_prior("world")
+    e = arena_extent(ds)
+    return WorldBoxPrior(width=e["width"], height=e["height"])
+
+
+# ----------------------------------------------------------------------------- histories
+def truncate(h, n: int):
+    """The first ``n`` views of a history (every per-view field cut alike)."""
+    if n <= 0 or h.n_views <= n:
+        return h
+    t = h.truth
+    truth = dataclasses.replace(
+        t, poses_world=None if t.poses_world is None else t.poses_world[:n],
+        poses_ab=None if t.poses_ab is None else t.poses_ab[:n],
+        camera_states=None if t.camera_states is None else t.camera_states[:n])
+    extra = {}
+    if hasattr(h, "distances"):
+        extra["distances"] = None if h.distances is None else h.distances[:n - 1]
+        extra["groundtruth_valid"] = (None if h.groundtruth_valid is None
+                                      else h.groundtruth_valid[:n])
+    return dataclasses.replace(h, bearings=h.bearings[:n], headings=h.headings[:n - 1],
+                               views=h.views[:n], truth=truth, **extra)
+
+
+def paper_history(h):
+    """Paper emulation: the history with bearings and headings computed from the captured
+    camera poses (``truth.poses_world``) instead of measured, or None when the capture does not
+    cover every view. Bearings ``bearing(pose_i, L)`` for L = A, B, C; headings
+    ``motion_heading(pose_i, position_{i+1})`` (conventions.md); sigmas unchanged."""
+    from qfg.geometry import bearing, motion_heading
+
+    t = h.truth
+    if t.poses_world is None or (h.groundtruth_valid is not None
+                                 and not np.all(h.groundtruth_valid)):
+        return None
+    P = np.asarray(t.poses_world, dtype=float)
+    phi = bearing(P[:, None, :], np.asarray(t.landmarks_world)[None, :, :])
+    psi = motion_heading(P[:-1], P[1:, :2])
+    return dataclasses.replace(h, bearings=phi, headings=psi, has_motion=True)
+
+
+def histories(ds, robots=None, *, mode: str = "honest", max_views: int = 0, **options):
+    """(robot, history) pairs of ``robots`` (None / empty: every robot), robot-major; ``mode``
+    ``"paper"`` keeps the histories the capture covers, with clean inputs (:func:`paper_history`)."""
+    if mode not in MODES:
+        raise ValueError(f"mode: expected one of {MODES}, got {mode!r}")
     robots = sorted(ds.robots) if not robots else [int(r) for r in robots]
+    if mode == "paper" and not any(ds.robot(r).groundtruth is not None for r in robots):
+        raise ValueError(f"mode: 'paper' needs motion capture (RobotN_Groundtruth); "
+                         f"{ds.name} has none")
     out = []
     for r in robots:
-        out += [(r, h) for h in _mrclam.triplet_histories(ds, r, **options)]
+        for h in _mrclam.triplet_histories(ds, r, **options):
+            h = truncate(h, int(max_views))
+            if mode == "paper":
+                h = paper_history(h)
+                if h is None:
+                    continue
+            out.append((r, h))
     return out
 
 
-#: Histories solved per call: an estimate keeps its solver state (for add_view), megabytes for the
-#: baseline, so only the (m,) vectors are kept and the estimates dropped chunk by chunk (dataset 5,
-#: 3270 baseline histories in one call, exhausted 24 GB).
+#: Histories solved per call: only the (m,) vectors are kept, chunk by chunk (an estimate may
+#: keep solver state; dataset 5 in one call once exhausted 24 GB).
 CHUNK = 128
 
 
 @dataclass(frozen=True)
 class _Light:
     landmark: np.ndarray
+    cameras: np.ndarray
     method: str
     degenerate: bool
 
@@ -141,13 +211,54 @@ def _solve(hs, method, part, seed, options) -> list[_Light]:
     for c in range(n_chunks):
         ests = solve_triplets(hs[c * CHUNK:(c + 1) * CHUNK], method=method, partition=part,
                               seed=seeds[c], **options)
-        out += [_Light(e.landmark, e.method, bool(e.degenerate)) for e in ests]
+        out += [_Light(e.landmark, e.cameras, e.method, bool(e.degenerate)) for e in ests]
         del ests
     return out
 
 
-def run_dataset(path, *, robots=None, method: str = "fast", combine: str = "product",
-                partition: str = "edc", tensor=None, fix_landmarks: bool = True, seed=0,
+# ----------------------------------------------------------------------------- scoring
+def _enc(p) -> str:
+    return ";".join(f"{x:.6g}" for x in p)
+
+
+def decode(text: str) -> np.ndarray:
+    """A row's ``probabilities`` back to an (m,) vector (renormalized: 6 digits were written)."""
+    p = np.array([float(x) for x in str(text).split(";")])
+    return p / p.sum()
+
+
+def _scores(P, g, prefix=""):
+    """Scores of estimates (n, m) at truths (n,): dict of (n,) arrays, keys prefixed."""
+    return {f"{prefix}p_truth": metrics.gt_likelihood(P, g),
+            f"{prefix}log_score": metrics.log_score(P, g),
+            f"{prefix}brier": metrics.brier(P, g),
+            f"{prefix}gt_rating": metrics.gt_rating(P, g),
+            f"{prefix}truth_under_1pct": metrics.truth_under(P, g, 0.01).astype(float)}
+
+
+def _score_rows(P, g, q, centroids):
+    """Per row: the estimate's scores, DMSE, entropy, whether it is uniform, and the baselines
+    (uniform; the prior's state distribution ``q``)."""
+    n, m = P.shape
+    out = _scores(P, g)
+    out.update(_scores(np.full((n, m), 1.0 / m), g, "uniform_"))
+    out.update(_scores(np.broadcast_to(q, (n, m)), g, "prior_"))
+    out["dmse"] = metrics.dmse(P, g)
+    out["entropy"] = metrics.entropy(P)
+    out["uniform_estimate"] = (np.ptp(P, axis=1) < 1e-9).astype(float)
+    return out
+
+
+def _load_tensor(partition: str, path: str | None):
+    from qfg.composition import load, tensor
+
+    return load(path, partition) if path else tensor(partition)
+
+
+def run_dataset(path, *, robots=None, method: str = "fast", mode: str = "honest",
+                prior: str = "arena", combine: str = "prior-once", partition: str = "edc",
+                tensor=None, fix_landmarks: bool = True, seed=0, min_travel: float = 0.02,
+                max_gap: float = 10.0, max_views: int = 0, propagate: bool = True,
                 return_details: bool = False, **solver_options):
     """Solve, combine, map, propagate and score one dataset directory.
 
@@ -156,235 +267,305 @@ def run_dataset(path, *, robots=None, method: str = "fast", combine: str = "prod
         robots: robot numbers (None: all).
         method: single-triplet solver (``"fast"``, ``"full"``, ``"baseline"``); robots without
             odometry always get the baseline (the row's ``method``).
-        combine: how several histories of one ordered triplet become one prior
-            (:func:`combine_estimates`).
+        mode: ``"honest"`` (measured inputs) or ``"paper"`` (inputs from motion capture).
+        prior: ``"arena"`` or ``"world"`` (:func:`make_prior`).
+        combine: ``"prior-once"`` or ``"product"`` (module docstring, step 5).
         tensor: composition tensor ((m, m, m) array or CompositionTensor); None: the shipped one.
-        seed: solver seed (histories are solved in chunks of :data:`CHUNK`, chunk c with child c
-            of ``SeedSequence(seed)``; the fast variant does not depend on the seed).
+        seed: solver seed (chunk c of :data:`CHUNK` histories gets child c of
+            ``SeedSequence(seed)``).
+        min_travel, max_gap, max_views: history options (module docstring, step 2).
+        propagate: build the map and propagate (False: seen triplets and cameras only).
 
     Returns:
-        rows: list of dicts, one per ordered triplet of the dataset's landmarks. With
-        ``return_details``: ``(rows, details)``, details a dict with the dataset, histories,
-        estimates, the graph and the propagation result (for figures).
+        rows (list of dicts; module docstring). With ``return_details``: ``(rows, details)``.
     """
     from qfg.graph import full_map, truth_states
-    from qfg.propagation import propagate
+    from qfg.propagation import propagate as _propagate
 
     if method not in METHODS:
         raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
     if combine not in COMBINE:
         raise ValueError(f"combine: expected one of {COMBINE}, got {combine!r}")
     part = get_partition(partition)
-    T = _load_tensor(part.name, None) if tensor is None else tensor
     ds, swaps = prepare(path, fix_landmarks=fix_landmarks)
+    pr = make_prior(ds, prior)
+    q_c = prior_state_distribution(pr, part, samples=PRIOR_SAMPLES, seed=1)
+    q_x = prior_state_distribution(pr, part, point=1, n_cameras=1, samples=PRIOR_SAMPLES, seed=2)
     t0 = time.perf_counter()
-    rh = histories(ds, robots, partition=part)
+    rh = histories(ds, robots, mode=mode, max_views=max_views, partition=part,
+                   min_travel=min_travel, max_gap=max_gap)
     hs = [h for _, h in rh]
-    ests = _solve(hs, method, part, seed, solver_options)
+    ests = _solve(hs, method, part, seed, dict(solver_options, prior=pr))
     t_solve = time.perf_counter() - t0
 
-    # group the histories by ordered triplet, in landmark-column indices
     groups: dict[tuple, list[int]] = {}
-    for q, h in enumerate(hs):
-        groups.setdefault(tuple(ds.landmark_index(h.landmarks).tolist()), []).append(q)
-    priors, fallback = {}, {}
-    for t, qs in groups.items():
-        priors[t], fallback[t] = combine_estimates([ests[q].landmark for q in qs], combine)
+    for k, h in enumerate(hs):
+        groups.setdefault(tuple(ds.landmark_index(h.landmarks).tolist()), []).append(k)
+    rule = (lambda V: combine_posteriors(V, q_c)) if combine == "prior-once" else product_of_posteriors
+    combined = {t: rule(np.array([ests[k].landmark for k in ks])) for t, ks in groups.items()}
 
-    t0 = time.perf_counter()
-    L = ds.landmark_ids.size
-    g = full_map(L, partition=part.name, tensor=T, priors=priors)
-    res = propagate(g)
-    t_prop = time.perf_counter() - t0
-
-    trip = np.array(g.triplets, dtype=np.intp)
-    truth = truth_states(trip, ds.landmark_xy, part.name)
-    P = res.marginals
-    ev = metrics.evaluate(P, truth, part.centroids)
-    U = np.full_like(P, 1.0 / P.shape[1])
-    uv = metrics.evaluate(U, truth, part.centroids)
     ids = ds.landmark_ids
     swap_txt = ";".join(f"{a}-{b}" for a, b in swaps)
+    common = {"dataset": ds.name, "path": str(Path(path)), "mode": mode, "prior": prior,
+              "combine": combine, "gt_swaps": swap_txt}
+    t0 = time.perf_counter()
+    if propagate:
+        T = _load_tensor(part.name, None) if tensor is None else tensor
+        g = full_map(ids.size, partition=part.name, tensor=T,
+                     priors={t: c.probabilities for t, c in combined.items()})
+        res = _propagate(g)
+        trip = np.array(g.triplets, dtype=np.intp)
+        P = np.asarray(res.probabilities, dtype=float)
+        seen = np.asarray(g.seen, dtype=bool)
+        reached = np.asarray(res.info["reached"], dtype=bool)
+    else:
+        g = res = None
+        trip = np.array(sorted(combined), dtype=np.intp).reshape(-1, 3)
+        P = np.array([combined[tuple(t)].probabilities for t in trip.tolist()]).reshape(-1, part.n_states)
+        seen = np.ones(len(trip), bool)
+        reached = np.zeros(len(trip), bool)
+    t_prop = time.perf_counter() - t0
+    P = P / P.sum(axis=1, keepdims=True)
+    truth = truth_states(trip, ds.landmark_xy, part.name) if len(trip) else np.zeros(0, int)
+    sc = _score_rows(P, truth, q_c, part.centroids) if len(trip) else {}
     rows = []
     for v, t in enumerate(map(tuple, trip.tolist())):
-        qs = groups.get(t, [])
-        seen = bool(g.seen[v])
-        row = {
-            "dataset": ds.name, "path": str(Path(path)), "kind": "seen" if seen else "propagated",
-            "A": int(ids[t[0]]), "B": int(ids[t[1]]), "C": int(ids[t[2]]),
-            "truth_state": int(truth[v]), "map_state": int(np.argmax(P[v])),
-            "n_histories": len(qs), "n_views": int(sum(hs[q].n_views for q in qs)),
-            "robots": ";".join(str(r) for r in sorted({rh[q][0] for q in qs})),
-            "method": ";".join(sorted({ests[q].method for q in qs})) if qs else "propagated",
-            "n_degenerate": int(sum(ests[q].degenerate for q in qs)),
-            "combine": combine if seen else "", "combine_fallback": bool(fallback.get(t, False)),
-            "reached": bool(res.reached[v]), "isc": float(res.isc[v]), "gt_swaps": swap_txt,
-        }
-        for k in ("dmse", "gmd", "entropy", "gt_rating", "gt_likelihood"):
-            row[k] = float(ev[k][v]) if k != "gt_rating" else int(ev[k][v])
-        for k in METRICS:
-            row[f"uniform_{k}"] = float(uv[k][v]) if k != "gt_rating" else int(uv[k][v])
+        ks = groups.get(t, [])
+        row = {**common, "kind": "seen" if seen[v] else "propagated",
+               "A": int(ids[t[0]]), "B": int(ids[t[1]]), "C": int(ids[t[2]]),
+               "truth_state": int(truth[v]), "map_state": int(np.argmax(P[v])),
+               "n_histories": len(ks), "n_views": int(sum(hs[k].n_views for k in ks)),
+               "robots": ";".join(str(r) for r in sorted({rh[k][0] for k in ks})),
+               "method": ";".join(sorted({ests[k].method for k in ks})) if ks else "propagated",
+               "flagged": float(any(ests[k].degenerate for k in ks)),
+               "conflict": bool(combined[t].conflict) if t in combined else False,
+               "reached": bool(reached[v])}
+        for key, arr in sc.items():
+            row[key] = float(arr[v])
+        row["probabilities"] = _enc(P[v])
         rows.append(row)
+    rows += _camera_rows(hs, rh, ests, q_x, part, common)
     if rows:
         rows[0]["time_solve_s"] = t_solve
         rows[0]["time_propagate_s"] = t_prop
     if not return_details:
         return rows
-    return rows, {"dataset": ds, "swaps": swaps, "histories": rh, "estimates": ests,  # light
-                  "graph": g, "propagation": res, "partition": part}
+    return rows, {"dataset": ds, "swaps": swaps, "histories": rh, "estimates": ests, "graph": g,
+                  "propagation": res, "partition": part, "prior": pr, "prior_states": q_c,
+                  "prior_camera_states": q_x, "combined": combined}
+
+
+def _camera_rows(hs, rh, ests, q, part, common) -> list[dict]:
+    """One row per view covered by motion capture: P(S^{AB:X}_i | H) against the captured
+    camera's state."""
+    rows = []
+    for k, h in enumerate(hs):
+        cs = h.truth.camera_states
+        if cs is None:
+            continue
+        ok = np.ones(h.n_views, bool) if h.groundtruth_valid is None else np.asarray(
+            h.groundtruth_valid, bool)
+        ok &= np.asarray(cs) >= 0
+        idx = np.flatnonzero(ok)
+        if idx.size == 0:
+            continue
+        Pc = np.asarray(ests[k].cameras, dtype=float)[idx]
+        Pc = Pc / Pc.sum(axis=1, keepdims=True)
+        g = np.asarray(cs)[idx].astype(int)
+        sc = _score_rows(Pc, g, q, part.centroids)
+        for j, i in enumerate(idx):
+            row = {**common, "kind": "camera", "A": int(h.landmarks[0]), "B": int(h.landmarks[1]),
+                   "C": int(h.landmarks[2]), "robot": int(rh[k][0]), "history": k,
+                   "view": int(i), "time": float(h.views[i]), "n_views": int(h.n_views),
+                   "truth_state": int(g[j]), "map_state": int(np.argmax(Pc[j])),
+                   "method": ests[k].method, "flagged": float(ests[k].degenerate)}
+            for key, arr in sc.items():
+                row[key] = float(arr[j])
+            row["probabilities"] = _enc(Pc[j])
+            rows.append(row)
+    return rows
 
 
 # ----------------------------------------------------------------------------- summaries
-def percentiles(values) -> list[float]:
-    """[p25, p50, p75] of ``values`` (NaNs when empty)."""
-    v = np.asarray(values, dtype=float)
-    if v.size == 0:
-        return [float("nan")] * 3
-    return [float(x) for x in np.percentile(v, [25, 50, 75])]
+def _mean(rows, key) -> float:
+    v = [float(r[key]) for r in rows if r.get(key) not in (None, "")]
+    return float(np.mean(v)) if v else float("nan")
 
 
-def summary(rows: list[dict]) -> dict:
-    """``{"n_triplets", "n_seen", "n_propagated", "n_reached", "seen": {metric: [p25, p50, p75]},
-    "propagated": {...}, "uniform_seen": {...}, "uniform_propagated": {...}}`` of some rows."""
-    out: dict = {"n_triplets": len(rows)}
-    for kind in ("seen", "propagated"):
-        sel = [r for r in rows if r["kind"] == kind]
-        out[f"n_{kind}"] = len(sel)
-        out[kind] = {k: percentiles([r[k] for r in sel]) for k in METRICS}
-        out[f"uniform_{kind}"] = {k: percentiles([r[f"uniform_{k}"] for r in sel]) for k in METRICS}
-    prop = [r for r in rows if r["kind"] == "propagated"]
-    out["n_reached"] = int(sum(r["reached"] for r in prop))
-    seen = [r for r in rows if r["kind"] == "seen"]
-    out["n_fallback"] = int(sum(r["combine_fallback"] for r in seen))
-    out["n_baseline"] = int(sum("baseline" in r["method"] for r in seen))
-    out["gt_swaps"] = sorted({r["gt_swaps"] for r in rows if r["gt_swaps"]})
-    for kind in ("seen", "propagated"):
-        sel = [r for r in rows if r["kind"] == kind]
-        out[f"{kind}_top1"] = float(np.mean([r["gt_rating"] == 1 for r in sel])) if sel else float("nan")
+def kind_summary(rows: list[dict]) -> dict:
+    """Scores of rows of one kind: ``n``; mean log score, Brier, GT rating, truth-under-1% rate
+    of the estimate and of both baselines (``uniform_*``, ``prior_*``); flagged and uniform
+    estimates; median DMSE; expected calibration error (top state)."""
+    out: dict = {"n": len(rows)}
+    for pre in ("", "uniform_", "prior_"):
+        for k in ("log_score", "brier", "gt_rating", "truth_under_1pct"):
+            out[f"{pre}{k}"] = _mean(rows, f"{pre}{k}")
+    out["flagged"] = _mean(rows, "flagged")
+    out["uniform_estimate"] = _mean(rows, "uniform_estimate")
+    out["dmse_median"] = float(np.median([float(r["dmse"]) for r in rows])) if rows else float("nan")
+    if rows:
+        P = np.array([decode(r["probabilities"]) for r in rows])
+        g = np.array([int(r["truth_state"]) for r in rows])
+        out["ece"] = metrics.expected_calibration_error(P, g)
+    else:
+        out["ece"] = float("nan")
     return out
 
 
-def _fmt(x) -> str:
-    return "nan" if not np.isfinite(x) else (f"{x:.2g}" if abs(x) < 0.01 and x != 0 else f"{x:.2f}")
+def summary(rows: list[dict]) -> dict:
+    """``{mode: {kind: kind_summary}}`` plus counts: seen triplets whose histories conflict,
+    propagated triplets reached, baseline-solved seen triplets."""
+    out: dict = {"n_rows": len(rows)}
+    for mode in sorted({r["mode"] for r in rows}):
+        sel = [r for r in rows if r["mode"] == mode]
+        d = {kind: kind_summary([r for r in sel if r["kind"] == kind]) for kind in KINDS}
+        d["n_conflict"] = int(sum(str(r.get("conflict")) == "True" for r in sel
+                                  if r["kind"] == "seen"))
+        d["n_reached"] = int(sum(str(r.get("reached")) == "True" for r in sel
+                                 if r["kind"] == "propagated"))
+        d["n_baseline"] = int(sum("baseline" in str(r["method"]) for r in sel
+                                  if r["kind"] == "seen"))
+        out[mode] = d
+    out["gt_swaps"] = sorted({r["gt_swaps"] for r in rows if r.get("gt_swaps")})
+    return out
+
+
+def _fmt(x, d=2) -> str:
+    return "nan" if x is None or not np.isfinite(x) else f"{x:.{d}f}"
 
 
 def table_lines(summ: dict) -> list[str]:
-    """Markdown rows (dataset, kind, estimate, metrics as p25/p50/p75) for summary dicts."""
-    lines = ["| dataset | triplets | estimate | DMSE | gmd | entropy | GT rating |",
-             "|---|---|---|---|---|---|---|"]
+    """Markdown rows: per dataset, mode and kind, each score as estimate / uniform / prior."""
+    lines = ["| dataset | mode | kind | n | log score | Brier | GT rating | truth < 1% | flagged | "
+             "uniform est. | ECE |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     names = list(summ.get("datasets", {})) + ["all"]
     for name in names:
         s = summ if name == "all" else summ["datasets"][name]
-        for kind in ("seen", "propagated"):
-            for est in (kind, f"uniform_{kind}"):
-                label = ("uniform" if est.startswith("uniform") else
-                         ("solver" if kind == "seen" else "propagated"))
-                cells = [" / ".join(_fmt(x) for x in s[est][k]) for k in METRICS]
-                lines.append(f"| {name} | {kind} {s[f'n_{kind}']} | {label} | " + " | ".join(cells) + " |")
+        for mode in MODES:
+            if mode not in s:
+                continue
+            for kind in KINDS:
+                k = s[mode][kind]
+                if not k["n"]:
+                    continue
+                trio = [" / ".join(_fmt(k[f"{p}{key}"], 3 if key == "brier" else 2)
+                                   for p in ("", "uniform_", "prior_"))
+                        for key in ("log_score", "brier", "gt_rating", "truth_under_1pct")]
+                lines.append(f"| {name} | {mode} | {kind} | {k['n']} | " + " | ".join(trio)
+                             + f" | {_fmt(k['flagged'])} | {_fmt(k['uniform_estimate'])} | "
+                             f"{_fmt(k['ece'])} |")
     return lines
-
-
-def _write_csv(path: Path, rows: list[dict]):
-    write_table(path, rows, digits=None)
 
 
 def write_outputs(outdir, rows: list[dict], *, figures: bool = True, figure_robot=None,
                   details=None) -> dict:
-    """``triplets.csv``, ``summary.json``, ``table.md`` and figures for rows of one or more
-    datasets; returns the summary dict."""
+    """``triplets.csv`` (seen and propagated rows), ``cameras.csv`` (camera rows, when any),
+    ``summary.json``, ``table.md`` and figures; returns the summary dict."""
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
-    _write_csv(out / "triplets.csv", rows)
+    trip = [r for r in rows if r["kind"] != "camera"]
+    cams = [r for r in rows if r["kind"] == "camera"]
+    write_table(out / "triplets.csv", trip, digits=None)
+    if cams:
+        write_table(out / "cameras.csv", cams, digits=None)
     names = list(dict.fromkeys(r["dataset"] for r in rows))
     summ = summary(rows)
     summ["datasets"] = {n: summary([r for r in rows if r["dataset"] == n]) for n in names}
     (out / "summary.json").write_text(json.dumps(summ, indent=2) + "\n")
     (out / "table.md").write_text("\n".join(table_lines(summ)) + "\n")
     if figures and rows:
-        fig_dir = out / "figures"
-        fig_dir.mkdir(exist_ok=True)
-        for n in names:
-            sub = [r for r in rows if r["dataset"] == n]
-            det = details if details is not None and details["dataset"].name == n else None
-            make_figures(fig_dir, sub, details=det, robot=figure_robot)
+        make_figures(out, rows, details=details, robot=figure_robot)
     return summ
 
 
 # ----------------------------------------------------------------------------- figures
-def _pick_triplet(rows, robot=None):
-    """The seen row with the most views (of ``robot`` if given; motion model and no degenerate
-    history preferred: a degenerate estimate is uniform and shows no hypotheses)."""
-    seen = [r for r in rows if r["kind"] == "seen"
-            and (robot is None or str(robot) in r["robots"].split(";"))]
-    if not seen:
-        return None
-    return max(seen, key=lambda r: ("baseline" not in r["method"], int(r["n_degenerate"]) == 0,
-                                    r["n_views"], -r["A"], -r["B"], -r["C"]))
+def make_figures(outdir: Path, rows: list[dict], *, details=None, robot=None) -> list[Path]:
+    """Reliability (calibration) figures of each mode's seen, propagated and camera rows, and
+    one robot's path with the views of the seen triplet with most views (first dataset)."""
+    from qfg.harness.plotting_mrclam import reliability_figure
+
+    paths = []
+    for mode in sorted({r["mode"] for r in rows}):
+        groups = {}
+        for kind in KINDS:
+            sel = [r for r in rows if r["mode"] == mode and r["kind"] == kind]
+            if sel:
+                groups[kind] = (np.array([decode(r["probabilities"]) for r in sel]),
+                                np.array([int(r["truth_state"]) for r in sel]))
+        if groups:
+            fig = reliability_figure(groups, title=f"{mode} mode: reliability")
+            paths.append(save_figure(fig, outdir, f"reliability_{mode}"))
+    paths += _path_figure(outdir, rows, details, robot)
+    return paths
 
 
-def make_figures(fig_dir: Path, rows: list[dict], *, details=None, robot=None) -> list[Path]:
-    """Landmarks + one robot's dead-reckoned path, and one triplet's hypotheses in its AB frame.
-
-    The triplet is the seen one with most views; its longest non-degenerate history is solved
-    again (seed 0, the rows' method) to get the hypotheses: C samples (size ~ weight), camera
-    samples per view, and the state probabilities of that history.
-    """
-    import matplotlib.pyplot as plt
-
-    from qfg.harness.plotting import draw_partition
+def _path_figure(outdir, rows, details, robot):
     from qfg.harness.plotting_mrclam import dataset_figure
-    from qfg.solvers import TripletSolver
 
-    row = _pick_triplet(rows, robot) or _pick_triplet(rows)
-    name = rows[0]["dataset"]
+    seen = [r for r in rows if r["kind"] == "seen" and r["mode"] == rows[0]["mode"]
+            and r["dataset"] == rows[0]["dataset"]
+            and (robot is None or str(robot) in str(r["robots"]).split(";"))]
+    if not seen:
+        return []
+    row = max(seen, key=lambda r: (int(r["n_views"]), -int(r["A"]), -int(r["B"]), -int(r["C"])))
     if details is not None:
         ds = details["dataset"]
     else:
-        ds, _ = prepare(rows[0]["path"], fix_landmarks=bool(rows[0]["gt_swaps"]))
-    paths = []
-    if row is None:
-        return paths
-    r = int(row["robots"].split(";")[0]) if robot is None else int(robot)
-    trip = (row["A"], row["B"], row["C"])
-    hs = [h for rr, h in histories(ds, [r]) if tuple(h.landmarks) == trip]
-    sols = [(x, TripletSolver.solve(x, method=row["method"].split(";")[0], seed=0)) for x in hs]
-    h, solver = max(sols, key=lambda he: (not he[1].estimate().degenerate, he[0].n_views))
-    est, hyp = solver.estimate(), solver.hypotheses()
-    p = dataset_figure(ds, r, fig_dir / f"{name}_robot{r}.{figure_format()}", history=h)
-    paths.append(Path(p))
+        ds, _ = prepare(row["path"], fix_landmarks=bool(row["gt_swaps"]))
+    r = int(str(row["robots"]).split(";")[0]) if robot is None else int(robot)
+    trip = (int(row["A"]), int(row["B"]), int(row["C"]))
+    hs = [h for h in _mrclam.triplet_histories(ds, r, min_travel=0.02) if tuple(h.landmarks) == trip]
+    h = max(hs, key=lambda x: x.n_views) if hs else None
+    figdir = Path(outdir) / "figures"
+    figdir.mkdir(parents=True, exist_ok=True)
+    p = figdir / f"{ds.name}_robot{r}.{figure_format()}"
+    return [Path(dataset_figure(ds, r, p, history=h))]
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 6))
-    ax = draw_partition("edc", axes[0], probabilities=est.landmark, highlight=h.truth.state,
-                        label_states=True)
-    w = hyp.landmark_weights
-    if hyp.landmark_samples.size and w.size:
-        keep = w > w.max() * 1e-3
-        ax.scatter(*hyp.landmark_samples[keep].T, s=4 + 40 * w[keep] / w.max(), c="tab:blue",
-                   alpha=0.6, label="C hypotheses")
-    cs = hyp.camera_samples
-    if cs.size:
-        cw = hyp.camera_weights
-        for i in range(cs.shape[0]):
-            sel = slice(None) if cw is None else cw[i] > cw[i].max() * 1e-3
-            ax.scatter(*cs[i][sel][:, :2].T, s=3, alpha=0.3, label=f"camera {i + 1}")
-    c = h.truth.C_ab
-    ax.plot(c[0], c[1], "r*", ms=14, label="C (truth)")
-    # cameras are often outside the partition window: widen the view to every point drawn
-    pts = np.vstack([ax.dataLim.get_points(), np.reshape(EDC_WINDOW_CORNERS, (2, 2))])
-    ax.set_xlim(pts[:, 0].min() - 0.2, pts[:, 0].max() + 0.2)
-    ax.set_ylim(pts[:, 1].min() - 0.2, pts[:, 1].max() + 0.2)
-    ax.legend(loc="lower right", fontsize=6)
-    ax.set_title(f"{name} robot {r}: {trip[0]},{trip[1]}:{trip[2]}, {h.n_views} views, "
-                 f"{est.method}", fontsize=9)
-    draw_partition("edc", axes[1], probabilities=est.landmark, highlight=h.truth.state)
-    axes[1].plot(c[0], c[1], "r*", ms=14)
-    top = int(np.argmax(est.landmark))
-    axes[1].set_title(f"P(state | this history); truth {h.truth.state + 1} (red), most likely "
-                      f"{top + 1} (p = {est.landmark[top]:.2f})", fontsize=9)
-    fig.tight_layout()
-    paths.append(save_figure(fig, Path(fig_dir).parent, f"{name}_triplet_{trip[0]}_{trip[1]}_{trip[2]}",
-                             dpi=120))
-    return paths
+
+# ----------------------------------------------------------------------------- views curve
+def views_curve(path, caps=(3, 5, 8, 13, 0), **options) -> list[dict]:
+    """Seen-triplet scores against the views kept per pass: for each cap n (0: all), every pass
+    truncated to its first n views, solved, combined and scored (no propagation). Returns one
+    dict per (cap, mode, kind) with the :func:`kind_summary` entries and ``max_views``."""
+    out = []
+    for n in caps:
+        rows = run_dataset(path, max_views=int(n), propagate=False, **options)
+        for mode, d in summary(rows).items():
+            if mode not in MODES:
+                continue
+            for kind in ("seen", "camera"):
+                if d[kind]["n"]:
+                    views = [int(r["n_views"]) for r in rows if r["kind"] == kind]
+                    out.append({"dataset": rows[0]["dataset"], "max_views": int(n), "mode": mode,
+                                "kind": kind, "views_median": float(np.median(views)),
+                                **d[kind]})
+    return out
+
+
+def curve_lines(recs: list[dict]) -> list[str]:
+    """Markdown rows of :func:`views_curve` records."""
+    lines = ["| dataset | mode | kind | views per pass (cap) | median views | n | log score | "
+             "Brier | GT rating | truth < 1% | flagged |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in recs:
+        lines.append(f"| {r['dataset']} | {r['mode']} | {r['kind']} | "
+                     f"{r['max_views'] or 'all'} | {r['views_median']:g} | {r['n']} | "
+                     f"{_fmt(r['log_score'])} | {_fmt(r['brier'], 3)} | {_fmt(r['gt_rating'])} | "
+                     f"{_fmt(r['truth_under_1pct'])} | {_fmt(r['flagged'])} |")
+    return lines
+
+
+def write_curve(outdir, recs: list[dict], *, figures: bool = True) -> None:
+    """``curve.csv``, ``curve.md`` and (``figures``) ``figures/views_curve.<format>``."""
+    out = Path(outdir)
+    out.mkdir(parents=True, exist_ok=True)
+    write_table(out / "curve.csv", recs, digits=None)
+    (out / "curve.md").write_text("\n".join(curve_lines(recs)) + "\n")
+    if figures and recs:
+        from qfg.harness.plotting_mrclam import curve_figure
+
+        save_figure(curve_figure(recs), out, "views_curve")
 
 
 # ----------------------------------------------------------------------------- runner study
@@ -393,10 +574,10 @@ def _params(params: dict) -> dict:
     if unknown:
         raise ValueError(f"params: unknown keys {sorted(unknown)}; known: {sorted(DEFAULTS)}")
     p = {**DEFAULTS, **params}
-    if p["method"] not in METHODS:
-        raise ValueError(f"method: expected one of {METHODS}, got {p['method']!r}")
-    if p["combine"] not in COMBINE:
-        raise ValueError(f"combine: expected one of {COMBINE}, got {p['combine']!r}")
+    for key, allowed in (("method", METHODS), ("combine", COMBINE), ("mode", MODES),
+                         ("prior", PRIORS)):
+        if p[key] not in allowed:
+            raise ValueError(f"{key}: expected one of {allowed}, got {p[key]!r}")
     return p
 
 
@@ -417,20 +598,23 @@ def dataset_dirs(data, numbers=()) -> list[Path]:
     return [found[n] for n in want]
 
 
+_TASK_KEYS = ("method", "mode", "prior", "combine", "partition", "fix_landmarks", "tensor",
+              "min_travel", "max_gap", "max_views", "propagate")
+
+
 def tasks(params: dict) -> list[dict]:
     """One task per dataset directory."""
     p = _params(params)
-    return [{"index": i, "path": str(d), "robots": list(p["robots"]), "method": p["method"],
-             "combine": p["combine"], "partition": p["partition"],
-             "fix_landmarks": bool(p["fix_landmarks"]), "tensor": p["tensor"]}
+    return [{"index": i, "path": str(d), "robots": list(p["robots"]),
+             **{k: p[k] for k in _TASK_KEYS}}
             for i, d in enumerate(dataset_dirs(p["data"], p["datasets"]))]
 
 
 def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
-    T = _load_tensor(task["partition"], task["tensor"] or None)
-    return run_dataset(task["path"], robots=task["robots"] or None, method=task["method"],
-                       combine=task["combine"], partition=task["partition"], tensor=T,
-                       fix_landmarks=task["fix_landmarks"], seed=int(rng.integers(2**63)))
+    T = _load_tensor(task["partition"], task["tensor"] or None) if task["propagate"] else None
+    opts = {k: task[k] for k in _TASK_KEYS if k not in ("tensor",)}
+    return run_dataset(task["path"], robots=task["robots"] or None, tensor=T,
+                       seed=int(rng.integers(2**63)), **opts)
 
 
 def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
@@ -438,10 +622,13 @@ def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
 
 
 STUDY = Study(name="mrclam", tasks=tasks, run_task=run_task, summarize=summarize,
-              description="MRCLAM datasets: triplet estimates, full map, propagation (paper 6d)",
+              description="MRCLAM datasets: triplet estimates, full map, propagation (paper 6d), "
+                          "scored with log score, Brier and both baselines",
               params=param_spec(DEFAULTS, method={"choices": METHODS},
-                                combine={"choices": COMBINE}, partition={"choices": ("edc",)}))
+                                combine={"choices": COMBINE}, mode={"choices": MODES},
+                                prior={"choices": PRIORS}, partition={"choices": ("edc",)}))
 
-__all__ = ["run_dataset", "combine_estimates", "summary", "write_outputs", "make_figures",
+__all__ = ["run_dataset", "summary", "kind_summary", "write_outputs", "make_figures",
            "dataset_dirs", "tasks", "run_task", "summarize", "STUDY", "DEFAULTS", "prepare",
-           "histories", "percentiles", "table_lines"]
+           "histories", "table_lines", "arena_extent", "make_prior", "paper_history", "truncate",
+           "views_curve", "decode", "curve_lines", "write_curve"]
