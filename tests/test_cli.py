@@ -53,7 +53,9 @@ def test_demo_map_compares_propagated_exact_and_truth(tmp_path):
     from qfg.harness.demo import run
 
     lines = []
-    res = run(seed=1, output=tmp_path, methods=("fast",), echo=lines.append)
+    res = run(seed=1, output=tmp_path, methods=("fast",), echo=lines.append, fmt="svg")
+    assert res["figure"] == tmp_path / "figures" / "scenario.svg"
+    assert res["figure"].read_bytes()[:5] == b"<?xml"
     rows = res["map"]
     assert rows and any(line.startswith("qualitative map:") for line in lines)
     for r in rows:
