@@ -567,6 +567,11 @@ def _weights(lw):
     return w / w.sum()
 
 
+def _binomial_floor(p, ess):
+    pt = (p * ess + 1.0) / (ess + 2.0)
+    return pt * (1.0 - pt) / ess
+
+
 def _summaries(part, X, c, lw):
     m = part.n_states
     mx = np.max(lw) if lw.size else -np.inf
@@ -579,8 +584,13 @@ def _summaries(part, X, c, lw):
     okc = sc >= 0
     land = np.bincount(sc[okc], weights=wn[okc], minlength=m)[:m]
     land = land / max(land.sum(), 1e-300)
+    ess = 1.0 / np.sum(wn ** 2)
     ind = (sc[:, None] == np.arange(m)[None, :]).astype(float)
-    err = np.sqrt(np.sum(wn[:, None] ** 2 * (ind - land[None, :]) ** 2, axis=0))
+    # delta-method error, but never below the binomial error of ESS independent draws with
+    # p~ = (P ESS + 1) / (ESS + 2): with few heavy draws that all sit in one state the delta
+    # method alone reports ~0 (measured: two seeds 0.30 apart at ESS 12, delta-method error 0.03)
+    err = np.sqrt(np.maximum(np.sum(wn[:, None] ** 2 * (ind - land[None, :]) ** 2, axis=0),
+                             _binomial_floor(land, ess)))
     n = X.shape[1]
     cams = np.zeros((n, m))
     cam_err = np.zeros((n, m))
@@ -589,8 +599,9 @@ def _summaries(part, X, c, lw):
         h = np.bincount(sx[okj, j], weights=wn[okj], minlength=m)[:m]
         cams[j] = h / max(h.sum(), 1e-300)
         indj = (sx[:, j, None] == np.arange(m)[None, :]).astype(float)
-        cam_err[j] = np.sqrt(np.sum(wn[:, None] ** 2 * (indj - cams[j][None, :]) ** 2, axis=0))
-    ess = 1.0 / np.sum(wn ** 2)
+        cam_err[j] = np.sqrt(np.maximum(
+            np.sum(wn[:, None] ** 2 * (indj - cams[j][None, :]) ** 2, axis=0),
+            _binomial_floor(cams[j], ess)))
     log_mean = mx + np.log(w.sum()) - np.log(lw.size)
     return land, err, cams, cam_err, float(ess), float(log_mean), wn
 
@@ -735,7 +746,7 @@ def _geometry_flags(L, X, c, wn):
     that (nearly) coincide (all views at one pose, motion along the line of sight)."""
     out = []
     g = wrap_angle(L.phi[:, 1] - L.phi[:, 0])
-    on_ab = np.flatnonzero(np.abs(np.sin(g)) < 3 * L.sv)
+    on_ab = np.flatnonzero(np.abs(np.sin(g)) < 2 * L.sv)
     if on_ab.size:
         out.append("camera on line AB in view(s) " + ", ".join(str(int(i)) for i in on_ab))
     if L.n >= 2:
