@@ -23,10 +23,18 @@ Sampling variables ``u`` (a bijection with theta wherever the target is positive
 
 Round 1 draws w uniformly and eps from N(0, 1) (likelihood-absorbing, "sequential" proposal).
 Later rounds draw from ``lam * sequential + (1 - lam) * sum_k pi_k t_k(u)``, t-distributions in
-``(logit w, eps)`` fitted to the previous round's weighted sample, one per cluster (root pattern,
+``(logit w, eps)`` fitted to the previous rounds' weighted draws, one per cluster (root pattern,
 separated values of w); the defensive share keeps every weight at most 1/lam times the
-sequential weight. The estimate uses the last round; its error is the delta-method standard
-deviation of the self-normalized estimator, ``sqrt(sum_i wbar_i^2 (1[s_i = s] - P_s)^2)``.
+sequential weight. A cluster with too few effective draws for its dimension gets a Laplace
+component instead (Newton on the target with C integrated out by Laplace), split in two where
+the curvature at its mean shows two modes. Views are added in stages (the first three, then one
+at a time); each stage is a complete importance sampler whose fitted proposal carries over.
+
+The answer combines the final stage's rounds weighted by their ESS. Its error per state is the
+delta-method standard deviation of the self-normalized estimator,
+``sqrt(sum_i wbar_i^2 (1[s_i = s] - P_s)^2)``, floored at the binomial error of ESS draws.
+Answers with ESS < ``min_ess`` are flagged: their error estimate is not reliable. Measured ESS,
+time and calibration: ``docs/priors.md``.
 """
 
 from __future__ import annotations
@@ -73,7 +81,6 @@ _LOG2PI = np.log(2 * np.pi)
 
 #: Largest noise sigma used (radians); the wrapped normal is uniform beyond it.
 SIGMA_CAP = 10.0
-_DEBUG = False
 
 #: Scale factor on the Laplace standard deviations of C's proposal (2-D: inflating is cheap).
 C_INFLATE = 1.3
@@ -506,8 +513,6 @@ def _laplace(L, prior, mean, cov, roots, iters=4):
         F = _log_marginal(L, prior, np.concatenate(pts), np.repeat(rr, sum(len(p) for p in pts),
                                                                    axis=0))
         if not np.all(np.isfinite(F)):
-            if _DEBUG:
-                print("    nonfinite", np.sum(~np.isfinite(F)), F.size, it)
             return "keep", mean, cov
         f0 = F[0]
         fp, fm = F[1:1 + d], F[1 + d:1 + 2 * d]
@@ -525,8 +530,6 @@ def _laplace(L, prior, mean, cov, roots, iters=4):
         if not np.all(np.isfinite(lam)):
             return "keep", mean, cov
         if lam.min() <= 0:
-            if _DEBUG:
-                print("    eig", np.sort(lam)[:4], it)
             if it == 0:
                 return "split", V[:, int(np.argmin(lam))], None
             return "keep", mean, cov
