@@ -236,8 +236,9 @@ def _scores(sub: list[dict]) -> dict:
 
 
 def _probs(sub):
+    """(P (N, m), truths (N,)) from the rows; the stored probabilities (6 digits) renormalized."""
     P = np.array([[float(v) for v in r["p"].split()] for r in sub])
-    return P, np.array([int(r["gt_state"]) for r in sub])
+    return P / P.sum(axis=1, keepdims=True), np.array([int(r["gt_state"]) for r in sub])
 
 
 def _write_csv(path: Path, recs: list[dict]) -> None:
@@ -360,8 +361,8 @@ def reference_table(rows: list[dict]) -> tuple[list[dict], str]:
             if not pairs:
                 continue
             d = np.array([a["log_score"] - b["log_score"] for a, b in pairs])
-            P = np.array([[float(v) for v in a["p"].split()] for a, _ in pairs])
-            R = np.array([[float(v) for v in b["p"].split()] for _, b in pairs])
+            P = _probs([a for a, _ in pairs])[0]
+            R = _probs([b for _, b in pairs])[0]
             kl = np.sum(R * (np.log(np.maximum(R, 1e-12)) - np.log(np.maximum(P, 1e-6))), axis=1)
             recs.append({"sigma_v_deg": sv, "sigma_w_deg": sw, "method": m, "n": len(pairs),
                          "log_score_diff": float(d.mean()),
