@@ -385,8 +385,9 @@ class JunctionTree:
             C = self.cliques[v]
             for c in self.children[v]:
                 Nc = self.cliques[c][1:]
-                keep = [x for x in C if x in set(Nc)]
-                axes = tuple(i for i, x in enumerate(C) if x not in set(Nc))
+                ns = set(Nc)
+                keep = [x for x in C if x in ns]
+                axes = tuple(i for i, x in enumerate(C) if x not in ns)
                 perm = tuple(keep.index(x) for x in Nc)
                 self._down[c] = (axes, perm)
         self._comp = self._components()
