@@ -35,7 +35,7 @@ from . import priors as _priors
 from ._validate import as_float_array, as_rng, positive_int
 
 __all__ = ["CombinedEstimate", "combine_posteriors", "product_of_posteriors",
-           "prior_state_distribution"]
+           "prior_state_distribution", "temper"]
 
 #: Probability vectors must sum to 1 within this.
 _SUM_TOL = 1e-6
@@ -117,6 +117,39 @@ def product_of_posteriors(posteriors) -> CombinedEstimate:
     with np.errstate(divide="ignore"):
         logp = np.log(P).sum(axis=0)
     return _combine_logs(logp, P)
+
+
+def temper(posteriors, prior_states, tau: float) -> np.ndarray:
+    """Tempered estimates ``p_tau(s) ∝ prior(s) (p(s) / prior(s))^tau``: the likelihood part of
+    each posterior raised to the power ``tau`` in [0, 1], the prior kept whole (a power
+    likelihood, the usual remedy when a model's likelihood is overconfident). ``tau = 1`` returns
+    the estimates, ``tau = 0`` the prior. Shapes: (..., m) and (m,) -> (..., m).
+
+    >>> temper([[0.9, 0.1]], [0.5, 0.5], 0.5).round(3).tolist()
+    [[0.75, 0.25]]
+    """
+    P = as_float_array("posteriors", posteriors)
+    if P.ndim < 1 or P.shape[-1] < 2 or np.any(P < 0):
+        raise ValueError(f"posteriors: expected non-negative (..., m) vectors, got shape {P.shape}")
+    q = as_float_array("prior_states", prior_states)
+    if q.shape != (P.shape[-1],) or np.any(q < 0) or abs(q.sum() - 1) > _SUM_TOL:
+        raise ValueError(f"prior_states: expected a probability vector of length {P.shape[-1]}")
+    tau = float(tau)
+    if not 0 <= tau <= 1:
+        raise ValueError(f"tau: expected a number in [0, 1], got {tau}")
+    if tau == 1:
+        return P / P.sum(axis=-1, keepdims=True)
+    qs = np.where(q > 0, q, 1.0)
+    with np.errstate(divide="ignore"):
+        logp = np.where((P > 0) & (q > 0), tau * (np.log(np.where(P > 0, P, 1.0)) - np.log(qs))
+                        + np.log(qs), -np.inf)
+    if tau == 0:
+        logp = np.where(q > 0, np.log(qs), -np.inf) + np.zeros_like(P)
+    mx = np.max(logp, axis=-1, keepdims=True)
+    mx = np.where(np.isfinite(mx), mx, 0.0)
+    w = np.exp(logp - mx)
+    tot = w.sum(axis=-1, keepdims=True)
+    return np.where(tot > 0, w / np.where(tot > 0, tot, 1.0), q)
 
 
 def prior_state_distribution(prior="world", partition="edc", *, point: int = 0,

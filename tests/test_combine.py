@@ -9,7 +9,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from qfg.combine import combine_posteriors, prior_state_distribution, product_of_posteriors
+from qfg.combine import (
+    combine_posteriors,
+    prior_state_distribution,
+    product_of_posteriors,
+    temper,
+)
 from qfg.partitions import get as get_partition
 from qfg.priors import WindowPrior, sample_measurements
 from qfg.solvers._reference import solve_reference
@@ -107,3 +112,23 @@ def test_two_passes_combined_are_closer_to_the_reference_on_both_than_the_produc
         tv_prod.append(_tv(product_of_posteriors([p1, p2]).probabilities, both))
     # on average (per triplet it is closer in about half of these: docs/results/mrclam.md)
     assert np.mean(tv_once) < np.mean(tv_prod)
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(m=st.integers(2, 8), seed=st.integers(0, 2**31 - 1), tau=st.floats(0.0, 1.0))
+def test_temper_is_a_power_likelihood(m, seed, tau):
+    rng = np.random.default_rng(seed)
+    q = rng.dirichlet(np.ones(m))
+    lik = rng.uniform(0.01, 1.0, size=m)
+    p = q * lik / np.sum(q * lik)
+    want = q * lik ** tau
+    assert np.allclose(temper(p, q, tau), want / want.sum(), atol=1e-10)
+    assert np.allclose(temper(p, q, 1.0), p) and np.allclose(temper(p, q, 0.0), q)
+    # p_tau = q exp(tau f) / Z is an exponential family in tau: KL(p_tau || q) has derivative
+    # tau Var_tau(f) >= 0, so halving tau never moves the estimate further from the prior
+    def kl(a):
+        return float(np.sum(a * np.log(a / q)))
+
+    assert kl(temper(p, q, tau / 2)) <= kl(temper(p, q, tau)) + 1e-12
+    with pytest.raises(ValueError, match="tau"):
+        temper(p, q, 1.5)

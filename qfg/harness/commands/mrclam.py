@@ -42,6 +42,9 @@ def register(sub):
                    help="seconds a triplet may go unseen within one pass (default 10)")
     p.add_argument("--max-views", type=int, default=0,
                    help="keep the first N views of each pass (default 0: all)")
+    p.add_argument("--temper", type=float, default=1.0,
+                   help="temper each estimate's likelihood part by this power in [0, 1] before "
+                        "combining (default 1: none; docs/results/mrclam.md)")
     p.add_argument("--curve", default="",
                    help="comma-separated view caps (0 = all), e.g. 3,5,8,0: also score the seen "
                         "triplets with each pass cut to that many views (curve.csv, curve figure)")
@@ -70,7 +73,7 @@ def run_one(task: dict, rng) -> list[dict]:
                              partition=task["partition"], tensor=T,
                              fix_landmarks=task["fix_landmarks"], seed=task["seed"],
                              min_travel=task["min_travel"], max_gap=task["max_gap"],
-                             max_views=task["max_views"])
+                             max_views=task["max_views"], temper=task["temper"])
 
 
 def _main(args):
@@ -87,7 +90,8 @@ def _main(args):
         raise ValueError(f"path: {path} is not a directory")
     params = {"path": str(path.resolve()), "robots": robots, "method": args.method,
               "mode": args.mode, "prior": args.prior, "combine": args.combine,
-              "min_travel": args.min_travel, "max_gap": args.max_gap, "max_views": args.max_views, "partition": "edc", "tensor": args.tensor or "",
+              "min_travel": args.min_travel, "max_gap": args.max_gap, "max_views": args.max_views,
+              "temper": args.temper, "partition": "edc", "tensor": args.tensor or "",
               "fix_landmarks": not args.no_fix_landmarks, "seed": args.seed,
               "figures": not args.no_figures}
     out = Path(args.output or f"out/mrclam-{path.resolve().name}")
@@ -117,7 +121,7 @@ def _main(args):
         recs = study.views_curve(path, caps, robots=robots or None, method=args.method,
                                  mode=args.mode, prior=args.prior, combine=args.combine,
                                  min_travel=args.min_travel, max_gap=args.max_gap,
-                                 fix_landmarks=not args.no_fix_landmarks, seed=args.seed)
+                                 temper=args.temper, fix_landmarks=not args.no_fix_landmarks, seed=args.seed)
         study.write_curve(out, recs, figures=not args.no_figures)
         for line in study.curve_lines(recs):
             print(line)
