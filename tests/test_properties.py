@@ -469,13 +469,7 @@ def test_graph_inference_positive_factors_have_mass(method, gm):
 
 
 def _spread_case(method, seed):
-    marks = []
-    if method == "contract":
-        marks = [pytest.mark.xfail(strict=True, reason=(
-            "inference: exact_marginals(engine='contract') raises ZeroMassError on full_map(4) "
-            "with a positive 2x2x2 tensor of entries 10**uniform(-100, 0) (the junction engine "
-            "answers)"))]
-    return pytest.param(method, seed, marks=marks, id=f"{method}-{seed}")
+    return pytest.param(method, seed, id=f"{method}-{seed}")
 
 
 @pytest.mark.parametrize("method, seed", [_spread_case(m, s) for m in

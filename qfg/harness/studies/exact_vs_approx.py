@@ -34,6 +34,7 @@ import numpy as np
 
 from qfg.graph import truth_states
 from qfg.harness.runner import Study, param_spec, print_table, save_figure, write_table
+from qfg.harness.studies.propagation import GRAPH_KEYS as _GRAPH_KEYS
 from qfg.inference import ZeroMassError, exact_marginals
 from qfg.metrics import dmse, information_score
 from qfg.propagation import loopy_bp, propagate, topology_scores
@@ -54,10 +55,6 @@ DEFAULTS = {
     # Tests only: a seeded random tensor (m = 20) instead of tensors/<partition>.npz.
     "random_tensor": False,
 }
-
-_GRAPH_KEYS = ("n_landmarks", "n_fc_min", "n_fc_max", "n_candidates", "coverage_rate", "n_views",
-               "sigma_bearing_deg", "sigma_heading_deg", "solver", "partition", "n_bins")
-
 
 def tasks(params: dict) -> list[dict]:
     unknown = set(params) - set(DEFAULTS)

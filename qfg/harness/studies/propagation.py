@@ -1,6 +1,7 @@
 """The factor-graph propagation study (paper sections 5c and 6f, issue 6).
 
-One scenario = one factor graph:
+One scenario = one factor graph, drawn by :func:`qfg.random_graphs.propagation_graph` (steps 1-3;
+the exact-vs-approximate study and the inference benchmark draw the same graphs from it):
 
 1. Landmarks placed as in the simulation (:func:`qfg.simulation.sample_positions`: uniform in the
    box, at least ``min_distance`` apart), ids ``0 .. n_landmarks - 1``.
@@ -33,18 +34,21 @@ Run: ``qfg experiment propagation --preset quick --output results/propagation-qu
 
 from __future__ import annotations
 
-import itertools
 import json
 from pathlib import Path
 
 import numpy as np
 
-from qfg.geometry import bearing, motion_heading, wrap_angle
-from qfg.graph import QualitativeFactorGraph, truth_states
+from qfg.graph import truth_states
 from qfg.harness.runner import Study, param_spec, print_table, save_figure, validate_params, write_table
-from qfg.metrics import dmse, entropy, gmd, gt_rating
+from qfg.metrics import dmse, gmd, gt_rating
 from qfg.propagation import composition_levels, propagate, topology_scores
-from qfg.simulation import SimulationConfig, sample_positions
+from qfg.random_graphs import (  # one generator; the helpers re-exported for tests and tools
+    candidate_graph,  # noqa: F401
+    connectivity_score,  # noqa: F401
+    factor_triplets,  # noqa: F401
+    propagation_graph,
+)
 
 DEFAULTS = {
     "n_graphs": 20, "n_landmarks": 6, "n_fc_min": 5, "n_fc_max": 40, "n_candidates": 10,
@@ -63,6 +67,11 @@ PARAMS = param_spec(DEFAULTS, n_graphs={"min": 1}, n_landmarks={"min": 4}, n_fc_
 
 
 _HEADLINE = ("spearman_tsc_isc", "spearman_cl_isc", "pearson_tsc_isc", "pearson_cl_isc")
+
+
+#: The task parameters that :func:`~qfg.random_graphs.propagation_graph` draws a graph from.
+GRAPH_KEYS = ("n_landmarks", "n_fc_min", "n_fc_max", "n_candidates", "coverage_rate", "n_views",
+              "sigma_bearing_deg", "sigma_heading_deg", "solver", "partition", "n_bins")
 
 
 def tasks(params: dict) -> list[dict]:
@@ -91,83 +100,14 @@ def _tensor(task):
     return tensor(task["partition"])
 
 
-def factor_triplets(f) -> tuple[tuple, tuple, tuple]:
-    """The triplets (AB:C, BC:D, AB:D) of composition factor ``f = (i, j, k, s)``."""
-    i, j, k, s = f
-    return (i, j, k), (j, k, s), (i, j, s)
-
-
-def connectivity_score(g, n_bins: int = 10) -> float:
-    """Entropy (nats) of the histogram of Algorithm 3 topology scores, seen triplets at 1.
-
-    Bins: ``n_bins`` equal bins on [0, 1] (1 falls in the last). High: the scores spread over many
-    levels; 0: all triplets in one bin.
-    """
-    tsc = topology_scores(g, seen_score=1.0).scores
-    counts, _ = np.histogram(tsc, bins=n_bins, range=(0.0, 1.0))
-    return float(entropy(counts / counts.sum()))
-
-
-def candidate_graph(rng, n_landmarks, n_fc, coverage_rate, table):
-    """A random candidate: factors, triplets (sorted), seen mask, graph with placeholder priors.
-
-    Seen triplets get uniform placeholder priors (Algorithm 3 with ``seen_score=1`` ignores them).
-    """
-    all_f = list(itertools.permutations(range(n_landmarks), 4))
-    pick = np.sort(rng.choice(len(all_f), size=n_fc, replace=False))
-    factors = [all_f[i] for i in pick]
-    triplets = sorted({t for f in factors for t in factor_triplets(f)})
-    n_v = len(triplets)
-    n_seen = int(min(max(round(coverage_rate * n_v), 1), n_v - 1))
-    seen = np.zeros(n_v, dtype=bool)
-    seen[rng.choice(n_v, size=n_seen, replace=False)] = True
-    g = _build(triplets, seen, None, factors, table)
-    return factors, triplets, seen, g
-
-
-def _build(triplets, seen, priors, factors, table, partition="edc"):
-    g = QualitativeFactorGraph(partition, tensor=table)
-    m = table.shape[0]
-    it = iter(priors) if priors is not None else None
-    for t, s in zip(triplets, seen, strict=True):
-        g.add_triplet(t, (next(it) if it is not None else np.ones(m)) if s else None)
-    for f in factors:
-        g.add_composition(f)
-    return g
-
-
 def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
     from qfg.composition.online import as_table
     from qfg.partitions import get
-    from qfg.solvers import solve_triplets
 
     table = as_table(_tensor(task))
-    n_l = int(task["n_landmarks"])
-    best = None
-    for c in range(int(task["n_candidates"])):
-        n_fc = int(rng.integers(int(task["n_fc_min"]), int(task["n_fc_max"]) + 1))
-        factors, triplets, seen, g = candidate_graph(rng, n_l, n_fc, float(task["coverage_rate"]),
-                                                     table)
-        score = connectivity_score(g, int(task["n_bins"]))
-        if best is None or score > best[0]:
-            best = (score, c, factors, triplets, seen)
-    conn, kept, factors, triplets, seen = best
-
-    # measurements of the seen triplets: n_views own cameras each, placed with the landmarks
-    n_seen, nv = int(seen.sum()), int(task["n_views"])
-    sb, sh = np.deg2rad(float(task["sigma_bearing_deg"])), np.deg2rad(float(task["sigma_heading_deg"]))
-    pts = sample_positions(rng, n_l + n_seen * nv, SimulationConfig())
-    L = pts[:n_l]
-    poses = np.concatenate([pts[n_l:].reshape(n_seen, nv, 2),
-                            rng.uniform(-np.pi, np.pi, size=(n_seen, nv, 1))], axis=-1)
-    ids = np.array([t for t, s in zip(triplets, seen, strict=True) if s], dtype=np.intp)
-    phi = bearing(poses[:, :, None, :], L[ids][:, None, :, :])             # (n_seen, nv, 3)
-    phi = wrap_angle(phi + rng.normal(size=phi.shape) * sb)
-    psi = motion_heading(poses[:, :-1], poses[:, 1:, :2])                     # (n_seen, nv - 1)
-    psi = wrap_angle(psi + rng.normal(size=psi.shape) * sh)
-    est = solve_triplets(phi, psi, method=task["solver"], partition=task["partition"],
-                         sigma_bearing=sb, sigma_heading=sh, seed=int(rng.integers(2**63)))
-    g = _build(triplets, seen, [e.landmark for e in est], factors, table, task["partition"])
+    drawn = propagation_graph(rng, table, **{k: task[k] for k in GRAPH_KEYS})
+    g, L = drawn.graph, drawn.landmarks
+    n_seen, conn, kept = int(g.seen.sum()), drawn.connectivity, drawn.kept_candidate
 
     prop = propagate(g)
     tsc = topology_scores(g, alpha=float(task["alpha"])).scores
