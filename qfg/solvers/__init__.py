@@ -55,11 +55,20 @@ def _model(method, meas):
 
 
 def _options(method, model, options):
-    opts = C.resolve_options(method, options)   # validates against the requested method
+    opts = _resolve(method, options)   # validates against the requested method
     if model == method:
         return opts
     shared = {k: v for k, v in opts.items() if k in DEFAULTS[model]}
-    return C.resolve_options(model, shared)
+    return _resolve(model, shared)
+
+
+def _resolve(method, options):
+    """:func:`._common.resolve_options`, with the reference solver's own defaults."""
+    if method == "reference":
+        from ._reference import REFERENCE_DEFAULTS
+
+        return C.resolve_options(method, options, dict(REFERENCE_DEFAULTS, prior="world"))
+    return C.resolve_options(method, options)
 
 
 def solve_triplet(bearings, headings=None, *, method: str = "full", partition="edc",
@@ -284,7 +293,7 @@ class TripletSolver:
         if method not in METHODS:
             raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
         part = C.get_partition(partition)
-        opts = C.resolve_options(method, options)
+        opts = _resolve(method, options)
         self._init(method, part, opts, C.root_seed(seed),
                    C.non_negative("sigma_bearing", sigma_bearing),
                    C.non_negative("sigma_heading", sigma_heading))

@@ -192,19 +192,12 @@ DEFAULTS = {
 }
 
 
-def reference_defaults() -> dict:
-    """Options of ``method="reference"`` (:data:`qfg.solvers._reference.REFERENCE_DEFAULTS` and
-    the prior)."""
-    from ._reference import REFERENCE_DEFAULTS
-
-    return dict(REFERENCE_DEFAULTS, prior="world")
-
-
-def resolve_options(method: str, options: dict) -> dict:
-    """Defaults of ``method`` updated with ``options``; unknown or bad options raise ValueError."""
+def resolve_options(method: str, options: dict, defaults: dict | None = None) -> dict:
+    """Defaults of ``method`` (or ``defaults``, e.g. the reference solver's) updated with
+    ``options``; unknown or bad options raise ValueError."""
     if method not in METHODS:
         raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
-    opts = dict(DEFAULTS[method]) if method != "reference" else reference_defaults()
+    opts = dict(DEFAULTS[method] if defaults is None else defaults)
     unknown = sorted(set(options) - set(opts))
     if unknown:
         raise ValueError(f"{unknown[0]}: not an option of method {method!r}; "
@@ -330,8 +323,7 @@ def get_partition(partition):
 # of all views draws for it.
 
 #: spawn-key purposes
-STREAM_CAMERAS, STREAM_RESAMPLE, STREAM_ONE_VIEW, STREAM_LANDMARKS, STREAM_POSTERIOR = 0, 1, 2, 3, 4
-STREAM_RETRY = 5
+STREAM_CAMERAS, STREAM_RESAMPLE, STREAM_LANDMARKS, STREAM_POSTERIOR, STREAM_RETRY = 0, 1, 3, 4, 5
 
 
 def root_seed(seed) -> np.random.SeedSequence:
@@ -444,19 +436,12 @@ def log_joint_prior(prior, landmark, cameras) -> np.ndarray:
 RAY_CENTRE = np.array([0.0, 0.5])
 
 
-def ray_samples(rng, origins, angles, sigma, k):
-    """C drawn along lines of sight: ``L = O + r u(theta + eps)``, ``eps ~ N(0, sigma^2)``,
-    ``r = tau v / (1 - v)`` with v uniform (stratified) and ``tau = max(1, |O - (0, 1/2)|)``
-    (the distance scale of the world). ``origins`` (..., 2), ``angles`` (...) ->
-    ``(L (..., k, 2), log q (..., k))`` with q the proposal density over positions,
-    ``N(eps; sigma) tau / (tau + r)^2 / r`` (polar coordinates about O)."""
-    shape = np.shape(angles) + (k,)
-    eps = sigma * rng.standard_normal(shape)
-    v = (np.arange(k) + rng.random(shape)) / k
-    return _ray_points(origins, angles, eps, v, sigma)
-
-
 def _ray_points(origins, angles, eps, v, sigma):
+    """C along lines of sight: ``L = O + r u(theta + eps)`` with ``r = tau v / (1 - v)`` (v in
+    (0, 1)) and ``tau = max(1, |O - (0, 1/2)|)`` (the distance scale of the world). ``origins``
+    (..., 2), ``angles`` (...), ``eps`` and ``v`` (..., k) -> ``(L (..., k, 2), log q (..., k))``
+    with q the density over positions when ``eps ~ N(0, sigma^2)`` and v is uniform:
+    ``N(eps; sigma) tau / (tau + r)^2 / r`` (polar coordinates about O)."""
     tau = np.maximum(1.0, np.linalg.norm(origins - RAY_CENTRE, axis=-1))[..., None]
     v = np.clip(v, 1e-12, 1 - 1e-12)
     r = tau * v / (1.0 - v)
@@ -466,18 +451,9 @@ def _ray_points(origins, angles, eps, v, sigma):
 
 
 def ray_log_density_polar(eps, r, tau, sigma):
-    """log q of :func:`ray_samples` at angular offset ``eps`` and distance ``r``."""
+    """log q of :func:`_ray_points` at angular offset ``eps`` and distance ``r``."""
     return (log_gauss(eps, sigma) - 0.5 * np.log(2 * np.pi) + np.log(tau)
             - 2.0 * np.log(tau + r) - np.log(np.maximum(r, 1e-300)))
-
-
-def ray_log_density(L, origins, angles, sigma):
-    """log q of :func:`ray_samples` at points L (..., k, 2) for rays (...)."""
-    d = L - origins[..., None, :]
-    r = np.linalg.norm(d, axis=-1)
-    eps = wrap_angle(np.arctan2(d[..., 1], d[..., 0]) - np.asarray(angles)[..., None])
-    tau = np.maximum(1.0, np.linalg.norm(origins - RAY_CENTRE, axis=-1))[..., None]
-    return ray_log_density_polar(eps, r, tau, sigma)
 
 
 def arc_parameter(gamma, w):
@@ -547,26 +523,6 @@ def log_camera_prior(points, gamma, log_dadw, prior) -> np.ndarray:
 # the sampling step
 
 
-def sample_view(rng: np.random.Generator, phi, sigma: float, n: int, prior):
-    """Camera poses of one view sampled near its locus arc under bearing noise.
-
-    ``phi``: (3,) measured [phi_A, phi_B, phi_C]. Bearings to A and B are perturbed with
-    N(0, sigma^2); each perturbed pair defines a locus arc (``gamma = phi_B - phi_A``) on which a
-    position is drawn at a stratified-uniform parameter w (:func:`arc_parameter`); the heading
-    follows from phi_A.
-    Returns ``(poses (n, 3), logw (n,))``, logw the prior importance weight (-inf = invalid).
-    """
-    pa = phi[0] + sigma * rng.standard_normal(n)
-    pb = phi[1] + sigma * rng.standard_normal(n)
-    u = (rng.permutation(n) + rng.random(n)) / n
-    gamma = wrap_angle(pb - pa)
-    a, log_dadw = arc_parameter(gamma, u)
-    X = locus_point(gamma, a)
-    alpha = heading_on_locus(X, pa)
-    logw = log_camera_prior(X, gamma, log_dadw, prior)
-    return np.concatenate([X, alpha[:, None]], axis=-1), logw
-
-
 def arc_poses(phi_a, phi_b, w, prior):
     """Camera poses on the exact locus arcs of bearings ``phi_a``, ``phi_b`` (T,) at arc
     parameters ``w`` (T, K) in (0, 1) (:func:`arc_parameter`). Returns ``(poses (T, K, 3),
@@ -578,12 +534,6 @@ def arc_poses(phi_a, phi_b, w, prior):
     alpha = heading_on_locus(X, pa)
     logw = log_camera_prior(X, gamma, log_dadw, prior)
     return np.concatenate([X, alpha[..., None]], axis=-1), logw
-
-
-def arc_grid(phi_a, phi_b, n: int, prior):
-    """:func:`arc_poses` at the midpoints of n equal steps of w, for every arc of (...)."""
-    w = np.broadcast_to((np.arange(n) + 0.5) / n, np.shape(phi_a) + (n,))
-    return arc_poses(phi_a, phi_b, w, prior)
 
 
 def _laplace(X, theta):
@@ -646,7 +596,7 @@ def sample_landmarks(rng, poses, phi_c, sigma, k: int, ray_fraction: float, draw
     """C samples for each camera trajectory, from a defensive mixture: a Gaussian about the
     least-squares triangulation with covariance ``(1.5 sigma)^2 H^-1`` (``H = sum_t g_t g_t^T``,
     ``g_t = grad_L f(L, X_t)``; the Laplace approximation of C's conditional, inflated) and, for
-    a share ``ray_fraction`` of the samples (all of them with one view), :func:`ray_samples` along
+    a share ``ray_fraction`` of the samples (all of them with one view), :func:`_ray_points` along
     the line of sight of a view chosen uniformly. The mixture density is evaluated exactly, so
     ``exp(log prior + log lik - log q)`` is an unbiased estimate of C's integral for every
     geometry, including lines of sight that coincide (C's depth then comes from the prior).
@@ -828,12 +778,6 @@ def geometry_reasons(bearings, sigma_bearing=0.0, headings=None, sigma_heading=0
             out.append("lines of sight to C may coincide: the camera travels along its line of "
                        "sight to C between every pair of views")
     return out
-
-
-def nominal_degenerate(bearings) -> list[int]:
-    """Views whose measured bearings put the camera on line AB (|sin(phi_B - phi_A)| tiny)."""
-    g = wrap_angle(bearings[:, 1] - bearings[:, 0])
-    return [int(i) for i in np.flatnonzero(np.abs(np.sin(g)) < LOCUS_EPS)]
 
 
 def logsumexp(a, axis=-1) -> np.ndarray:
