@@ -8,8 +8,8 @@ from hypothesis import strategies as st
 
 from qfg import geometry, metrics, partitions
 from qfg.simulation import TripletHistory, random_triplet_history
-from qfg.solvers import _common as C
 from qfg.solvers import TripletSolver, add_view, solve_triplet, solve_triplets
+from qfg.solvers import _common as C
 from qfg.solvers._baseline import resect
 
 METHODS = ("full", "fast", "fast-paper", "baseline")

@@ -31,8 +31,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..geometry import LOCUS_EPS, wrap_angle
 from .. import priors as _priors
+from ..geometry import LOCUS_EPS, wrap_angle
 from . import _common as C
 
 _PRODUCT = _priors.ProductPrior()

@@ -13,7 +13,7 @@ import numpy as np
 from .. import partitions as _partitions
 from .. import priors as _priors
 from .._validate import as_float_array, non_negative, positive_int
-from ..geometry import LOCUS_EPS, heading_on_locus, locus_point, triangulate_lsq, wrap_angle
+from ..geometry import LOCUS_EPS, heading_on_locus, locus_point, wrap_angle
 
 #: Methods :func:`qfg.solvers.solve_triplet` knows.
 METHODS = ("full", "fast", "fast-paper", "baseline", "reference")

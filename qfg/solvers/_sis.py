@@ -41,8 +41,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..geometry import heading_on_locus, locus_circle, locus_point, ray_circle_intersection
-from ..geometry import wrap_angle
+from ..geometry import heading_on_locus, locus_circle, locus_point, ray_circle_intersection, wrap_angle
 from . import _common as C
 
 
@@ -270,7 +269,8 @@ def _subset(st: SISState, mask) -> SISState:
     new_id = np.cumsum(mask) - 1
     return replace(st, bearings=st.bearings[mask], headings=st.headings[mask],
                    sigma_bearing=st.sigma_bearing[mask], sigma_heading=st.sigma_heading[mask],
-                   roots=tuple(r for r, m in zip(st.roots, mask) if m), tid=new_id[st.tid[rows]],
+                   roots=tuple(r for r, m in zip(st.roots, mask, strict=True) if m),
+                   tid=new_id[st.tid[rows]],
                    poses=st.poses[rows], lw_base=st.lw_base[rows], lp_x=st.lp_x[rows],
                    lw_c=st.lw_c[rows], same_pose=st.same_pose[mask], lost=st.lost[mask])
 
