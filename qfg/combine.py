@@ -35,7 +35,7 @@ from . import priors as _priors
 from ._validate import as_float_array, as_rng, positive_int
 
 __all__ = ["CombinedEstimate", "combine_posteriors", "product_of_posteriors",
-           "prior_state_distribution", "temper"]
+           "prior_state_distribution", "temper", "geometric_pool"]
 
 #: Probability vectors must sum to 1 within this.
 _SUM_TOL = 1e-6
@@ -104,6 +104,21 @@ def combine_posteriors(posteriors, prior_states) -> CombinedEstimate:
         logp = np.log(P).sum(axis=0) - (k - 1) * np.log(np.where(q > 0, q, 1.0))
     logp = np.where(q > 0, logp, -np.inf)
     return _combine_logs(logp, P)
+
+
+def geometric_pool(posteriors, prior_states) -> CombinedEstimate:
+    """``P(s) ∝ prior(s) prod_i (p_i(s) / prior(s))^(1/k)``: the k histories' likelihoods pooled
+    by their geometric mean, the prior once -- the rule for histories that repeat the same
+    evidence (fully dependent: k copies of one pass give that pass). Between this and
+    :func:`combine_posteriors` (independent histories) lies the truth for passes whose errors
+    are shared (the same landmarks' geometry, the same camera bias).
+
+    >>> geometric_pool([[0.8, 0.2], [0.8, 0.2]], [0.5, 0.5]).probabilities.round(3).tolist()
+    [0.8, 0.2]
+    """
+    P = _vectors(posteriors)
+    k = P.shape[0]
+    return combine_posteriors(temper(P, prior_states, 1.0 / k), prior_states)
 
 
 def product_of_posteriors(posteriors) -> CombinedEstimate:

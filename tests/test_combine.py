@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 
 from qfg.combine import (
     combine_posteriors,
+    geometric_pool,
     prior_state_distribution,
     product_of_posteriors,
     temper,
@@ -132,3 +133,15 @@ def test_temper_is_a_power_likelihood(m, seed, tau):
     assert kl(temper(p, q, tau / 2)) <= kl(temper(p, q, tau)) + 1e-12
     with pytest.raises(ValueError, match="tau"):
         temper(p, q, 1.5)
+
+
+@settings(max_examples=30, deadline=None, derandomize=True)
+@given(m=st.integers(2, 6), k=st.integers(1, 4), seed=st.integers(0, 2**31 - 1))
+def test_geometric_pool_of_copies_is_the_copy(m, k, seed):
+    rng = np.random.default_rng(seed)
+    q = rng.dirichlet(np.ones(m))
+    p = rng.dirichlet(np.ones(m))
+    assert np.allclose(geometric_pool(np.tile(p, (k, 1)), q).probabilities, p, atol=1e-10)
+    # and independent copies are counted k times by the prior-once rule: p^k / q^(k-1)
+    w = p**k / q ** (k - 1)
+    assert np.allclose(combine_posteriors(np.tile(p, (k, 1)), q).probabilities, w / w.sum())

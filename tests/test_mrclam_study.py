@@ -266,3 +266,21 @@ def test_real_dataset6_camera_states_and_paper_mode_score():
     assert all(np.isfinite(r["log_score"]) and r["log_score"] >= np.log(1e-4) for r in cams)
     paper = study.run_dataset(d, robots=[4], propagate=False, max_views=4, seed=0, mode="paper")
     assert {r["mode"] for r in paper} == {"paper"} and any(r["kind"] == "seen" for r in paper)
+
+
+def test_spread_views_get_headings_of_their_own_steps(data):
+    # robot 1 drives a circle at omega = W: the chord between views dt apart turns by W dt / 2,
+    # whichever views are kept (tests/test_mrclam.py checks the loader's headings the same way)
+    from test_mrclam import W
+
+    ds = mrclam.load(data / "MRCLAM_Dataset1")
+    long = [h for _, h in study.histories(ds, robots=[1], min_travel=0.02) if h.n_views >= 7]
+    sp = {(tuple(h.landmarks), h.views[0]): h
+          for _, h in study.histories(ds, robots=[1], min_travel=0.02, spread_views=3)}
+    assert long
+    for h in long:
+        s = sp[(tuple(h.landmarks), h.views[0])]
+        assert s.n_views == 3 and s.views[0] == h.views[0] and s.views[-1] == h.views[-1]
+        assert np.allclose(s.headings, W * np.diff(s.views) / 2, atol=1e-6)
+        assert np.allclose(s.bearings, h.bearings[np.searchsorted(h.views, s.views)])
+        assert np.all(s.distances > h.distances.max())

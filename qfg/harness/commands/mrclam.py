@@ -33,15 +33,19 @@ def register(sub):
                         "headings from motion capture (paper emulation; dataset 6)")
     p.add_argument("--prior", default="arena", choices=("arena", "world"),
                    help="world-box prior on the arena's extent (default) or the simulator's box")
-    p.add_argument("--combine", default="prior-once", choices=("prior-once", "product"),
-                   help="how several histories of one ordered triplet combine (default: at the "
-                        "state level with the prior counted once)")
+    p.add_argument("--combine", default="prior-once",
+                   choices=("prior-once", "geometric", "product"),
+                   help="how several histories of one ordered triplet combine: at the state level "
+                        "with the prior counted once, as independent passes (default) or by the "
+                        "geometric mean of their likelihoods; or the plain product")
     p.add_argument("--min-travel", type=float, default=0.02,
                    help="metres between kept views of a pass (default 0.02: every view with motion)")
     p.add_argument("--max-gap", type=float, default=10.0,
                    help="seconds a triplet may go unseen within one pass (default 10)")
     p.add_argument("--max-views", type=int, default=0,
                    help="keep the first N views of each pass (default 0: all)")
+    p.add_argument("--spread-views", type=int, default=0,
+                   help="keep N views spread evenly over each pass (default 0: all)")
     p.add_argument("--temper", type=float, default=1.0,
                    help="temper each estimate's likelihood part by this power in [0, 1] before "
                         "combining (default 1: none; docs/results/mrclam.md)")
@@ -73,7 +77,8 @@ def run_one(task: dict, rng) -> list[dict]:
                              partition=task["partition"], tensor=T,
                              fix_landmarks=task["fix_landmarks"], seed=task["seed"],
                              min_travel=task["min_travel"], max_gap=task["max_gap"],
-                             max_views=task["max_views"], temper=task["temper"])
+                             max_views=task["max_views"], temper=task["temper"],
+                             spread_views=task["spread_views"])
 
 
 def _main(args):
@@ -91,7 +96,8 @@ def _main(args):
     params = {"path": str(path.resolve()), "robots": robots, "method": args.method,
               "mode": args.mode, "prior": args.prior, "combine": args.combine,
               "min_travel": args.min_travel, "max_gap": args.max_gap, "max_views": args.max_views,
-              "temper": args.temper, "partition": "edc", "tensor": args.tensor or "",
+              "temper": args.temper, "spread_views": args.spread_views, "partition": "edc",
+              "tensor": args.tensor or "",
               "fix_landmarks": not args.no_fix_landmarks, "seed": args.seed,
               "figures": not args.no_figures}
     out = Path(args.output or f"out/mrclam-{path.resolve().name}")
@@ -121,7 +127,8 @@ def _main(args):
         recs = study.views_curve(path, caps, robots=robots or None, method=args.method,
                                  mode=args.mode, prior=args.prior, combine=args.combine,
                                  min_travel=args.min_travel, max_gap=args.max_gap,
-                                 temper=args.temper, fix_landmarks=not args.no_fix_landmarks, seed=args.seed)
+                                 temper=args.temper, spread_views=args.spread_views,
+                                 fix_landmarks=not args.no_fix_landmarks, seed=args.seed)
         study.write_curve(out, recs, figures=not args.no_figures)
         for line in study.curve_lines(recs):
             print(line)

@@ -18,9 +18,10 @@ For one MRCLAM dataset directory (:func:`run_dataset`):
    simulator's 6 x 7 m box. Every history is solved with :func:`qfg.solvers.solve_triplets`
    under it; robots without odometry get the baseline model (the row's ``method``).
 5. Histories of one ordered triplet (separate passes, other robots) are combined at the state
-   level with the prior counted once (:func:`qfg.combine.combine_posteriors`, ``combine=
-   "prior-once"``); ``"product"`` (the plain product of posteriors) is kept to measure the
-   difference.
+   level with the prior counted once: ``combine="prior-once"`` (independent passes,
+   :func:`qfg.combine.combine_posteriors`) or ``"geometric"`` (passes that repeat the same
+   evidence, :func:`qfg.combine.geometric_pool`); ``"product"`` (the plain product of posteriors,
+   the prior counted k times) is kept to measure the difference.
 6. The whole qualitative map (:func:`qfg.graph.full_map`, every ordered triplet), the combined
    estimates as priors, the rest propagated by Algorithm 2 (:func:`qfg.propagation.propagate`).
 7. Scores (:mod:`qfg.metrics`) against the landmark ground truth (:func:`qfg.graph.truth_states`)
@@ -50,14 +51,20 @@ from pathlib import Path
 import numpy as np
 
 from qfg import metrics
-from qfg.combine import combine_posteriors, prior_state_distribution, product_of_posteriors, temper
+from qfg.combine import (
+    combine_posteriors,
+    geometric_pool,
+    prior_state_distribution,
+    product_of_posteriors,
+    temper,
+)
 from qfg.datasets import mrclam as _mrclam
 from qfg.harness.runner import Study, figure_format, param_spec, save_figure, write_table
 from qfg.partitions import get as get_partition
 from qfg.priors import WorldBoxPrior
 from qfg.priors import get as get_prior
 
-COMBINE = ("prior-once", "product")
+COMBINE = ("prior-once", "geometric", "product")
 METHODS = ("fast", "full", "baseline")
 MODES = ("honest", "paper")
 PRIORS = ("arena", "world")
@@ -85,6 +92,7 @@ DEFAULTS = {
     "sigma_bearing_deg": 0.0,              # bearing sigma the solver assumes (0: loader default)
     "sigma_heading_deg": 0.0,              # heading sigma the solver assumes (0: loader default)
     "temper": 1.0,                         # power on each estimate's likelihood part (1: none)
+    "spread_views": 0,                     # views spread over each pass (0: all)
 }
 
 
@@ -135,22 +143,49 @@ def make_prior(ds, name: str = "arena"):
 
 
 # ----------------------------------------------------------------------------- histories
-def truncate(h, n: int):
-    """The first ``n`` views of a history (every per-view field cut alike)."""
-    if n <= 0 or h.n_views <= n:
-        return h
+def _select(h, idx):
+    """The views ``idx`` (increasing) of a history, every per-view field cut alike; headings and
+    distances kept only for consecutive runs (callers recompute them otherwise)."""
+    idx = np.asarray(idx, dtype=int)
     t = h.truth
     truth = dataclasses.replace(
-        t, poses_world=None if t.poses_world is None else t.poses_world[:n],
-        poses_ab=None if t.poses_ab is None else t.poses_ab[:n],
-        camera_states=None if t.camera_states is None else t.camera_states[:n])
+        t, poses_world=None if t.poses_world is None else t.poses_world[idx],
+        poses_ab=None if t.poses_ab is None else t.poses_ab[idx],
+        camera_states=None if t.camera_states is None else t.camera_states[idx])
+    step = idx[:-1]
     extra = {}
     if hasattr(h, "distances"):
-        extra["distances"] = None if h.distances is None else h.distances[:n - 1]
+        extra["distances"] = None if h.distances is None else h.distances[step]
         extra["groundtruth_valid"] = (None if h.groundtruth_valid is None
-                                      else h.groundtruth_valid[:n])
-    return dataclasses.replace(h, bearings=h.bearings[:n], headings=h.headings[:n - 1],
-                               views=h.views[:n], truth=truth, **extra)
+                                      else h.groundtruth_valid[idx])
+    return dataclasses.replace(h, bearings=h.bearings[idx], headings=h.headings[step],
+                               views=h.views[idx], truth=truth, **extra)
+
+
+def truncate(h, n: int):
+    """The first ``n`` views of a history (every per-view field cut alike; 0: all)."""
+    if n <= 0 or h.n_views <= n:
+        return h
+    return _select(h, np.arange(n))
+
+
+def spread(h, n: int, poses=None, view_times=None):
+    """``n`` views spread evenly over the history (first and last included; 0: all): wider
+    baselines than consecutive views. The headings and distances between the kept views are
+    recomputed from ``poses`` (the robot's dead-reckoned view poses, :func:`qfg.datasets.mrclam.
+    view_poses`, indexed like ``view_times``); without them (no odometry, or inputs recomputed
+    from the capture afterwards, :func:`paper_history`) they are left as cut."""
+    if n <= 0 or h.n_views <= n:
+        return h
+    out = _select(h, np.unique(np.round(np.linspace(0, h.n_views - 1, n)).astype(int)))
+    if poses is None or not h.has_motion:
+        return out
+    from qfg.geometry import motion_heading
+
+    vi = np.searchsorted(view_times, out.views)
+    P = poses[vi]
+    return dataclasses.replace(out, headings=motion_heading(P[:-1], P[1:, :2]),
+                               distances=np.hypot(*np.diff(P[:, :2], axis=0).T))
 
 
 def paper_history(h):
@@ -170,9 +205,12 @@ def paper_history(h):
     return dataclasses.replace(h, bearings=phi, headings=psi, has_motion=True)
 
 
-def histories(ds, robots=None, *, mode: str = "honest", max_views: int = 0, **options):
+def histories(ds, robots=None, *, mode: str = "honest", max_views: int = 0,
+              spread_views: int = 0, **options):
     """(robot, history) pairs of ``robots`` (None / empty: every robot), robot-major; ``mode``
-    ``"paper"`` keeps the histories the capture covers, with clean inputs (:func:`paper_history`)."""
+    ``"paper"`` keeps the histories the capture covers, with clean inputs (:func:`paper_history`);
+    ``spread_views`` > 0 keeps that many views spread over each pass (:func:`spread`, headings
+    from the odometry between the kept views, or from the capture in paper mode)."""
     if mode not in MODES:
         raise ValueError(f"mode: expected one of {MODES}, got {mode!r}")
     robots = sorted(ds.robots) if not robots else [int(r) for r in robots]
@@ -181,8 +219,11 @@ def histories(ds, robots=None, *, mode: str = "honest", max_views: int = 0, **op
                          f"{ds.name} has none")
     out = []
     for r in robots:
+        rd = ds.robot(r)
+        P = _mrclam.view_poses(rd)[0] if spread_views and rd.has_odometry else None
         for h in _mrclam.triplet_histories(ds, r, **options):
-            h = truncate(h, int(max_views))
+            h = spread(truncate(h, int(max_views)), int(spread_views),
+                       None if mode == "paper" else P, rd.view_times)
             if mode == "paper":
                 h = paper_history(h)
                 if h is None:
@@ -255,6 +296,14 @@ def _score_rows(P, g, q, centroids):
 _temper = temper
 
 
+def _combine(V, q, how):
+    if how == "prior-once":
+        return combine_posteriors(V, q)
+    if how == "geometric":
+        return geometric_pool(V, q)
+    return product_of_posteriors(V)
+
+
 def _load_tensor(partition: str, path: str | None):
     from qfg.composition import load, tensor
 
@@ -266,7 +315,8 @@ def run_dataset(path, *, robots=None, method: str = "fast", mode: str = "honest"
                 tensor=None, fix_landmarks: bool = True, seed=0, min_travel: float = 0.02,
                 max_gap: float = 10.0, max_views: int = 0, propagate: bool = True,
                 sigma_bearing_deg: float = 0.0, sigma_heading_deg: float = 0.0,
-                temper: float = 1.0, return_details: bool = False, **solver_options):
+                temper: float = 1.0, spread_views: int = 0, return_details: bool = False,
+                **solver_options):
     """Solve, combine, map, propagate and score one dataset directory.
 
     Args:
@@ -288,6 +338,7 @@ def run_dataset(path, *, robots=None, method: str = "fast", mode: str = "honest"
             :func:`qfg.combine.temper` with the prior's state distribution: ``p ∝ prior
             (p / prior)^temper`` (1: as solved). Chosen on a development dataset, never on the
             one reported (docs/results/mrclam.md).
+        spread_views: keep this many views spread evenly over each pass (0: all).
 
     Returns:
         rows (list of dicts; module docstring). With ``return_details``: ``(rows, details)``.
@@ -310,7 +361,8 @@ def run_dataset(path, *, robots=None, method: str = "fast", mode: str = "honest"
         sig["sigma_bearing"] = np.deg2rad(float(sigma_bearing_deg))
     if sigma_heading_deg:
         sig["sigma_heading"] = np.deg2rad(float(sigma_heading_deg))
-    rh = histories(ds, robots, mode=mode, max_views=max_views, partition=part,
+    rh = histories(ds, robots, mode=mode, max_views=max_views, spread_views=spread_views,
+                   partition=part,
                    min_travel=min_travel, max_gap=max_gap, **sig)
     hs = [h for _, h in rh]
     ests = _solve(hs, method, part, seed, dict(solver_options, prior=pr))
@@ -322,8 +374,8 @@ def run_dataset(path, *, robots=None, method: str = "fast", mode: str = "honest"
     groups: dict[tuple, list[int]] = {}
     for k, h in enumerate(hs):
         groups.setdefault(tuple(ds.landmark_index(h.landmarks).tolist()), []).append(k)
-    rule = (lambda V: combine_posteriors(V, q_c)) if combine == "prior-once" else product_of_posteriors
-    combined = {t: rule(np.array([ests[k].landmark for k in ks])) for t, ks in groups.items()}
+    combined = {t: _combine(np.array([ests[k].landmark for k in ks]), q_c, combine)
+                for t, ks in groups.items()}
 
     ids = ds.landmark_ids
     swap_txt = ";".join(f"{a}-{b}" for a, b in swaps)
@@ -558,7 +610,8 @@ def views_curve(path, caps=(3, 5, 8, 13, 0), **options) -> list[dict]:
                 continue
             for kind in ("seen", "camera"):
                 if d[kind]["n"]:
-                    views = [int(r["n_views"]) for r in rows if r["kind"] == kind]
+                    views = [int(r["n_views"]) / max(int(r.get("n_histories") or 1), 1)
+                             for r in rows if r["kind"] == kind]
                     out.append({"dataset": rows[0]["dataset"], "max_views": int(n), "mode": mode,
                                 "kind": kind, "views_median": float(np.median(views)),
                                 **d[kind]})
@@ -584,8 +637,7 @@ def temper_scores(details, taus=(1.0, 0.5, 0.3, 0.2, 0.1, 0.05, 0.0), combine="p
     out = []
     for tau in taus:
         Lt = temper(L, q, tau)
-        P = np.array([(combine_posteriors(Lt[groups[tuple(t)]], q) if combine == "prior-once"
-                       else product_of_posteriors(Lt[groups[tuple(t)]])).probabilities
+        P = np.array([_combine(Lt[groups[tuple(t)]], q, combine).probabilities
                       for t in trip.tolist()])
         out.append({"temper": float(tau), "n": int(len(trip)),
                     "log_score": float(metrics.log_score(P, g).mean()),
@@ -651,7 +703,7 @@ def dataset_dirs(data, numbers=()) -> list[Path]:
 
 _TASK_KEYS = ("method", "mode", "prior", "combine", "partition", "fix_landmarks", "tensor",
               "min_travel", "max_gap", "max_views", "propagate", "sigma_bearing_deg",
-              "sigma_heading_deg", "temper")
+              "sigma_heading_deg", "temper", "spread_views")
 
 
 def tasks(params: dict) -> list[dict]:
