@@ -141,8 +141,13 @@ class FactorModel:
         for vs in g.factor_vars.tolist():
             scopes.append(tuple(vs))
             tables.append(T)
-        return cls(cards=(g.m,) * g.n_triplets, scopes=scopes, tables=tables,
-                   names=tuple(g.triplets), partition=getattr(g, "partition", None))
+        # the graph has validated its tensor, priors and ids: skip the per-table checks
+        model = object.__new__(cls)
+        for name, value in (("cards", (g.m,) * g.n_triplets), ("scopes", tuple(scopes)),
+                            ("tables", tuple(tables)), ("names", tuple(g.triplets)),
+                            ("partition", getattr(g, "partition", None))):
+            object.__setattr__(model, name, value)
+        return model
 
     def log_value(self, states) -> np.ndarray:
         """(K,) ``log prod_f phi_f(x_f)`` of (K, n) joint assignments (unnormalized)."""
@@ -340,8 +345,12 @@ class JunctionTree:
             largest clique table would exceed this many entries.
 
     Attributes: ``estimate`` (:class:`SizeEstimate`), ``order`` (elimination order),
-    ``cliques`` (per variable v: the clique variables, v first), ``parent`` (per v: parent
-    clique/variable or -1).
+    ``parent`` (per variable: its parent in the elimination tree or -1), ``nodes`` (per clique
+    node: its variables, the ones it owns first), ``owned`` (per node: how many variables it
+    owns). A variable's clique ``{v} u N_v`` that is contained in the clique of the variable
+    eliminated just before it (``C_v = N_c``, c a child of v) is merged into that clique: the
+    tree keeps only maximal cliques (about half as many tables on chains of factors), and
+    every variable owns the node whose table holds it and from which its marginal is read.
     """
 
     def __init__(self, model, max_table: int = MAX_TABLE):
@@ -355,41 +364,80 @@ class JunctionTree:
             raise _too_large(est, max_table)
         n, cards = model.n, model.cards
         self.order = np.asarray(order, dtype=np.intp)
-        pos = np.empty(n, dtype=np.intp)
-        pos[self.order] = np.arange(n)
-        self.cliques = [()] * n
+        pos = [0] * n
+        for i, v in enumerate(order):
+            pos[v] = i
         self.parent = np.full(n, -1, dtype=np.intp)
-        self.children = [[] for _ in range(n)]
+        nb_of = [()] * n
         for v, nb in zip(order, nbrs, strict=True):
-            self.cliques[v] = (v,) + nb
+            nb_of[v] = nb
             if nb:
-                p = min(nb, key=lambda u: pos[u])
-                self.parent[v] = p
-                self.children[p].append(v)
-        # every factor to the clique of its first-eliminated variable (holds its whole scope)
-        self.assigned = [[] for _ in range(n)]
-        for f, s in enumerate(model.scopes):
-            if s:
-                v = min(s, key=lambda u: pos[u])
-                self.assigned[v].append(f)
-        self.empty_factors = [f for f, s in enumerate(model.scopes) if not s]
-        sc = model.scopes
-        self._fac_ex = [[(f, _expander(sc[f], self.cliques[v], cards)) for f in self.assigned[v]]
-                        for v in range(n)]
-        self._child_ex = [[(c, _expander(self.cliques[c][1:], self.cliques[v], cards))
-                           for c in self.children[v]] for v in range(n)]
-        self._shape = [tuple(cards[x] for x in self.cliques[v]) for v in range(n)]
-        # downward: sum beta_v over C_v \ N_c, then reorder to N_c's order in the child
+                self.parent[v] = min(nb, key=pos.__getitem__)
+        # merge: v joins the node of a child c with N_c = C_v (then C_v is a subset of C_c)
+        node_of = [-1] * n
+        owned_vars: list[list] = []    # per node, in elimination order
+        last_child = [-1] * n          # per v: a child whose clique contains C_v, if any
+        for v in order:
+            c = last_child[v]
+            if c >= 0:
+                k = node_of[c]
+                owned_vars[k].append(v)
+            else:
+                k = len(owned_vars)
+                owned_vars.append([v])
+            node_of[v] = k
+            p = self.parent[v]
+            if p >= 0 and last_child[p] < 0 and len(nb_of[v]) == len(nb_of[p]) + 1:
+                last_child[p] = v
+        # nodes in the order of their last owned variable: children before parents
+        nn = len(owned_vars)
+        rank = sorted(range(nn), key=lambda k: pos[owned_vars[k][-1]])
+        owned_vars = [owned_vars[k] for k in rank]
+        node_of = [0] * n
+        for k, ov in enumerate(owned_vars):
+            for v in ov:
+                node_of[v] = k
+        self.nodes, self.owned = [], []
+        self._sep, self._shape = [], []
+        self._node_parent = [-1] * nn
+        self._node_children = [[] for _ in range(nn)]
+        for k, ov in enumerate(owned_vars):
+            last = ov[-1]
+            # owned axes first, the last eliminated first (decoded first in MAP)
+            vs = tuple(ov[::-1]) + nb_of[last]
+            self.nodes.append(vs)
+            self.owned.append(len(ov))
+            self._sep.append(nb_of[last])
+            self._shape.append(tuple(cards[x] for x in vs))
+            p = self.parent[last]
+            if p >= 0:
+                self._node_parent[k] = node_of[p]
+                self._node_children[node_of[p]].append(k)
+        self._node_of = node_of
+        # every factor to the node of its first-eliminated variable (holds its whole scope)
+        assigned = [[] for _ in range(nn)]
+        for f, sc in enumerate(model.scopes):
+            if sc:
+                assigned[node_of[min(sc, key=pos.__getitem__)]].append(f)
+        self.empty_factors = [f for f, sc in enumerate(model.scopes) if not sc]
+        scopes = model.scopes
+        self._fac_ex = [[(f, _expander(scopes[f], self.nodes[k], cards)) for f in assigned[k]]
+                        for k in range(nn)]
+        self._child_ex = [[(c, _expander(self._sep[c], self.nodes[k], cards))
+                           for c in self._node_children[k]] for k in range(nn)]
+        self._own_axes = [tuple(range(self.owned[k])) for k in range(nn)]
+        self._n_owned = [math.prod(self._shape[k][:self.owned[k]]) for k in range(nn)]
+        # downward: sum beta_k over its variables outside S_c, then reorder to S_c's order
         self._down = {}
-        for v in range(n):
-            C = self.cliques[v]
-            for c in self.children[v]:
-                Nc = self.cliques[c][1:]
-                ns = set(Nc)
+        for k in range(nn):
+            C = self.nodes[k]
+            for c in self._node_children[k]:
+                Sc = self._sep[c]
+                ns = set(Sc)
                 keep = [x for x in C if x in ns]
                 axes = tuple(i for i, x in enumerate(C) if x not in ns)
-                perm = tuple(keep.index(x) for x in Nc)
-                self._down[c] = (axes, perm)
+                perm = tuple(keep.index(x) for x in Sc)
+                self._down[c] = (axes, None if perm == tuple(range(len(perm))) else perm)
         self._comp = self._components()
 
     # ------------------------------------------------------------------ helpers
@@ -452,18 +500,32 @@ class JunctionTree:
         mass (caller retries in the log domain)."""
         model = self.model
         n = model.n
+        nn = len(self.nodes)
         tabs, log_scale = self._scaled_tables(log)
-        e_psi = [0.0] * n          # linear: absolute error bounds (values scaled to max 1)
-        e_up = [0.0] * n
-        e_down = [0.0] * n
-        psi_store = [None] * n
-        up = [None] * n
+        e_psi = [0.0] * nn         # linear: absolute error bounds (values scaled to max 1)
+        e_up = [0.0] * nn
+        e_down = [0.0] * nn
+        psi_store = [None] * nn
+        up = [None] * nn
         logz = log_scale
-        for v in self.order.tolist():
-            shape = self._shape[v]
+        children = self._node_children
+        contiguous = {}  # a table shared by many factors (the tensor) transposed once per order
+
+        def expand(f, ex):
+            perm, shp = ex
+            t = tabs[f]
+            if perm != tuple(range(len(perm))):
+                key = (id(t), perm)
+                if key not in contiguous:
+                    contiguous[key] = np.ascontiguousarray(t.transpose(perm))
+                t = contiguous[key]
+            return t.reshape(shp)
+
+        for k in range(nn):
+            shape = self._shape[k]
             psi = None
-            parts = [_expand(tabs[f], ex) for f, ex in self._fac_ex[v]]
-            parts += [_expand(up[c], ex) for c, ex in self._child_ex[v]]
+            parts = [expand(f, ex) for f, ex in self._fac_ex[k]]
+            parts += [_expand(up[c], ex) for c, ex in self._child_ex[k]]
             if len(parts) >= 2:  # the first product allocates; the rest are in place
                 psi = parts[0] + parts[1] if log else parts[0] * parts[1]
                 parts = parts[2:]
@@ -478,83 +540,95 @@ class JunctionTree:
                 psi = np.zeros(shape) if log else np.ones(shape)
             elif psi.shape != shape:
                 psi = np.broadcast_to(psi, shape).copy()
+            own = self._own_axes[k]
             if log:
                 mx = float(psi.max())
                 if mx == -np.inf:
-                    raise self._zero_mass(v)
+                    raise self._zero_mass(self.nodes[k][0])
                 psi -= mx
                 logz += mx
                 with np.errstate(divide="ignore"):
-                    u = np.log(np.exp(psi).sum(axis=0))
+                    u = np.log(np.exp(psi).sum(axis=own))
                 umx = float(u.max())
                 u -= umx
             else:
-                e_psi[v] = (len(self._fac_ex[v]) + len(self._child_ex[v])) * _TAU + sum(
-                    e_up[c] for c in self.children[v])
-                u = psi.sum(axis=0)
+                e_psi[k] = (len(self._fac_ex[k]) + len(self._child_ex[k])) * _TAU + sum(
+                    e_up[c] for c in children[k])
+                u = psi.sum(axis=own)
                 umx = float(u.max())
                 if not umx > 0:
                     return None  # underflow or no mass: the log domain decides
                 u /= umx
-                e_up[v] = shape[0] * e_psi[v] / umx
+                e_up[k] = self._n_owned[k] * e_psi[k] / umx
             logz += math.log(umx) if not log else umx
-            psi_store[v] = psi
-            up[v] = u
+            psi_store[k] = psi
+            up[k] = u
         P = np.zeros((n, max(model.cards) if n else 0))
-        down = [None] * n
-        for v in self.order[::-1].tolist():
-            beta = psi_store[v]
-            psi_store[v] = None
-            if self.parent[v] >= 0:
-                d = down[v].reshape(self._shape[v][1:])[None]
+        down = [None] * nn
+        for k in range(nn - 1, -1, -1):
+            beta = psi_store[k]
+            psi_store[k] = None
+            if self._node_parent[k] >= 0:
+                d = down[k]
                 if log:
                     beta += d
                 else:
                     beta *= d
-                down[v] = None
-            other = tuple(range(1, beta.ndim))
+                down[k] = None
+            vs = self.nodes[k]
+            no = self.owned[k]
+            other = tuple(range(no, beta.ndim))
             if log:
                 # relative to the clique's largest entry: what underflows here is < 1e-308 of it
-                mv = np.exp(beta - beta.max()).sum(axis=other)
+                mo = np.exp(beta - beta.max())
+                mo = mo.sum(axis=other) if other else mo
             else:
-                mv = beta.sum(axis=other) if other else beta.copy()
-            s = mv.sum()
+                mo = beta.sum(axis=other) if other else beta.copy()
+            s = mo.sum()
             if not log:
-                e_beta = e_psi[v] + e_down[v] + _TAU
+                e_beta = e_psi[k] + e_down[k] + _TAU
                 if not (s > 0 and beta.size * e_beta <= _REL_TOL * s):
                     return None  # the bound is not small against the mass: log domain
             if not s > 0:
-                raise self._zero_mass(v)
-            P[v, :len(mv)] = mv / s
-            for c in self.children[v]:
+                raise self._zero_mass(vs[0])
+            mo = mo / s
+            if no == 1:
+                P[vs[0], :len(mo)] = mo
+            else:
+                for i in range(no):
+                    mv = mo.sum(axis=tuple(j for j in range(no) if j != i))
+                    P[vs[i], :len(mv)] = mv
+            for c in children[k]:
                 axes, perm = self._down[c]
+                pad = (None,) * self.owned[c]
                 if log:
                     bm = beta.max(axis=axes, keepdims=True)
                     bm = np.where(np.isfinite(bm), bm, 0.0)
                     with np.errstate(divide="ignore"):
                         red = np.log(np.exp(beta - bm).sum(axis=axes)) + bm.squeeze(axes)
-                    red = red.transpose(perm) if perm != tuple(range(len(perm))) else red
+                    red = red.transpose(perm) if perm is not None else red
                     uc = up[c]
                     dc = np.where(uc > -np.inf, red - np.where(uc > -np.inf, uc, 0.0), -np.inf)
                     dm = dc.max()
-                    down[c] = dc - dm if dm > -np.inf else dc
+                    down[c] = (dc - dm if dm > -np.inf else dc)[pad]
                 else:
                     red = beta.sum(axis=axes)
-                    red = red.transpose(perm) if perm != tuple(range(len(perm))) else red
+                    red = red.transpose(perm) if perm is not None else red
                     uc = up[c]
                     pos = uc > 0
                     dc = np.divide(red, uc, out=np.zeros_like(red), where=pos)
                     dm = dc.max()
                     if not dm > 0:
                         return None
-                    down[c] = dc / dm
+                    dc /= dm
+                    down[c] = dc[pad]
                     # error bound of beta_c = psi_c * delta_c from this step: delta_c(x) has the
-                    # error of r_c summed entries of beta_v divided by mu_c(x), but psi_c(., x)
-                    # <= mu_c(x) * (its normalizer <= card) cancels the division; where mu_c
+                    # error of r_c summed entries of beta_k divided by mu_c(x), but psi_c(., x)
+                    # <= mu_c(x) (each of its n_c owned entries) cancels the division; where mu_c
                     # underflowed to zero, the true delta is at most r_c and psi_c at most its
                     # bound
                     r_c = beta.size // red.size
-                    card_c = self._shape[c][0]
+                    card_c = self._n_owned[c]
                     err = r_c * card_c * e_beta
                     if e_up[c] > 0 and not pos.all():
                         err += r_c * card_c * e_psi[c]
@@ -582,33 +656,39 @@ class JunctionTree:
     # ------------------------------------------------------------------ max-product
     def _max_product(self, tabs, mask=None):
         """(assignment (n,), unnormalized log value) or (None, -inf) if no assignment has mass."""
-        model = self.model
-        n = model.n
-        store = [None] * n
-        up = [None] * n
+        n = self.model.n
+        nn = len(self.nodes)
+        store = [None] * nn
+        up = [None] * nn
         total = 0.0
-        for v in self.order.tolist():
-            shape = self._shape[v]
+        for k in range(nn):
+            shape = self._shape[k]
             psi = np.zeros(shape)
-            for f, ex in self._fac_ex[v]:
+            for f, ex in self._fac_ex[k]:
                 psi += _expand(tabs[f], ex)
-            for c, ex in self._child_ex[v]:
+            for c, ex in self._child_ex[k]:
                 psi += _expand(up[c], ex)
             if mask is not None:
-                psi += np.where(mask[v, :shape[0]], 0.0, -np.inf).reshape(
-                    (-1,) + (1,) * (len(shape) - 1))
-            u = psi.max(axis=0)
+                for i in range(self.owned[k]):
+                    shp = [1] * len(shape)
+                    shp[i] = shape[i]
+                    v = self.nodes[k][i]
+                    psi += np.where(mask[v, :shape[i]], 0.0, -np.inf).reshape(shp)
+            u = psi.max(axis=self._own_axes[k])
             mx = float(u.max())
             if mx == -np.inf:
                 return None, -np.inf
-            store[v] = psi
-            up[v] = u - mx
+            store[k] = psi
+            up[k] = u - mx
             total += mx
         x = np.zeros(n, dtype=np.intp)
-        for v in self.order[::-1].tolist():
-            C = self.cliques[v]
-            col = store[v][(slice(None),) + tuple(int(x[u]) for u in C[1:])]
-            x[v] = int(np.argmax(col))
+        for k in range(nn - 1, -1, -1):
+            C = self.nodes[k]
+            no = self.owned[k]
+            col = store[k][(slice(None),) * no + tuple(int(x[u]) for u in C[no:])]
+            best = np.unravel_index(int(np.argmax(col)), col.shape)
+            for i in range(no):
+                x[C[i]] = int(best[i])
         return x, total
 
     def _log_tables(self):
