@@ -65,6 +65,8 @@ REFERENCE_DEFAULTS = {
     "stage_rounds": 1,            # least rounds of every later stage (one view added per stage)
     "max_rounds": 5,              # most rounds of a stage
     "ess_target": 0.1,            # a stage ends once ESS >= ess_target * n_samples
+    "grow": 4,                    # after a round with ESS < 1% of its draws, double the draws
+                                  # (at most grow x n_samples)
     "defensive": 0.2,             # share of the sequential proposal in adapted rounds
     "c_defensive": 0.1,           # share of the line-of-sight draw for C
     "max_components": 8,          # t components of the adapted proposal
@@ -708,11 +710,15 @@ def _solve(L, pr, part, rng, opts, N, rounds, lam, lam_ray):
         Lj = L if j == n else L.first(j)
         final = si == len(plan) - 1
         pool = []
+        Nr = N
         for k in range(max(nr, max_rounds)):
-            v, r, X, c, lw = _round(Lj, pr, part, rng, _Mixture(Lj, comps, lam, dof), N, lam_ray)
-            total += N
+            v, r, X, c, lw = _round(Lj, pr, part, rng, _Mixture(Lj, comps, lam, dof), Nr, lam_ray)
+            total += Nr
             wn = _weights(lw)
             ess = 0.0 if wn is None else 1.0 / np.sum(wn ** 2)
+            if ess < 0.01 * Nr:
+                # a poor round: more draws for the next fit (up to grow x n_samples)
+                Nr = min(2 * Nr, int(opts["grow"]) * N)
             ess_rounds.append(float(ess))
             if wn is not None:
                 pool.append((v, r, wn * ess))
