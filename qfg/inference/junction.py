@@ -439,14 +439,31 @@ class JunctionTree:
                 perm = tuple(keep.index(x) for x in Sc)
                 self._down[c] = (axes, None if perm == tuple(range(len(perm))) else perm)
         self._comp = self._components()
+        # Fast nodes (linear pass): three variables, one factor over all of them, every other
+        # part (unary factors, child messages, the message from the parent) over one variable.
+        # Their belief is T * w0 (x) w1 (x) w2, so messages and marginals are matrix-vector
+        # products of T with the per-axis vectors; the 20^3 table is never formed.
+        self._fast = [None] * nn
+        for k in range(nn):
+            C = self.nodes[k]
+            full = [f for f, _ in self._fac_ex[k] if len(scopes[f]) == 3]
+            if (len(C) != 3 or len(self._sep[k]) > 1 or len(full) != 1
+                    or any(len(scopes[f]) not in (1, 3) for f, _ in self._fac_ex[k])
+                    or any(len(self._sep[c]) != 1 for c in self._node_children[k])):
+                continue
+            unary = [(C.index(scopes[f][0]), f) for f, _ in self._fac_ex[k] if len(scopes[f]) == 1]
+            kids = [(C.index(self._sep[c][0]), c) for c in self._node_children[k]]
+            ex = dict(self._fac_ex[k])[full[0]]
+            self._fast[k] = (full[0], ex, unary, kids)
 
     # ------------------------------------------------------------------ helpers
     def _components(self):
-        root = np.empty(self.model.n, dtype=np.intp)
-        for v in self.order[::-1]:
-            p = self.parent[v]
+        root = [0] * self.model.n
+        parent = self.parent.tolist()
+        for v in self.order[::-1].tolist():
+            p = parent[v]
             root[v] = v if p < 0 else root[p]
-        return root
+        return np.asarray(root, dtype=np.intp)
 
     def _scaled_tables(self, log: bool):
         """Factor tables rescaled to max 1 (linear) or their logs minus the max, and the total log
@@ -521,8 +538,33 @@ class JunctionTree:
                 t = contiguous[key]
             return t.reshape(shp)
 
+        fast = self._fast if not log else [None] * nn
         for k in range(nn):
             shape = self._shape[k]
+            if fast[k] is not None:
+                f, ex, unary, kids = fast[k]
+                Tk = expand(f, ex)
+                w = [np.ones(c) for c in shape]
+                for i, g in unary:
+                    w[i] = w[i] * tabs[g]
+                for i, c in kids:
+                    w[i] = w[i] * up[c]
+                A, B, Cc = shape
+                if self.owned[k] == 3:
+                    u = np.asarray(((w[0] @ Tk.reshape(A, B * Cc)).reshape(B, Cc) @ w[2]) @ w[1])
+                else:
+                    u = ((w[0] @ Tk.reshape(A, B * Cc)).reshape(B, Cc).T @ w[1]) * w[2]
+                e_psi[k] = (len(self._fac_ex[k]) + len(kids)) * _TAU + sum(
+                    e_up[c] for _, c in kids)
+                umx = float(u.max())
+                if not umx > 0:
+                    return None
+                u = u / umx
+                e_up[k] = self._n_owned[k] * e_psi[k] / umx
+                logz += math.log(umx)
+                psi_store[k] = (Tk, w)
+                up[k] = u
+                continue
             psi = None
             parts = [expand(f, ex) for f, ex in self._fac_ex[k]]
             parts += [_expand(up[c], ex) for c, ex in self._child_ex[k]]
@@ -568,6 +610,10 @@ class JunctionTree:
         for k in range(nn - 1, -1, -1):
             beta = psi_store[k]
             psi_store[k] = None
+            if fast[k] is not None:
+                if not self._fast_down(k, beta, down, up, P, e_psi, e_up, e_down):
+                    return None
+                continue
             if self._node_parent[k] >= 0:
                 d = down[k]
                 if log:
@@ -634,6 +680,44 @@ class JunctionTree:
                         err += r_c * card_c * e_psi[c]
                     e_down[c] = err / dm
         return P, logz
+
+    def _fast_down(self, k, tw, down, up, P, e_psi, e_up, e_down) -> bool:
+        """Downward step of a fast node (see ``_fast``): marginals and child messages from
+        matrix-vector products; False when the linear pass must give way to the log domain."""
+        Tk, w = tw
+        A, B, Cc = self._shape[k]
+        if self._node_parent[k] >= 0:
+            w = [w[0], w[1], w[2] * down[k].ravel()]
+            down[k] = None
+        X = (Tk.reshape(A * B, Cc) @ w[2]).reshape(A, B)
+        Z = (w[0] @ Tk.reshape(A, B * Cc)).reshape(B, Cc)
+        ms = (w[0] * (X @ w[1]), w[1] * (w[0] @ X), w[2] * (w[1] @ Z))
+        s = float(ms[0].sum())
+        size = A * B * Cc
+        e_beta = e_psi[k] + e_down[k] + _TAU
+        if not (s > 0 and size * e_beta <= _REL_TOL * s):
+            return False
+        C = self.nodes[k]
+        for i in range(self.owned[k]):
+            P[C[i], :len(ms[i])] = ms[i] / s
+        for i, c in self._fast[k][3]:
+            red = ms[i]
+            uc = up[c]
+            pos = uc > 0
+            dc = np.divide(red, uc, out=np.zeros_like(red), where=pos)
+            dm = dc.max()
+            if not dm > 0:
+                return False
+            dc /= dm
+            down[c] = dc[(None,) * self.owned[c]]
+            # the error bound of the general downward step (same quantities)
+            r_c = size // red.size
+            card_c = self._n_owned[c]
+            err = r_c * card_c * e_beta
+            if e_up[c] > 0 and not pos.all():
+                err += r_c * card_c * e_psi[c]
+            e_down[c] = err / dm
+        return True
 
     def marginals(self, log_domain: bool = False) -> np.ndarray:
         """(n, max card) marginal of every variable, one calibration (rows padded with zeros
