@@ -238,13 +238,7 @@ def _estimate_ok(est, n_views, m=20):
 
 
 #: Known failures in code this suite's author does not own: (method, regime) -> reason.
-SOLVER_XFAIL = {
-    ("full", "extreme_sigmas"): "solvers: sigma_bearing of 1e100 overflows (RuntimeWarning in "
-                                "_sis._log_intermediate_c); from about 1e155 the solve raises "
-                                "'points: N non-finite value(s)', naming an internal argument",
-    ("fast", "extreme_sigmas"): "solvers: as full (shared _sis code): sigma_bearing of 1e100 "
-                                "overflows; from about 1e155 'points: N non-finite value(s)'",
-}
+SOLVER_XFAIL: dict = {}
 
 
 def _solver_case(method, regime):
@@ -281,10 +275,7 @@ SIGMA_EDGES = (0.0, 5e-324, 1e-300, 1e10, 1e100, 1e155, 1e300)
 
 
 def _sigma_case(method, which, sigma):
-    marks = []
-    if method in ("full", "fast") and which == "sigma_bearing" and sigma >= 1e100:
-        marks = [pytest.mark.xfail(strict=True, reason=SOLVER_XFAIL[(method, "extreme_sigmas")])]
-    return pytest.param(method, which, sigma, marks=marks, id=f"{method}-{which}-{sigma:.0e}")
+    return pytest.param(method, which, sigma, id=f"{method}-{which}-{sigma:.0e}")
 
 
 @pytest.mark.parametrize("method, which, sigma", [
@@ -342,17 +333,7 @@ def test_incremental_solver_estimates_are_distributions(method, data, seed):
         _estimate_ok(s.estimate(), i + 1)
 
 
-def _incremental_case(method):
-    marks = []
-    if method == "baseline":
-        marks = [pytest.mark.xfail(strict=True, reason=(
-            "solvers: TripletSolver('baseline').add_view(bearings, heading) accepts a heading of "
-            "nan, inf, 'abc' or [0.1, 0.2] (solve_triplet with method='baseline' rejects "
-            "headings=[inf])"))]
-    return pytest.param(method, marks=marks)
-
-
-@pytest.mark.parametrize("method", [_incremental_case(m) for m in METHODS])
+@pytest.mark.parametrize("method", METHODS)
 @pytest.mark.parametrize("heading", [np.nan, np.inf, "abc", [0.1, 0.2]])
 def test_incremental_solver_rejects_bad_views(method, heading):
     s = solvers.TripletSolver(method, sigma_bearing=0.02, sigma_heading=0.05, seed=0,

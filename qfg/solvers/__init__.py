@@ -295,8 +295,8 @@ class TripletSolver:
         part = C.get_partition(partition)
         opts = _resolve(method, options)
         self._init(method, part, opts, C.root_seed(seed),
-                   C.non_negative("sigma_bearing", sigma_bearing),
-                   C.non_negative("sigma_heading", sigma_heading))
+                   C.check_sigma("sigma_bearing", sigma_bearing),
+                   C.check_sigma("sigma_heading", sigma_heading))
 
     @classmethod
     def solve(cls, bearings, headings=None, *, method: str = "full", partition="edc",
@@ -343,14 +343,15 @@ class TripletSolver:
             raise ValueError(f"bearings: expected one view (3,), got shape {phi.shape}")
         phi = phi[0]
         first = self._state is None
+        if heading is not None:
+            # checked for every method, the baseline included (which then ignores it)
+            heading = C.check_heading(heading)
         if first:
             if heading is not None and self.method != "baseline":
                 raise ValueError("heading: the first view has no previous view (pass None)")
-        elif self.method != "baseline":
-            if heading is None:
-                raise ValueError(f"heading: method {self.method!r} needs the heading from the "
-                                 "previous view")
-            heading = float(C.check_headings([heading], 2)[0])
+        elif self.method != "baseline" and heading is None:
+            raise ValueError(f"heading: method {self.method!r} needs the heading from the "
+                             "previous view")
         part, opts = self.partition, self.options
         if self.method == "reference":
             # solved from scratch at estimate(): keep the measurements

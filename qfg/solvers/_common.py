@@ -286,6 +286,31 @@ def check_headings(headings, n_views: int) -> np.ndarray | None:
     return wrap_angle(h)
 
 
+#: Largest noise sigma used (radians). A wrapped normal with sigma >= 10 rad is uniform on the
+#: circle to within ``2 exp(-50)``, so larger sigmas are the same model; capping them keeps the
+#: solvers' arithmetic finite (sigma^2 and its inverse) for any finite input up to 1e308.
+SIGMA_CAP = 10.0
+
+
+def check_sigma(name: str, value) -> float:
+    """A noise sigma (radians): a finite number >= 0 (ValueError naming ``name`` otherwise),
+    capped at :data:`SIGMA_CAP`.
+
+    >>> check_sigma("sigma_bearing", 1e300), check_sigma("sigma_bearing", 0.02)
+    (10.0, 0.02)
+    """
+    return min(non_negative(name, value), SIGMA_CAP)
+
+
+def check_heading(heading) -> float:
+    """One heading psi (radians, a finite scalar) for an incremental view, wrapped to (-pi, pi];
+    ValueError naming ``heading`` otherwise (the checks of :func:`check_headings`)."""
+    h = as_float_array("heading", heading)
+    if h.ndim != 0:
+        raise ValueError(f"heading: expected one number (radians), got shape {h.shape}")
+    return float(wrap_angle(h))
+
+
 def measurements(bearings, headings, sigma_bearing, sigma_heading) -> Measurements:
     """Validate one triplet's input. ``bearings`` may be a TripletHistory (then ``headings``
     and unset sigmas come from it)."""
@@ -310,8 +335,8 @@ def measurements(bearings, headings, sigma_bearing, sigma_heading) -> Measuremen
                 raise ValueError("sigma_heading: required (radians) when headings are given")
             sigma_heading = 0.0
         sb, sh = sigma_bearing, sigma_heading
-    return Measurements(bearings=b, headings=h, sigma_bearing=non_negative("sigma_bearing", sb),
-                        sigma_heading=non_negative("sigma_heading", sh))
+    return Measurements(bearings=b, headings=h, sigma_bearing=check_sigma("sigma_bearing", sb),
+                        sigma_heading=check_sigma("sigma_heading", sh))
 
 
 def get_partition(partition):
