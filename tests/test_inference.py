@@ -107,6 +107,32 @@ def test_matrix_vector_nodes_equal_brute_force_and_full_tables(seed):
     assert lz == pytest.approx(logz, abs=1e-10) and lz_full == pytest.approx(logz, abs=1e-10)
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_contracted_nodes_equal_brute_force(seed):
+    """With contract_above=1 no clique table is built in the linear pass (every node that is not
+    a matrix-vector node is calibrated by contractions): marginals and log Z as brute force, on
+    random models with cliques of 4 to 6 variables, some with 1e-200 factors."""
+    rng = np.random.default_rng(200 + seed)
+    n, cards = 10, [2, 3] * 5
+    scale = 1e-200 if seed % 3 == 2 else 1.0
+    scopes = [tuple(rng.choice(n, size=3, replace=False)) for _ in range(12)] + [(v,) for v in
+                                                                                 range(0, n, 3)]
+    tables = [rng.random([cards[v] for v in sc]) * scale for sc in scopes]
+    model = FactorModel(cards, scopes, tables)
+    X = np.array(list(itertools.product(*[range(c) for c in cards])))
+    lw = model.log_value(X)
+    w = np.exp(lw - lw.max())
+    B = np.zeros((n, 3))
+    for v in range(n):
+        np.add.at(B[v], X[:, v], w / w.sum())
+    jt = JunctionTree(model, contract_above=1)
+    assert any(jt._big) and max(len(c) for c in jt.nodes) >= 4
+    P, lz, dom = jt.calibrate()
+    assert dom == "linear"
+    np.testing.assert_allclose(P, B, atol=1e-12)
+    assert lz == pytest.approx(lw.max() + np.log(w.sum()), abs=1e-9)
+
+
 def test_loopy_graphs_are_covered_and_exact():
     """Graphs with cycles in the factor graph: 11 of the 24 triplets of 4 landmarks and every
     composition among them."""

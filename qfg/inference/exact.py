@@ -18,7 +18,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from .junction import MAX_TABLE, FactorModel, JunctionTree, _too_large, check_max_table, size_estimate
+from .junction import (
+    MAX_TABLE,
+    FactorModel,
+    JunctionTree,
+    _too_large,
+    check_max_table,
+    contract_scaled,
+    size_estimate,
+)
 from .results import Assignment, GraphTooLargeError, Marginals, ZeroMassError
 
 __all__ = ["exact_marginals", "map_assignment", "k_best", "elimination_estimate", "ENGINES"]
@@ -143,25 +151,6 @@ def _components(n: int, fvars: np.ndarray) -> list[np.ndarray]:
     return [np.flatnonzero(roots == r) for r in np.unique(roots)]
 
 
-def _contract_rescaled(ops, steps):
-    """Run an ``opt_einsum`` contraction list pairwise, dividing every intermediate by its max.
-
-    Every operand is <= 1 with max 1, so each intermediate's max is at least the product of two
-    of their entries: a long product of small factors (24 factors of 1e-100: 1e-2400) cannot
-    underflow to zero as one plain contraction does. The scales cancel in the normalized
-    marginal, so they are not kept."""
-    import opt_einsum as oe
-
-    ops = list(ops)
-    for step in steps:
-        inds, eq = step[0], step[2]
-        args = [ops.pop(i) for i in inds]   # opt_einsum lists the indices in descending order
-        r = oe.contract(eq, *args) if len(args) > 1 else np.einsum(eq, *args)
-        mx = r.max()
-        ops.append(r / mx if mx > 0 else r)
-    return ops[0]
-
-
 def _exact_contract(g, out, max_table, model):
     import opt_einsum as oe
 
@@ -196,7 +185,7 @@ def _exact_contract(g, out, max_table, model):
                     f"g: contraction would build an intermediate of about "
                     f"{float(info.largest_intermediate):.3g} entries > max_table={max_table}",
                     entries=float(info.largest_intermediate), max_table=max_table)
-            r = _contract_rescaled(ops, info.contraction_list)
+            r = contract_scaled(eq, ops, info.contraction_list)[0]
             s = r.sum()
             if not s > 0:
                 raise _zero_mass(g, model)

@@ -20,6 +20,9 @@ compiled once (:class:`JunctionTree`, plain numpy, nothing per graph is generate
    ``beta_v = psi_v * delta_v``, ``delta_c = sum_{C_v \\ N_c} beta_v / mu_c`` (0/0 = 0: where
    ``mu_c`` is zero the clique belief is zero too). Marginal of ``v``: ``beta_v`` summed over
    ``N_v``, normalized. Cost: two passes over the clique tables.
+   Two kinds of node skip the clique table in the linear pass: a node of one 3-variable
+   factor whose other parts are each over one variable (matrix-vector products with the
+   factor), and a node above ``contract_above`` entries (one contraction per message).
 4. **Underflow.** Factors and messages are rescaled to max 1, so every value is <= 1 and one
    multiplication can lose at most ``tau = 1e-291`` in absolute terms (underflow). The linear pass
    carries a first-order bound on the absolute error of every table (upward: ``k tau`` per
@@ -336,6 +339,41 @@ def _expand(table, ex):
     return table.reshape(shape)
 
 
+def contract_scaled(eq: str, ops, steps=None):
+    """``opt_einsum`` contraction of ``eq`` run pairwise, every intermediate divided by its max:
+    (result with max 1, log of the scale removed). A long product of small values (24 factors
+    of 1e-100: 1e-2400) cannot underflow to zero as one plain contraction does; what a step can
+    still lose is below 1e-308 of that step's largest entry. ``steps``: a precomputed
+    ``contraction_list``. A result that is all zero comes back with log scale ``-inf``.
+
+    >>> r, ls = contract_scaled("a,a->", [np.full(2, 1e-200), np.full(2, 1e-200)])
+    >>> float(r), round(float(ls) / math.log(10), 6)    # 2e-400 = 1 * 10**(-399.69897)
+    (1.0, -399.69897)
+    """
+    import opt_einsum as oe
+
+    ops = list(ops)
+    if steps is None:
+        steps = oe.contract_path(eq, *ops, optimize="auto")[1].contraction_list
+    log_scale = 0.0
+    for i, op in enumerate(ops):
+        mx = float(np.max(op)) if np.size(op) else 0.0
+        if mx > 0:
+            ops[i] = op / mx
+            log_scale += math.log(mx)
+    for step in steps:
+        inds, sub = step[0], step[2]
+        args = [ops.pop(i) for i in inds]   # opt_einsum lists the indices in descending order
+        r = oe.contract(sub, *args) if len(args) > 1 else np.einsum(sub, *args)
+        mx = float(np.max(r)) if np.size(r) else 0.0
+        if mx > 0:
+            r = r / mx
+            log_scale += math.log(mx)
+        ops.append(r)
+    out = np.asarray(ops[0], dtype=float)
+    return out, (log_scale if out.any() else -math.inf)
+
+
 class JunctionTree:
     """The compiled junction tree of a :class:`FactorModel` (or a factor graph).
 
@@ -343,6 +381,10 @@ class JunctionTree:
         model: a :class:`FactorModel` or a :class:`~qfg.graph.QualitativeFactorGraph`.
         max_table: refuse (:class:`GraphTooLargeError`, before any table is built) when the
             largest clique table would exceed this many entries.
+        contract_above: in the linear pass, a node whose table would have more entries than
+            this (default 20^5: cliques of 6 triplets and more) is never built: its messages and
+            marginals are contractions of its factors and messages (:func:`contract_scaled`,
+            one per message or marginal). Below it, building the table is faster.
 
     Attributes: ``estimate`` (:class:`SizeEstimate`), ``order`` (elimination order),
     ``parent`` (per variable: its parent in the elimination tree or -1), ``nodes`` (per clique
@@ -353,8 +395,9 @@ class JunctionTree:
     every variable owns the node whose table holds it and from which its marginal is read.
     """
 
-    def __init__(self, model, max_table: int = MAX_TABLE):
+    def __init__(self, model, max_table: int = MAX_TABLE, contract_above: int = 20 ** 5):
         max_table = check_max_table(max_table)
+        contract_above = check_max_table(contract_above)
         if not isinstance(model, FactorModel):
             model = FactorModel.from_graph(model)
         self.model = model
@@ -455,6 +498,11 @@ class JunctionTree:
             kids = [(C.index(self._sep[c][0]), c) for c in self._node_children[k]]
             ex = dict(self._fac_ex[k])[full[0]]
             self._fast[k] = (full[0], ex, unary, kids)
+        # Large nodes (more than contract_above entries; e.g. a clique of 6 triplets: 20^6) are
+        # never materialized in the linear pass: each message and marginal is one contraction of
+        # the node's factors and messages (opt_einsum plan, rescaled steps, contract_scaled).
+        self._big = [self._fast[k] is None and math.prod(self._shape[k]) > contract_above
+                     for k in range(nn)]
 
     # ------------------------------------------------------------------ helpers
     def _components(self):
@@ -565,6 +613,20 @@ class JunctionTree:
                 psi_store[k] = (Tk, w)
                 up[k] = u
                 continue
+            if not log and self._big[k]:
+                ops, terms = self._big_parts(k, tabs, up)
+                u, ls = contract_scaled(f"{','.join(terms)}->{self._letters(k, self._sep[k])}",
+                                        ops)
+                e_psi[k] = (len(ops) + 1) * _TAU + sum(e_up[c] for c in children[k])
+                umx = float(u.max()) * math.exp(ls) if ls > -math.inf else 0.0
+                if not umx > 0:
+                    return None
+                u = u / float(u.max())
+                e_up[k] = self._n_owned[k] * e_psi[k] / umx
+                logz += math.log(umx)
+                psi_store[k] = (ops, terms)
+                up[k] = u
+                continue
             psi = None
             parts = [expand(f, ex) for f, ex in self._fac_ex[k]]
             parts += [_expand(up[c], ex) for c, ex in self._child_ex[k]]
@@ -612,6 +674,10 @@ class JunctionTree:
             psi_store[k] = None
             if fast[k] is not None:
                 if not self._fast_down(k, beta, down, up, P, e_psi, e_up, e_down):
+                    return None
+                continue
+            if not log and self._big[k]:
+                if not self._big_down(k, beta, down, up, P, e_psi, e_up, e_down):
                     return None
                 continue
             if self._node_parent[k] >= 0:
@@ -680,6 +746,66 @@ class JunctionTree:
                         err += r_c * card_c * e_psi[c]
                     e_down[c] = err / dm
         return P, logz
+
+    def _letters(self, k, vs) -> str:
+        import opt_einsum as oe
+
+        where = {x: i for i, x in enumerate(self.nodes[k])}
+        return "".join(oe.get_symbol(where[x]) for x in vs)
+
+    def _big_parts(self, k, tabs, up):
+        """(operands, their index strings) of a large node: factors and child messages."""
+        scopes = self.model.scopes
+        ops, terms = [], []
+        for f, _ in self._fac_ex[k]:
+            ops.append(tabs[f])
+            terms.append(self._letters(k, scopes[f]))
+        for c in self._node_children[k]:
+            ops.append(up[c])
+            terms.append(self._letters(k, self._sep[c]))
+        return ops, terms
+
+    def _big_down(self, k, parts, down, up, P, e_psi, e_up, e_down) -> bool:
+        """Downward step of a large node: the mass, every owned marginal and every child's
+        separator sum, each one contraction (same error bound as a materialized node)."""
+        ops, terms = list(parts[0]), list(parts[1])
+        if self._node_parent[k] >= 0:
+            ops.append(np.asarray(down[k]).reshape([self.model.cards[x] for x in self._sep[k]]))
+            terms.append(self._letters(k, self._sep[k]))
+            down[k] = None
+        lhs = ",".join(terms)
+        C = self.nodes[k]
+        size = math.prod(self._shape[k])
+        e_beta = e_psi[k] + e_down[k] + _TAU
+        s_abs = None
+        for i in range(self.owned[k]):
+            mv, ls = contract_scaled(f"{lhs}->{self._letters(k, (C[i],))}", ops)
+            tot = float(mv.sum())
+            if s_abs is None:
+                s_abs = tot * math.exp(ls) if ls > -math.inf else 0.0
+                if not (s_abs > 0 and size * e_beta <= _REL_TOL * s_abs):
+                    return False
+            P[C[i], :len(mv)] = mv / tot
+        for c in self._node_children[k]:
+            red, ls = contract_scaled(f"{lhs}->{self._letters(k, self._sep[c])}", ops)
+            uc = up[c]
+            pos = uc > 0
+            dc = np.divide(red, uc, out=np.zeros_like(red), where=pos)
+            dm = dc.max()
+            if not (dm > 0 and ls > -math.inf):
+                return False
+            dc /= dm
+            down[c] = dc[(None,) * self.owned[c]]
+            r_c = size // red.size
+            card_c = self._n_owned[c]
+            err = r_c * card_c * e_beta
+            if e_up[c] > 0 and not pos.all():
+                err += r_c * card_c * e_psi[c]
+            dm_abs = dm * math.exp(ls)           # red was rescaled: the bound is absolute
+            if not dm_abs > 0:
+                return False
+            e_down[c] = err / dm_abs
+        return True
 
     def _fast_down(self, k, tw, down, up, P, e_psi, e_up, e_down) -> bool:
         """Downward step of a fast node (see ``_fast``): marginals and child messages from
