@@ -101,11 +101,11 @@ def test_two_passes_combined_are_closer_to_the_reference_on_both_than_the_produc
     # a motion model; docs/results/mrclam.md reports the same comparison for longer passes.
     sb = np.deg2rad(2.0)
     q = prior_state_distribution("world", samples=200_000, seed=1)
-    phi, _, _, _ = sample_measurements("world", np.random.default_rng(11), 2, sb, 0.1, 10)
+    phi, _, _, _ = sample_measurements("world", np.random.default_rng(11), 2, sb, 0.1, 16)
     tv_once, tv_prod = [], []
     for i in range(phi.shape[0]):
         def ref(b, s):
-            return solve_reference(b, None, sb, 0.1, rng=s, n_samples=3000)["landmark"]
+            return solve_reference(b, None, sb, 0.1, rng=s, n_samples=2000)["landmark"]
 
         both = ref(phi[i], 0)
         p1, p2 = ref(phi[i, :1], 1), ref(phi[i, 1:], 2)

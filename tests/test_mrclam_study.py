@@ -49,7 +49,8 @@ def small_tensor(tmp_path_factory):
 def cli_run(data, small_tensor, tmp_path_factory):
     out = tmp_path_factory.mktemp("out") / "ds1"
     rc = qfg_main(["mrclam", str(data / "MRCLAM_Dataset1"), "--tensor", str(small_tensor),
-                   "--output", str(out), "--seed", "3", "--curve", "3,0"])
+                   "--output", str(out), "--seed", "3", "--curve", "3,0",
+                   "--combine", "prior-once", "--max-gap", "10", "--spread-views", "0"])
     assert rc in (0, None)
     with open(out / "triplets.csv") as fh:
         rows = list(csv.DictReader(fh))
@@ -199,9 +200,10 @@ def test_bad_arguments_and_product_rule(data):
         study.run_dataset(data / "MRCLAM_Dataset1", combine="max", tensor=UNIFORM_T)
     with pytest.raises(ValueError, match="robot"):
         study.run_dataset(data / "MRCLAM_Dataset1", robots=[9], tensor=UNIFORM_T)
-    a = study.run_dataset(data / "MRCLAM_Dataset1", robots=[1], propagate=False, seed=0)
-    b = study.run_dataset(data / "MRCLAM_Dataset1", robots=[1], propagate=False, seed=0,
-                          combine="product")
+    opts = dict(robots=[1], propagate=False, seed=0, max_gap=10.0, spread_views=0)
+    a = study.run_dataset(data / "MRCLAM_Dataset1", combine="prior-once", **opts)
+    b = study.run_dataset(data / "MRCLAM_Dataset1", combine="product", **opts)
+    c = study.run_dataset(data / "MRCLAM_Dataset1", combine="geometric", **opts)
     assert all(r["kind"] in ("seen", "camera") for r in a)
     multi = [(x, y) for x, y in zip(a, b, strict=True)
              if x["kind"] == "seen" and x["n_histories"] > 1]
@@ -209,6 +211,10 @@ def test_bad_arguments_and_product_rule(data):
               if x["kind"] == "seen" and x["n_histories"] == 1]
     assert all(np.isclose(x["p_truth"], y["p_truth"]) for x, y in single)
     assert multi and any(not np.isclose(x["p_truth"], y["p_truth"]) for x, y in multi)
+    # one history: every rule returns its estimate
+    for x, z in zip(a, c, strict=True):
+        if x["kind"] == "seen" and x["n_histories"] == 1:
+            assert np.isclose(x["p_truth"], z["p_truth"])
 
 
 def test_runner_tasks_presets_and_environment(data, monkeypatch):

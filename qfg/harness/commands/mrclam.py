@@ -33,19 +33,19 @@ def register(sub):
                         "headings from motion capture (paper emulation; dataset 6)")
     p.add_argument("--prior", default="arena", choices=("arena", "world"),
                    help="world-box prior on the arena's extent (default) or the simulator's box")
-    p.add_argument("--combine", default="prior-once",
+    p.add_argument("--combine", default="geometric",
                    choices=("prior-once", "geometric", "product"),
-                   help="how several histories of one ordered triplet combine: at the state level "
-                        "with the prior counted once, as independent passes (default) or by the "
-                        "geometric mean of their likelihoods; or the plain product")
+                   help="how several histories of one ordered triplet combine, at the state level "
+                        "with the prior counted once: by the geometric mean of their likelihoods "
+                        "(default) or as independent passes (prior-once); or the plain product")
     p.add_argument("--min-travel", type=float, default=0.02,
                    help="metres between kept views of a pass (default 0.02: every view with motion)")
-    p.add_argument("--max-gap", type=float, default=10.0,
-                   help="seconds a triplet may go unseen within one pass (default 10)")
+    p.add_argument("--max-gap", type=float, default=120.0,
+                   help="seconds a triplet may go unseen within one pass (default 120)")
     p.add_argument("--max-views", type=int, default=0,
                    help="keep the first N views of each pass (default 0: all)")
-    p.add_argument("--spread-views", type=int, default=0,
-                   help="keep N views spread evenly over each pass (default 0: all)")
+    p.add_argument("--spread-views", type=int, default=3,
+                   help="keep N views spread evenly over each pass (default 3; 0: all)")
     p.add_argument("--temper", type=float, default=1.0,
                    help="temper each estimate's likelihood part by this power in [0, 1] before "
                         "combining (default 1: none; docs/results/mrclam.md)")

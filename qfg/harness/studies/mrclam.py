@@ -6,10 +6,11 @@ For one MRCLAM dataset directory (:func:`run_dataset`):
 1. Load it (:func:`qfg.datasets.mrclam.load`); landmark pairs seen at each other's ground-truth
    position (:func:`~qfg.datasets.mrclam.check_landmarks`) are swapped back before scoring
    (dataset 1: subjects 11 and 17); the swaps are in every row (``gt_swaps``).
-2. Histories (:func:`~qfg.datasets.mrclam.triplet_histories`): every view of a pass where the
-   robot moved (``min_travel`` = 0.02 m), passes split only where the triplet goes unseen for
-   ``max_gap`` = 10 s (docs/mrclam.md: beyond that the odometry's direction drifts by 8 deg).
-   ``max_views`` truncates each pass to its first views (the curve of scores against views).
+2. Histories (:func:`~qfg.datasets.mrclam.triplet_histories`): the views of a pass where the
+   robot moved (``min_travel`` = 0.02 m), passes split where the triplet goes unseen for
+   ``max_gap`` = 120 s; of each pass, ``spread_views`` = 3 views spread evenly over it, with the
+   odometry's headings between them (wide baselines; chosen on dataset 6, docs/results/mrclam.md).
+   ``spread_views=0`` keeps every view; ``max_views`` truncates each pass to its first views.
 3. ``mode``: ``"honest"`` solves the measured bearings and odometry headings; ``"paper"``
    (paper emulation, needs motion capture: dataset 6) replaces them by the bearings and headings
    computed from the captured poses (:func:`paper_history`), to show what clean inputs give.
@@ -81,18 +82,18 @@ DEFAULTS = {
     "method": "fast",
     "mode": "honest",
     "prior": "arena",
-    "combine": "prior-once",
+    "combine": "geometric",
     "partition": "edc",
     "fix_landmarks": True,                 # swap back landmark pairs found by check_landmarks
     "tensor": "",                          # .npz file; "" = the shipped tensor of the partition
     "min_travel": 0.02,                    # m between kept views (0.02: every view with motion)
-    "max_gap": 10.0,                       # s unseen that ends a pass
+    "max_gap": 120.0,                      # s unseen that ends a pass
     "max_views": 0,                        # first views of each pass kept (0: all)
     "propagate": True,                     # map and propagate (False: seen triplets only)
     "sigma_bearing_deg": 0.0,              # bearing sigma the solver assumes (0: loader default)
     "sigma_heading_deg": 0.0,              # heading sigma the solver assumes (0: loader default)
     "temper": 1.0,                         # power on each estimate's likelihood part (1: none)
-    "spread_views": 0,                     # views spread over each pass (0: all)
+    "spread_views": 3,                     # views spread over each pass (0: all)
 }
 
 
@@ -311,11 +312,11 @@ def _load_tensor(partition: str, path: str | None):
 
 
 def run_dataset(path, *, robots=None, method: str = "fast", mode: str = "honest",
-                prior: str = "arena", combine: str = "prior-once", partition: str = "edc",
+                prior: str = "arena", combine: str = "geometric", partition: str = "edc",
                 tensor=None, fix_landmarks: bool = True, seed=0, min_travel: float = 0.02,
-                max_gap: float = 10.0, max_views: int = 0, propagate: bool = True,
+                max_gap: float = 120.0, max_views: int = 0, propagate: bool = True,
                 sigma_bearing_deg: float = 0.0, sigma_heading_deg: float = 0.0,
-                temper: float = 1.0, spread_views: int = 0, return_details: bool = False,
+                temper: float = 1.0, spread_views: int = 3, return_details: bool = False,
                 **solver_options):
     """Solve, combine, map, propagate and score one dataset directory.
 
