@@ -29,12 +29,13 @@ DEV_SEED = 555
 VARIANTS = {
     "full": [
         {},
-        {"posterior_samples": 1024},
-        {"posterior_samples": 256},
-        {"n_samples": 300, "motion_samples": 4, "max_hypotheses": 1000},
+        {"move_steps": 0},
         {"landmark_samples": 2},
-        {"motion_spread": 1.5},
-        {"prior": "world-product"},
+        {"n_samples": 300, "motion_samples": 4, "max_hypotheses": 1000},
+        {"n_samples": 300, "motion_samples": 4, "max_hypotheses": 1000, "move_steps": 0},
+        {"n_samples": 300, "motion_samples": 4, "max_hypotheses": 1000, "landmark_samples": 2},
+        {"n_samples": 200, "motion_samples": 4, "max_hypotheses": 600, "landmark_samples": 2,
+         "move_steps": 4},
     ],
     "fast": [
         {},

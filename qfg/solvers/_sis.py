@@ -200,7 +200,109 @@ def _prune(st: SISState, gens) -> SISState:
         resampled = over[new.tid]
         lw_base = np.where(resampled, mean_log[new.tid] - new.lw_c, new.lw_base)
         st = replace(new, lw_base=lw_base)
+        if st.opts.get("move_steps", 0) and st.n_views >= 2:
+            st = _move(st, over & _movable(st), mean_log)
     return st
+
+
+#: Noise sigmas (radians) within which the trajectories are moved after resampling: below, the
+#: intermediate target is too narrow for a random walk; above, its wrapped normals are not the
+#: plain normals :func:`_log_pose_target` evaluates.
+_MOVE_SIGMAS = (1e-6, 0.5)
+
+
+def _movable(st: SISState) -> np.ndarray:
+    """(T,) triplets whose trajectories the MH moves may change: noise in both sigmas within
+    :data:`_MOVE_SIGMAS`, and no view taken as "camera did not move" (a pose repeated exactly is
+    not a density the random walk can target)."""
+    lo, hi = _MOVE_SIGMAS
+    return ((st.sigma_bearing >= lo) & (st.sigma_bearing <= hi) & (st.sigma_heading >= lo)
+            & (st.sigma_heading <= hi) & ~np.any(st.same_pose, axis=1))
+
+
+def _log_pose_target(st: SISState, tid, poses):
+    """log of the intermediate target of trajectories ``poses`` (J, i, 3) of triplets ``tid``,
+    without C and up to a constant per triplet: per view the per-point prior and the A/B bearing
+    likelihoods, per move the heading likelihood,
+
+        sum_t [log p1(X_t) + log N(phi_A,t - f_A(X_t); sv) + log N(phi_B,t - f_B(X_t); sv)]
+        + sum_t log N(psi_t - g(X_t+1, X_t); sw),
+
+    the density (in x, y, alpha) that the sampling and motion steps' weights make the
+    hypotheses represent. Returns (log target (J,), sum_t log p1(X_t) (J,))."""
+    X, al = poses[..., :2], poses[..., 2]
+    b = st.bearings[tid]
+    sv, sw = st.sigma_bearing[tid][:, None], st.sigma_heading[tid][:, None]
+    fa = np.arctan2(-X[..., 1], -X[..., 0]) - al
+    fb = np.arctan2(1.0 - X[..., 1], -X[..., 0]) - al
+    ra, rb = wrap_angle(b[..., 0] - fa), wrap_angle(b[..., 1] - fb)
+    d = X[:, 1:] - X[:, :-1]
+    rh = wrap_angle(st.headings[tid] - (np.arctan2(d[..., 1], d[..., 0]) - al[:, :-1]))
+    lp = np.sum(C.point_log_prior(st.opts["prior"], X), axis=1)
+    out = lp - 0.5 * (np.sum(ra * ra + rb * rb, axis=1) / sv[:, 0] ** 2
+                      + np.sum(rh * rh, axis=1) / sw[:, 0] ** 2)
+    return np.where(np.isnan(out), -np.inf, out), lp
+
+
+#: Random-walk scale: the proposal covariance is ``(_MOVE_SCALE^2 / D)`` times the covariance of
+#: the triplet's resampled trajectories (D = 3 i coordinates).
+_MOVE_SCALE = 1.0
+
+
+def _move(st: SISState, which, mean_log) -> SISState:
+    """Resample-move (Gilks and Berzuini 2001): ``move_steps`` random-walk Metropolis-Hastings
+    steps per hypothesis of the triplets ``which`` (T,), just resampled, each targeting the
+    intermediate posterior of the views so far (:func:`_log_pose_target` times C's integral).
+    The proposal is a Gaussian random walk on the whole trajectory (x, y, alpha per view) with
+    the covariance of the triplet's resampled hypotheses, scaled; C's integral is re-estimated
+    at the proposal (:func:`_log_intermediate_c`, a pseudo-marginal step where it is sampled).
+    The target is invariant, so the equal weights stay right while the copies that resampling
+    made of one trajectory spread apart again (path degeneracy). The hypotheses of other
+    triplets are untouched; every draw comes from the triplet's own stream."""
+    T, n = st.n_triplets, st.n_views
+    rows = np.flatnonzero(which[st.tid])
+    if rows.size == 0:
+        return st
+    D = 3 * n
+    tid = st.tid[rows]
+    poses = st.poses[rows].copy()
+    lc = st.lw_c[rows].copy()
+    lt, lp = _log_pose_target(st, tid, poses)
+    # per triplet: Cholesky factor of the scaled covariance of its hypotheses (headings
+    # unwrapped about the first hypothesis' so that the spread is not inflated by the wrap)
+    chol = np.zeros((T, D, D))
+    bounds = np.searchsorted(tid, np.arange(T + 1))
+    for t in np.flatnonzero(which):
+        P = poses[bounds[t]:bounds[t + 1]].reshape(-1, n, 3)
+        if P.shape[0] < 2:
+            continue
+        P = P.copy()
+        P[..., 2] = P[0, :, 2] + wrap_angle(P[..., 2] - P[0, :, 2])
+        cov = np.cov(P.reshape(P.shape[0], D), rowvar=False)
+        cov = cov + (1e-12 + 1e-9 * np.trace(cov) / D) * np.eye(D)
+        chol[t] = np.linalg.cholesky(cov) * (_MOVE_SCALE / np.sqrt(D))
+    gens = _gens(st.roots, n - 1, C.STREAM_MOVE)
+    counts = np.bincount(tid, minlength=T)
+    bc = st.bearings[..., 2]
+    for _ in range(st.opts["move_steps"]):
+        (z,) = _per_triplet(gens, counts, lambda g, m: (g.standard_normal((m, D)),))
+        prop = poses + np.einsum("jde,je->jd", chol[tid], z).reshape(-1, n, 3)
+        prop[..., 2] = wrap_angle(prop[..., 2])
+        lt2, lp2 = _log_pose_target(st, tid, prop)
+        ok = np.isfinite(lt2)
+        lc2 = np.full(rows.size, -np.inf)
+        if np.any(ok):
+            lc2[ok] = _log_intermediate_c(st, tid[ok], prop[ok], bc, gens)
+        (u,) = _per_triplet(gens, counts, lambda g, m: (g.random(m),))
+        with np.errstate(invalid="ignore"):
+            acc = ok & (np.log(u) < (lt2 + lc2) - (lt + lc))
+        poses[acc], lt[acc], lp[acc], lc[acc] = prop[acc], lt2[acc], lp2[acc], lc2[acc]
+    new_poses = st.poses.copy()
+    new_poses[rows] = poses
+    lp_x, lw_c, lw_base = st.lp_x.copy(), st.lw_c.copy(), st.lw_base.copy()
+    lp_x[rows], lw_c[rows] = lp, lc
+    lw_base[rows] = mean_log[tid] - lc
+    return replace(st, poses=new_poses, lp_x=lp_x, lw_c=lw_c, lw_base=lw_base)
 
 
 def _take(st: SISState, idx) -> SISState:
