@@ -221,10 +221,6 @@ class SizeEstimate:
     order: tuple = ()
 
 
-def _log_entries(cards, vs) -> float:
-    return float(sum(math.log(cards[v]) for v in vs))
-
-
 def _plan(model: FactorModel, max_table: int | None):
     """(SizeEstimate, order, neighbour lists at elimination) -- order empty when refused."""
     cards = model.cards
@@ -242,6 +238,7 @@ def _plan(model: FactorModel, max_table: int | None):
         return est, (), ()
     adj = [set(a) for a in adj]
     alive = [True] * n
+    logc = [math.log(c) for c in cards]
 
     def fill(u):
         nb = adj[u]
@@ -261,7 +258,7 @@ def _plan(model: FactorModel, max_table: int | None):
         if not alive[v] or f_ != cur[v] or d_ != len(adj[v]):
             continue  # stale
         nb = adj[v]
-        clog = _log_entries(cards, nb) + math.log(cards[v])
+        clog = sum(logc[x] for x in nb) + logc[v]
         if clog > best_log or not order:
             best_log, best_w = clog, len(nb) + 1
         if clog > log_limit:
@@ -464,10 +461,7 @@ class JunctionTree:
                 assigned[node_of[min(sc, key=pos.__getitem__)]].append(f)
         self.empty_factors = [f for f, sc in enumerate(model.scopes) if not sc]
         scopes = model.scopes
-        self._fac_ex = [[(f, _expander(scopes[f], self.nodes[k], cards)) for f in assigned[k]]
-                        for k in range(nn)]
-        self._child_ex = [[(c, _expander(self._sep[c], self.nodes[k], cards))
-                           for c in self._node_children[k]] for k in range(nn)]
+        self._assigned = assigned
         self._own_axes = [tuple(range(self.owned[k])) for k in range(nn)]
         self._n_owned = [math.prod(self._shape[k][:self.owned[k]]) for k in range(nn)]
         # downward: sum beta_k over its variables outside S_c, then reorder to S_c's order
@@ -489,20 +483,33 @@ class JunctionTree:
         self._fast = [None] * nn
         for k in range(nn):
             C = self.nodes[k]
-            full = [f for f, _ in self._fac_ex[k] if len(scopes[f]) == 3]
+            full = [f for f in assigned[k] if len(scopes[f]) == 3]
             if (len(C) != 3 or len(self._sep[k]) > 1 or len(full) != 1
-                    or any(len(scopes[f]) not in (1, 3) for f, _ in self._fac_ex[k])
+                    or any(len(scopes[f]) not in (1, 3) for f in assigned[k])
                     or any(len(self._sep[c]) != 1 for c in self._node_children[k])):
                 continue
-            unary = [(C.index(scopes[f][0]), f) for f, _ in self._fac_ex[k] if len(scopes[f]) == 1]
+            unary = [(C.index(scopes[f][0]), f) for f in assigned[k] if len(scopes[f]) == 1]
             kids = [(C.index(self._sep[c][0]), c) for c in self._node_children[k]]
-            ex = dict(self._fac_ex[k])[full[0]]
-            self._fast[k] = (full[0], ex, unary, kids)
+            self._fast[k] = (full[0], _expander(scopes[full[0]], C, cards), unary, kids)
         # Large nodes (more than contract_above entries; e.g. a clique of 6 triplets: 20^6) are
         # never materialized in the linear pass: each message and marginal is one contraction of
         # the node's factors and messages (opt_einsum plan, rescaled steps, contract_scaled).
         self._big = [self._fast[k] is None and math.prod(self._shape[k]) > contract_above
                      for k in range(nn)]
+        # broadcasting plans of the factors and child messages of the nodes that build a table
+        # (the others get theirs on first use: the log domain and max-product build every table)
+        self._fac_ex = [None] * nn
+        self._child_ex = [None] * nn
+        self._expanders([k for k in range(nn) if self._fast[k] is None and not self._big[k]])
+
+    def _expanders(self, nodes=None):
+        cards, scopes = self.model.cards, self.model.scopes
+        for k in range(len(self.nodes)) if nodes is None else nodes:
+            if self._fac_ex[k] is None:
+                C = self.nodes[k]
+                self._fac_ex[k] = [(f, _expander(scopes[f], C, cards)) for f in self._assigned[k]]
+                self._child_ex[k] = [(c, _expander(self._sep[c], C, cards))
+                                     for c in self._node_children[k]]
 
     # ------------------------------------------------------------------ helpers
     def _components(self):
@@ -518,6 +525,25 @@ class JunctionTree:
         of the scales removed."""
         tabs, scale = [], 0.0
         cache = {}
+        # the unary tables (priors) of one length in one batch: one max and one division
+        by_len: dict[int, list] = {}
+        for t in self.model.tables:
+            if t.ndim == 1 and id(t) not in cache:
+                cache[id(t)] = None
+                by_len.setdefault(len(t), []).append(t)
+        cache.clear()
+        for group in by_len.values():
+            S = np.stack(group)
+            mx = S.max(axis=1)
+            pos = mx > 0
+            with np.errstate(divide="ignore"):
+                lmx = np.log(np.where(pos, mx, 1.0))
+                if log:
+                    R = np.where(pos[:, None], np.log(S) - lmx[:, None], -np.inf)
+                else:
+                    R = S / np.where(pos, mx, 1.0)[:, None]   # zero rows stay zero
+            for t, r, ls in zip(group, R, lmx.tolist(), strict=True):
+                cache[id(t)] = (r, ls)
         for t in self.model.tables:
             key = id(t)
             if key not in cache:
@@ -602,7 +628,7 @@ class JunctionTree:
                     u = np.asarray(((w[0] @ Tk.reshape(A, B * Cc)).reshape(B, Cc) @ w[2]) @ w[1])
                 else:
                     u = ((w[0] @ Tk.reshape(A, B * Cc)).reshape(B, Cc).T @ w[1]) * w[2]
-                e_psi[k] = (len(self._fac_ex[k]) + len(kids)) * _TAU + sum(
+                e_psi[k] = (len(self._assigned[k]) + len(kids)) * _TAU + sum(
                     e_up[c] for _, c in kids)
                 umx = float(u.max())
                 if not umx > 0:
@@ -627,6 +653,8 @@ class JunctionTree:
                 psi_store[k] = (ops, terms)
                 up[k] = u
                 continue
+            if self._fac_ex[k] is None:
+                self._expanders([k])
             psi = None
             parts = [expand(f, ex) for f, ex in self._fac_ex[k]]
             parts += [_expand(up[c], ex) for c, ex in self._child_ex[k]]
@@ -757,7 +785,7 @@ class JunctionTree:
         """(operands, their index strings) of a large node: factors and child messages."""
         scopes = self.model.scopes
         ops, terms = [], []
-        for f, _ in self._fac_ex[k]:
+        for f in self._assigned[k]:
             ops.append(tabs[f])
             terms.append(self._letters(k, scopes[f]))
         for c in self._node_children[k]:
@@ -866,6 +894,7 @@ class JunctionTree:
     # ------------------------------------------------------------------ max-product
     def _max_product(self, tabs, mask=None):
         """(assignment (n,), unnormalized log value) or (None, -inf) if no assignment has mass."""
+        self._expanders()
         n = self.model.n
         nn = len(self.nodes)
         store = [None] * nn
