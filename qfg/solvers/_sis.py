@@ -184,8 +184,12 @@ def _prune(st: SISState, gens) -> SISState:
     counts = np.bincount(st.tid, minlength=T)
     # drawn for every triplet every time, so that a triplet's later draws do not depend on others
     off = _offsets(gens)
-    if counts.size and counts.max() > cap:
-        over = counts > cap
+    # triplets whose hypotheses are moved are resampled to the cap at every view (resample-move:
+    # the moves need equal weights, and pruning alone leaves the descendants of few early poses)
+    moving = (counts > 0) & (st.opts.get("move_steps", 0) > 0) & (st.n_views >= 2) \
+        & _movable(st)
+    if counts.size and (counts.max() > cap or np.any(moving)):
+        over = (counts > cap) | moving
         total = st.lw_base + st.lw_c
         idx_over = _systematic(st.tid, total, T, np.where(over, cap, 0), off)
         keep_under = np.flatnonzero(~over[st.tid])
@@ -200,8 +204,8 @@ def _prune(st: SISState, gens) -> SISState:
         resampled = over[new.tid]
         lw_base = np.where(resampled, mean_log[new.tid] - new.lw_c, new.lw_base)
         st = replace(new, lw_base=lw_base)
-        if st.opts.get("move_steps", 0) and st.n_views >= 2:
-            st = _move(st, over & _movable(st), mean_log)
+        if np.any(moving):
+            st = _move(st, moving, mean_log)
     return st
 
 
