@@ -21,7 +21,7 @@ def edc_tensor():
     try:
         from qfg.composition import tensor
         t = tensor("edc")
-        return t, f"EDC tensor {t.path} ({t.samples_per_state} samples/state)"
+        return t, f"shipped EDC tensor ({t.samples_per_state} samples/state)"
     except Exception:  # noqa: BLE001 - any missing/invalid file: fall back, and say so
         rng = np.random.default_rng(0)
         T = rng.random((20, 20, 20)) * (rng.random((20, 20, 20)) < 2257 / 8000)
