@@ -29,10 +29,10 @@ DEV_SEED = 555
 VARIANTS = {
     "full": [
         {},
-        {"move_steps": 0},
+        {"move_steps": 2},
         {"landmark_samples": 2},
         {"n_samples": 300, "motion_samples": 4, "max_hypotheses": 1000},
-        {"n_samples": 300, "motion_samples": 4, "max_hypotheses": 1000, "move_steps": 0},
+        {"n_samples": 300, "motion_samples": 4, "max_hypotheses": 1000, "move_steps": 2},
         {"n_samples": 300, "motion_samples": 4, "max_hypotheses": 1000, "landmark_samples": 2},
         {"n_samples": 200, "motion_samples": 4, "max_hypotheses": 600, "landmark_samples": 2,
          "move_steps": 4},

@@ -152,7 +152,8 @@ DEFAULTS = {
         "posterior_samples": 512,    # trajectories resampled for the exact-prior final weights
         "one_view_samples": 16,      # C samples per trajectory with a single view
         "bearing_floor": np.deg2rad(0.05),
-        "move_steps": 2,             # Metropolis-Hastings moves per hypothesis after resampling
+        "move_steps": 0,             # Metropolis-Hastings moves per hypothesis after resampling
+                                     # (resample-move; measured not to help: docs/solvers.md)
         "prior": "world",
     },
     "fast": {
