@@ -52,16 +52,21 @@ def run(seed: int = 0, output: str | Path = "out/demo", n_landmarks: int = 6, n_
         g = np.array([h.truth.state for h in hist])
         multi = np.array([h.n_views >= 2 for h in hist])
         echo("(* = the most likely state is not the true one)")
+        uni = np.full(part.n_states, 1 / part.n_states)
         for m in methods:
             P = np.array([e.landmark for e in ests[m]])
             top = metrics.gt_rating(P, g) == 1
             d = metrics.dmse(P, g)
-            summary[m] = {"top1": float(top.mean()), "dmse_median": float(np.median(d))}
-            echo(f"{m:>8}: truth most likely for {top.sum()}/{len(hist)} triplets "
-                 f"({top[multi].sum()}/{multi.sum()} with 2+ views, {top[~multi].sum()}/"
-                 f"{(~multi).sum()} with one view); median DMSE {np.median(d):.2f} "
-                 f"(uniform: {float(metrics.dmse(np.full(part.n_states, 1 / part.n_states), 0)):.2f})"
-                 f"; {1e3 * secs[m] / len(hist):.1f} ms per triplet")
+            ls, br = metrics.log_score(P, g).mean(), metrics.brier(P, g).mean()
+            summary[m] = {"top1": float(top.mean()), "dmse_median": float(np.median(d)),
+                          "log_score_mean": float(ls), "brier_mean": float(br)}
+            # proper scores first: a median DMSE alone rewards over-confidence
+            echo(f"{m:>8}: mean log p(truth) {ls:.2f} (uniform {np.log(1 / part.n_states):.2f}), "
+                 f"mean Brier {br:.2f} (uniform {float(metrics.brier(uni, 0)):.2f}); truth most "
+                 f"likely for {top.sum()}/{len(hist)} triplets ({top[multi].sum()}/{multi.sum()} "
+                 f"with 2+ views, {top[~multi].sum()}/{(~multi).sum()} with one view); median DMSE "
+                 f"{np.median(d):.2f} (uniform {float(metrics.dmse(uni, 0)):.2f}); "
+                 f"{1e3 * secs[m] / len(hist):.1f} ms per triplet")
     qmap = _qualitative_map(sc, hist, part, seed, echo) if hist else []
     fig_path = None
     if hist:
