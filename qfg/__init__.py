@@ -56,6 +56,10 @@ _NAMES = {
     "triplet_histories": "simulation",
 }
 
+#: harness modules that lived at the top level before 0.2: a clear pointer instead of a bare miss
+_MOVED = ("runner", "studies", "cluster", "results_doc", "demo", "commands", "cli", "plotting",
+          "plotting_mrclam")
+
 __all__ = ["__version__", *_MODULES, *_NAMES]
 
 
@@ -65,6 +69,9 @@ def __getattr__(name):
     if name in _NAMES:
         mod = importlib.import_module(f".{_NAMES[name]}", __name__)
         return getattr(mod, name)
+    if name in _MOVED:
+        raise AttributeError(f"qfg.{name} moved to qfg.harness.{name} (the experiment harness, "
+                             "above the library; see docs/modules.md)")
     raise AttributeError(f"module 'qfg' has no attribute {name!r}")
 
 
