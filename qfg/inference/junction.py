@@ -754,26 +754,36 @@ class JunctionTree:
                 else:
                     red = beta.sum(axis=axes)
                     red = red.transpose(perm) if perm is not None else red
-                    uc = up[c]
-                    pos = uc > 0
-                    dc = np.divide(red, uc, out=np.zeros_like(red), where=pos)
-                    dm = dc.max()
-                    if not dm > 0:
+                    msg = self._separator_message(c, red, up, beta.size, e_beta, e_psi, e_up)
+                    if msg is None:
                         return None
-                    dc /= dm
+                    dc, dm, err = msg
                     down[c] = dc[pad]
-                    # error bound of beta_c = psi_c * delta_c from this step: delta_c(x) has the
-                    # error of r_c summed entries of beta_k divided by mu_c(x), but psi_c(., x)
-                    # <= mu_c(x) (each of its n_c owned entries) cancels the division; where mu_c
-                    # underflowed to zero, the true delta is at most r_c and psi_c at most its
-                    # bound
-                    r_c = beta.size // red.size
-                    card_c = self._n_owned[c]
-                    err = r_c * card_c * e_beta
-                    if e_up[c] > 0 and not pos.all():
-                        err += r_c * card_c * e_psi[c]
                     e_down[c] = err / dm
         return P, logz
+
+    def _separator_message(self, c, red, up, size, e_beta, e_psi, e_up):
+        """Child ``c``'s downward message from ``red`` (the node's belief summed to the
+        separator, ``size`` entries before the sum): ``(red / mu_c rescaled to max 1, its max,
+        error bound)``, or None when it has no mass.
+
+        Error bound of beta_c = psi_c * delta_c from this step: delta_c(x) has the error of r_c
+        summed entries of beta_k divided by mu_c(x), but psi_c(., x) <= mu_c(x) (each of its n_c
+        owned entries) cancels the division; where mu_c underflowed to zero, the true delta is
+        at most r_c and psi_c at most its bound. The caller divides the bound by the max."""
+        uc = up[c]
+        pos = uc > 0
+        dc = np.divide(red, uc, out=np.zeros_like(red), where=pos)
+        dm = dc.max()
+        if not dm > 0:
+            return None
+        dc /= dm
+        r_c = size // red.size
+        card_c = self._n_owned[c]
+        err = r_c * card_c * e_beta
+        if e_up[c] > 0 and not pos.all():
+            err += r_c * card_c * e_psi[c]
+        return dc, dm, err
 
     def _letters(self, k, vs) -> str:
         import opt_einsum as oe
@@ -816,19 +826,11 @@ class JunctionTree:
             P[C[i], :len(mv)] = mv / tot
         for c in self._node_children[k]:
             red, ls = contract_scaled(f"{lhs}->{self._letters(k, self._sep[c])}", ops)
-            uc = up[c]
-            pos = uc > 0
-            dc = np.divide(red, uc, out=np.zeros_like(red), where=pos)
-            dm = dc.max()
-            if not (dm > 0 and ls > -math.inf):
+            msg = self._separator_message(c, red, up, size, e_beta, e_psi, e_up)
+            if msg is None or not ls > -math.inf:
                 return False
-            dc /= dm
+            dc, dm, err = msg
             down[c] = dc[(None,) * self.owned[c]]
-            r_c = size // red.size
-            card_c = self._n_owned[c]
-            err = r_c * card_c * e_beta
-            if e_up[c] > 0 and not pos.all():
-                err += r_c * card_c * e_psi[c]
             dm_abs = dm * math.exp(ls)           # red was rescaled: the bound is absolute
             if not dm_abs > 0:
                 return False
@@ -856,20 +858,11 @@ class JunctionTree:
             P[C[i], :len(ms[i])] = ms[i] / s
         for i, c in self._fast[k][3]:
             red = ms[i]
-            uc = up[c]
-            pos = uc > 0
-            dc = np.divide(red, uc, out=np.zeros_like(red), where=pos)
-            dm = dc.max()
-            if not dm > 0:
+            msg = self._separator_message(c, red, up, size, e_beta, e_psi, e_up)
+            if msg is None:
                 return False
-            dc /= dm
+            dc, dm, err = msg
             down[c] = dc[(None,) * self.owned[c]]
-            # the error bound of the general downward step (same quantities)
-            r_c = size // red.size
-            card_c = self._n_owned[c]
-            err = r_c * card_c * e_beta
-            if e_up[c] > 0 and not pos.all():
-                err += r_c * card_c * e_psi[c]
             e_down[c] = err / dm
         return True
 
