@@ -74,3 +74,19 @@ def test_tiny_run(tmp_path):
     a = list(csv.DictReader(open(tmp_path / "a" / "rows.csv")))
     b = list(csv.DictReader(open(tmp_path / "b" / "rows.csv")))
     assert a == b
+
+
+def test_table_numbers_have_no_negative_zero():
+    # rounding leaves percentiles of non-negative quantities at -0.0 or -1e-17; they print as 0,
+    # while genuinely small and ordinary values keep their digits
+    assert st._fmt(-0.0) == "0" and st._fmt(-1e-17) == "0" and st._fmt(3e-125) == "0"
+    assert st._fmt(2e-5) == "2e-05" and st._fmt(0.456) == "0.46" and st._fmt(-0.25) == "-0.25"
+    row = {"sigma_v_deg": 0.0, "sigma_w_deg": 0.0, "method": "full", "n": 3,
+           "log_score_mean": -0.08, "log_score_se": 0.03, "brier_mean": 0.05, "top1": 0.96,
+           "confidently_wrong": 0.0, "p_max_mean": 0.97, "ece_top": 0.04, "dmse_p50": -0.0,
+           "entropy_p50": -0.0}
+    last = st.scores_table([row], [(0.0, 0.0)]).splitlines()[-1]
+    assert last.endswith("| 0.000 | 0 |"), last
+    assert "-0" not in last.split("|")[-3] + last.split("|")[-2]
+    row["entropy_p50"] = 0.0123
+    assert st.scores_table([row], [(0.0, 0.0)]).splitlines()[-1].endswith("| 0.0123 |")

@@ -245,7 +245,14 @@ def _write_csv(path: Path, recs: list[dict]) -> None:
     write_table(path, recs)
 
 
+def _zeroed(x: float) -> float:
+    """x, or 0.0 when |x| < 1e-12: percentiles of non-negative quantities (entropy, DMSE) come
+    out as -0.0 or -1e-17 from floating-point rounding, which must not print as "-0"."""
+    return 0.0 if abs(x) < 1e-12 else x
+
+
 def _fmt(x):
+    x = _zeroed(x)
     if x == 0:
         return "0"
     if abs(x) < 0.01:
@@ -307,8 +314,8 @@ def scores_table(grid: list[dict], combos) -> str:
                     f"| {sv:g}/{sw:g} | {r['method']} | {r['n']} | {r['log_score_mean']:.3f} "
                     f"+- {r['log_score_se']:.3f} | {r['brier_mean']:.3f} | {r['top1']:.3f} | "
                     f"{r['confidently_wrong']:.3f} | {r['p_max_mean']:.3f} | "
-                    f"{r.get('ece_top', float('nan')):.3f} | {r['dmse_p50']:.3f} | "
-                    f"{r['entropy_p50']:.3g} |")
+                    f"{r.get('ece_top', float('nan')):.3f} | {_zeroed(r['dmse_p50']):.3f} | "
+                    f"{_zeroed(r['entropy_p50']):.3g} |")
     return "\n".join(lines) + "\n"
 
 
