@@ -171,3 +171,23 @@ def test_bad_input():
         solve_reference([[0.1, 0.5, 0.3]] * 2, [0.1, 0.2], 0.01, 0.01)
     with pytest.raises(ValueError, match="prior"):
         solve_reference(b, None, 0.01, 0.0, prior="arc")
+
+
+def test_far_negative_arc_logit_gives_w_zero_without_overflow():
+    # the arc parameter w = 1 / (1 + exp(-logit)) of a view's camera; a t component or a Newton
+    # step can put the logit below -709.78, where exp overflows (pytest makes the warning an
+    # error). w is then 0 to double precision (the camera sits at A: no valid draw), and draws
+    # with ordinary logits are untouched.
+    from qfg.solvers._reference import _construct, _Layout
+
+    L = _Layout(np.array([[0.3, 0.9, 0.5]]), None, 0.01, 0.0)
+    logits = np.array([-1e4, -800.0, -5.0, -1.0, 0.4, 4.0])
+    v = np.zeros((logits.size, 3))
+    v[:, 0] = logits
+    X, _, logjac, _, valid, _ = _construct(L, v)
+    assert not valid[:2].any() and valid[2:].all() and np.isfinite(logjac[2:]).all()
+    w = np.r_[0.0, 0.0, 1.0 / (1.0 + np.exp(-logits[2:]))]
+    gamma = wrap_angle(np.full(logits.size, 0.9 - 0.3))
+    span = np.pi - np.abs(gamma)
+    want = locus_point(gamma, span * 0.5 * (1.0 - np.cos(np.pi * w)))
+    assert np.allclose(X[:, 0], want, rtol=1e-12, atol=0.0)

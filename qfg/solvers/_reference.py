@@ -80,6 +80,7 @@ REFERENCE_DEFAULTS = {
 }
 
 _LOG2PI = np.log(2 * np.pi)
+_LOG_FMAX = np.log(np.finfo(float).max)
 
 #: Largest noise sigma used (radians); the wrapped normal is uniform beyond it.
 SIGMA_CAP = 10.0
@@ -172,7 +173,10 @@ def _construct(L, v, r=None, u=None):
         s2 = np.sin(gamma) ** 2
         if L.anchor[j]:
             lg = first[:, j]
-            wj = 1.0 / (1.0 + np.exp(-lg))
+            # exp(-lg) overflows for lg < -log(max float) = -709.78, where w = 1/(1 + e^-lg) is
+            # below 6e-309: 0 there, as 1/(1 + inf) gave, without the overflow
+            big = lg < -_LOG_FMAX
+            wj = np.where(big, 0.0, 1.0 / (1.0 + np.exp(-np.where(big, 0.0, lg))))
             # uniform w in logit space: dw = w (1 - w) dlogit (in the target and the proposal)
             lwj = -np.logaddexp(0.0, -lg) - np.logaddexp(0.0, lg)
             a, log_dadw = arc_parameter(gamma, wj)
