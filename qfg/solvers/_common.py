@@ -127,6 +127,18 @@ class Hypotheses:
                 f"camera_samples={self.camera_samples.shape}, joint={self.joint})")
 
 
+class TripletBatchSizes:
+    """Sizes of a solver state holding ``bearings`` (T, i, 3): T triplets after i views."""
+
+    @property
+    def n_triplets(self) -> int:
+        return self.bearings.shape[0]
+
+    @property
+    def n_views(self) -> int:
+        return self.bearings.shape[1]
+
+
 def ess(weights) -> float:
     """Effective sample size ``1 / sum w^2`` of normalized weights (0 when all are 0)."""
     w = np.asarray(weights, dtype=float)

@@ -36,7 +36,7 @@ from . import _common as C
 
 
 @dataclass(frozen=True, eq=False)
-class FastState:
+class FastState(C.TripletBatchSizes):
     """Hypotheses of T triplets after the views so far (flat, sorted by triplet)."""
 
     bearings: np.ndarray       # (T, i, 3)
@@ -50,14 +50,6 @@ class FastState:
     lw: np.ndarray             # (N,) log prior x cell width
     w: np.ndarray              # (N,) first camera's arc parameter (its cell centre)
     lwidth: np.ndarray         # (N,) log width of that cell
-
-    @property
-    def n_triplets(self) -> int:
-        return self.bearings.shape[0]
-
-    @property
-    def n_views(self) -> int:
-        return self.bearings.shape[1]
 
     def kernel_sigma(self) -> np.ndarray:
         """(T,) width of the C-bearing likelihood: ``max(sigma_v, floor)``, combined in quadrature

@@ -46,7 +46,7 @@ from . import _common as C
 
 
 @dataclass(frozen=True, eq=False)
-class SISState:
+class SISState(C.TripletBatchSizes):
     """Hypotheses of T triplets after the views so far (flat arrays sorted by triplet)."""
 
     bearings: np.ndarray       # (T, i, 3)
@@ -64,14 +64,6 @@ class SISState:
     lw_c: np.ndarray           # (N,) log estimate of C's integral (0 with one view)
     same_pose: np.ndarray      # (T, i) views taken as "camera did not move"
     lost: np.ndarray           # (T,) view (1-based) at which nothing survived, 0 if alive
-
-    @property
-    def n_triplets(self) -> int:
-        return self.bearings.shape[0]
-
-    @property
-    def n_views(self) -> int:
-        return self.bearings.shape[1]
 
     def sigma_v(self) -> np.ndarray:
         """(T,) C-bearing likelihood width ``max(sigma_v, floor)``."""
