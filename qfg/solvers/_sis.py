@@ -408,23 +408,15 @@ def _extend(state: SISState, phi, psi, spread: float, purpose: int) -> SISState:
     (z,) = _per_triplet(gens, counts, draw)
     par = np.repeat(np.arange(tid.size), r[tid])
     ct = tid[par]
-    sb, sh = state.sigma_bearing[ct], state.sigma_heading[ct]
-    th = prev[par, 2] + psi[ct] + spread * sh * z[:, 0]
-    pa = phi[ct, 0] + spread * sb * z[:, 1]
-    pb = phi[ct, 1] + spread * sb * z[:, 2]
-    # likelihood over proposal of the drawn noise: N(x; s) / N(x; spread s) per drawn component
-    noisy = np.stack([sh, sb, sb], axis=1) > 0
-    lcorr = np.sum(np.where(noisy, -0.5 * z * z * (spread * spread - 1.0) + np.log(spread), 0.0),
-                   axis=1)
-    circ = locus_circle(pa, pb)
-    pts, valid = ray_circle_intersection(prev[par, :2], th, circ.center, circ.radius, circ.side)
-    j, b = np.nonzero(valid)
-    X = pts[j, b]
-    lpx = C.point_log_prior(opts["prior"], X)
-    lw = state.lw_base[par[j]] + C.log_ray_jacobian(X, prev[par[j], :2], th[j]) + lpx \
-        + lcorr[j] - np.log(r[ct[j]])
-    alpha = wrap_angle(np.arctan2(-X[:, 1], -X[:, 0]) - pa[j])
-    new_pose = np.concatenate([X, alpha[:, None]], axis=-1)
+    # children in blocks whose temporaries stay in cache; every child is independent of the others
+    blocks = [_children(state, prev, phi, psi, r, spread, par[lo:lo + C.CHUNK_ROWS],
+                        z[lo:lo + C.CHUNK_ROWS], lo)
+              for lo in range(0, par.size, C.CHUNK_ROWS)]
+    if blocks:
+        j, new_pose, lw, lpx = (np.concatenate(v) for v in zip(*blocks, strict=True))
+    else:
+        j, new_pose, lw, lpx = (np.zeros(0, dtype=int), np.zeros((0, 3)), np.zeros(0),
+                                np.zeros(0))
     # same-pose triplets: the one child is the parent's pose again, weight unchanged
     sp = same[ct]
     if np.any(sp):
@@ -445,6 +437,30 @@ def _extend(state: SISState, phi, psi, spread: float, purpose: int) -> SISState:
     if ntid.size:
         st = replace(st, lw_c=_log_intermediate_c(st, ntid, poses, bearings[..., 2], gens))
     return _prune(st, gens)
+
+
+def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
+    """One block of the motion step's children: parents ``par`` (B,) (rows of ``prev``), their
+    noise draws ``z`` (B, 3). Returns (child index (offset + row), pose (K, 3), log weight,
+    log per-point prior) of the K children whose ray meets the drawn locus arc."""
+    ct = state.tid[par]
+    sb, sh = state.sigma_bearing[ct], state.sigma_heading[ct]
+    th = prev[par, 2] + psi[ct] + spread * sh * z[:, 0]
+    pa = phi[ct, 0] + spread * sb * z[:, 1]
+    pb = phi[ct, 1] + spread * sb * z[:, 2]
+    # likelihood over proposal of the drawn noise: N(x; s) / N(x; spread s) per drawn component
+    noisy = np.stack([sh, sb, sb], axis=1) > 0
+    lcorr = np.sum(np.where(noisy, -0.5 * z * z * (spread * spread - 1.0) + np.log(spread), 0.0),
+                   axis=1)
+    circ = locus_circle(pa, pb)
+    pts, valid = ray_circle_intersection(prev[par, :2], th, circ.center, circ.radius, circ.side)
+    j, b = np.nonzero(valid)
+    X = pts[j, b]
+    lpx = C.point_log_prior(state.opts["prior"], X)
+    lw = state.lw_base[par[j]] + C.log_ray_jacobian(X, prev[par[j], :2], th[j]) + lpx \
+        + lcorr[j] - np.log(r[ct[j]])
+    alpha = wrap_angle(np.arctan2(-X[:, 1], -X[:, 0]) - pa[j])
+    return j + offset, np.concatenate([X, alpha[:, None]], axis=-1), lw, lpx
 
 
 def finish(state: SISState, hypotheses: bool = False):
