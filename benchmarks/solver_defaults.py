@@ -2,6 +2,7 @@
 exact-posterior reference solver on development scenarios.
 
     python -m benchmarks.solver_defaults [--n 100] [--noise 2,5] [--cache DIR] [--methods full,fast]
+        [--variants '{}' '{"mc_shrinkage": 0}']
 
 Scenarios come from a development seed (``SeedSequence(555)``, 3 views), never from the
 single-triplet study's seeds. For each scenario the reference posterior R is computed once
@@ -29,6 +30,7 @@ DEV_SEED = 555
 VARIANTS = {
     "full": [
         {},
+        {"mc_shrinkage": 0},
         {"move_steps": 2},
         {"landmark_samples": 2},
         {"n_samples": 300, "motion_samples": 4, "max_hypotheses": 1000},
@@ -39,6 +41,8 @@ VARIANTS = {
     ],
     "fast": [
         {},
+        {"mc_shrinkage": 0},
+        {"mc_shrinkage": 2},
         {"n_samples": 128},
         {"posterior_samples": 64, "landmark_samples": 4},
         {"bearing_floor": float(np.deg2rad(0.05))},
@@ -81,6 +85,8 @@ def main(argv=None):
     ap.add_argument("--noise", default="2,5", help="sigma_v,sigma_w in degrees")
     ap.add_argument("--cache", type=Path, default=None)
     ap.add_argument("--methods", default="full,fast,fast-paper,baseline")
+    ap.add_argument("--variants", nargs="*", default=None,
+                    help="JSON option sets to run instead of the built-in VARIANTS list")
     a = ap.parse_args(argv)
     sv, sw = (float(v) for v in a.noise.split(","))
     hs = histories(a.n, sv, sw)
@@ -94,7 +100,8 @@ def main(argv=None):
           "confidently wrong | ms per triplet (batched) |")
     print("|---|---|---|---|---|---|---|")
     for method in a.methods.split(","):
-        for opts in VARIANTS[method]:
+        for opts in ([json.loads(v) for v in a.variants] if a.variants is not None
+                     else VARIANTS[method]):
             t = time.perf_counter()
             P = np.array([e.landmark for e in solve_triplets(hs, method=method, seed=7, **opts)])
             ms = 1e3 * (time.perf_counter() - t) / len(hs)

@@ -362,9 +362,12 @@ def test_estimate_exposes_hypotheses():
     assert hy.camera_samples.shape[:2] == (3, hy.landmark_samples.shape[0])
     assert J == np.count_nonzero(hy.landmark_weights)
     np.testing.assert_allclose(hy.landmark_weights.sum(), 1.0)
-    # the landmark estimate is the weighted histogram of the hypotheses (eq. slamapprox1)
+    # the landmark estimate is the weighted histogram of the hypotheses (eq. slamapprox1),
+    # shrunk toward the uniform by mc_shrinkage pseudo-draws against their ESS
     hist = np.bincount(EDC.state_of(hy.landmark_samples), hy.landmark_weights, minlength=20)
-    np.testing.assert_allclose(hist, e.landmark, atol=1e-12)
+    assert e.ess == pytest.approx(C.ess(hy.landmark_weights))
+    np.testing.assert_allclose(C.shrink_to_uniform(hist, e.ess, C.DEFAULTS["full"]["mc_shrinkage"]),
+                               e.landmark, atol=1e-12)
     s, p = e.most_likely
     assert p == e.landmark.max() and 0 <= s < 20
 
@@ -457,3 +460,25 @@ def test_moves_spread_the_resampled_copies_and_keep_the_answer():
                         max_hypotheses=3000, move_steps=2)
     for s in (s0, s2):
         assert 0.5 * np.abs(s.estimate().landmark - ref.landmark).sum() < 0.25
+
+
+@pytest.mark.parametrize("method", ["full", "fast"])
+def test_mc_shrinkage_is_the_dirichlet_mean_of_the_raw_estimate(method):
+    # the default answer is the raw Monte Carlo estimate (mc_shrinkage=0, same seed and draws)
+    # shrunk toward the uniform by alpha pseudo-draws against the final sample's ESS
+    h = random_triplet_history(np.random.default_rng(21), 4, np.deg2rad(2), np.deg2rad(5))
+    alpha = C.DEFAULTS[method]["mc_shrinkage"]
+    assert alpha > 0
+    raw = solve_triplet(h, method=method, seed=3, mc_shrinkage=0)
+    est = solve_triplet(h, method=method, seed=3)
+    assert est.ess == pytest.approx(raw.ess)
+    m = raw.landmark.size
+    want = (raw.ess * raw.landmark + alpha / m) / (raw.ess + alpha)
+    np.testing.assert_allclose(est.landmark, want, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(est.cameras, (raw.ess * raw.cameras + alpha / m)
+                               / (raw.ess + alpha), rtol=1e-12, atol=1e-15)
+    # no state can be claimed impossible, nor certain, from finitely many effective draws
+    assert est.landmark.min() >= alpha / m / (raw.ess + alpha) * (1 - 1e-12)
+    assert est.landmark.max() <= 1 - alpha * (m - 1) / m / (raw.ess + alpha) * (1 - 1e-12)
+    with pytest.raises(ValueError, match="mc_shrinkage"):
+        solve_triplet(h, method=method, mc_shrinkage=-1)

@@ -166,7 +166,7 @@ DEFAULTS = {
         "bearing_floor": np.deg2rad(0.05),
         "move_steps": 0,             # Metropolis-Hastings moves per hypothesis after resampling
                                      # (resample-move; measured not to help: docs/solvers.md)
-        "mc_shrinkage": 0.0,         # pseudo-draws of the uniform added to the ESS draws
+        "mc_shrinkage": 1.0,         # pseudo-draws of the uniform added to the ESS draws
                                      # (shrink_to_uniform)
         "prior": "world",
     },
@@ -183,7 +183,7 @@ DEFAULTS = {
         "bearing_floor": np.deg2rad(0.5),   # wider than full's: with its small budget the
                                             # noiseless posterior's narrow peaks are missed
         "move_steps": 0,
-        "mc_shrinkage": 0.0,
+        "mc_shrinkage": 1.0,
         "prior": "world",
     },
     "fast-paper": {
