@@ -42,8 +42,21 @@ DEFAULT_WINDOW = (-6.0, 6.0, -5.5, 6.5)
 # does not import the simulator at import time; a test checks that they agree.
 _SIM_WIDTH, _SIM_HEIGHT, _SIM_DMIN = 6.0, 7.0, 0.01
 
-#: Points per evaluation chunk of :meth:`WorldBoxPrior.log_density` (bounds memory to ~100 MB).
-_CHUNK_ELEMENTS = 4_000_000
+#: (configurations x rho points) per evaluation block of :meth:`WorldBoxPrior.log_density`: its
+#: (N, n_rho) temporaries then stay in the core's cache (and memory stays bounded).
+_CHUNK_ELEMENTS = 1 << 16
+
+
+def _int_power(x, p: int) -> np.ndarray:
+    """x ** p for an integer p >= 1 by repeated squaring (exact to rounding, no exp/log)."""
+    out, base = None, x
+    while True:
+        if p & 1:
+            out = base.copy() if out is None else out * base
+        p >>= 1
+        if not p:
+            return out
+        base = base * base
 
 
 def _points(points) -> np.ndarray:
@@ -146,7 +159,7 @@ class WorldBoxPrior(Prior):
         lead, k = p.shape[:-2], p.shape[-2]
         flat = p.reshape(-1, k, 2)
         out = np.empty(flat.shape[0])
-        step = max(1, _CHUNK_ELEMENTS // (self.n_rho * (k + 2)))
+        step = max(1, _CHUNK_ELEMENTS // self.n_rho)
         for i in range(0, flat.shape[0], step):
             out[i:i + step] = self._log_density_flat(flat[i:i + step])
         return out.reshape(lead)
@@ -154,31 +167,37 @@ class WorldBoxPrior(Prior):
     def _log_density_flat(self, q):
         N, k = q.shape[:2]
         W, H, M = self.width, self.height, self.n_rho
-        # the whole configuration {A, B, q_1..q_k} with A = 0, B = i
-        allp = np.concatenate([np.zeros((N, 1, 2)), np.tile([[[0.0, 1.0]]], (N, 1, 1)), q], axis=1)
-        # work on the configuration scaled by c >= 1 so that huge inputs cannot overflow; only
-        # s1 scales (s1 = s1' / c), the ratios alpha, beta, u0 below are scale-free
+        # work on the configuration {A, B, q_1..q_k} (A = 0, B = i) scaled by c >= 1 so that huge
+        # inputs cannot overflow; only s1 scales (s1 = s1' / c), the ratios alpha, beta, u0
+        # below are scale-free
         c = np.maximum(1.0, np.max(np.abs(q), axis=(1, 2)))
-        allp = allp / c[:, None, None]
+        qx, qy = q[..., 0] / c[:, None], q[..., 1] / c[:, None]
+        by = 1.0 / c
         # x coordinate after rotation by rho: x cos - y sin; extents over the points, accumulated
         # point by point on (N, M) arrays (a reduction over a short trailing axis is much slower)
         cs, sn = self._cos[None, :], self._sin[None, :]
-        hi = np.maximum(0.0, -allp[:, 1:2, 1] * sn)                  # A projects to 0, B to -sin
-        lo = np.minimum(0.0, -allp[:, 1:2, 1] * sn)
-        for j in range(2, k + 2):
-            pj = allp[:, j:j + 1, 0] * cs - allp[:, j:j + 1, 1] * sn
+        pb = -by[:, None] * sn                                        # A projects to 0
+        hi, lo = np.maximum(0.0, pb), np.minimum(0.0, pb)
+        pj = np.empty_like(hi)
+        for j in range(k):
+            np.multiply(qx[:, j:j + 1], cs, out=pj)
+            pj -= qy[:, j:j + 1] * sn
             np.maximum(hi, pj, out=hi)
             np.minimum(lo, pj, out=lo)
-        xr = hi - lo                                                  # (N, M)
+        xr = np.subtract(hi, lo, out=hi)                              # (N, M)
         yr = np.roll(xr, -M // 2, axis=1)                             # xr(rho + pi/2) = yr(rho)
         with np.errstate(divide="ignore"):
             s1 = np.minimum(np.where(xr > 0, W / np.where(xr > 0, xr, 1.0), np.inf),
                             np.where(yr > 0, H / np.where(yr > 0, yr, 1.0), np.inf))
         # least pairwise distance among A, B and the q_j (A-B is 1), in the scaled configuration
-        d = allp[:, :, None, :] - allp[:, None, :, :]
-        d2 = np.sum(d * d, axis=-1)
-        iu = np.triu_indices(k + 2, k=1)
-        delta = np.sqrt(np.min(d2[:, iu[0], iu[1]], axis=-1))        # (N,)
+        px = [np.zeros(N), np.zeros(N)] + [qx[:, j] for j in range(k)]
+        py = [np.zeros(N), by] + [qy[:, j] for j in range(k)]
+        d2 = np.full(N, np.inf)
+        for i in range(k + 2):
+            for j in range(i + 1, k + 2):
+                dx, dy = px[i] - px[j], py[i] - py[j]
+                np.minimum(d2, dx * dx + dy * dy, out=d2)
+        delta = np.sqrt(d2)                                           # (N,)
         with np.errstate(divide="ignore"):
             s0 = np.where(delta > 0, self.d_min / np.where(delta > 0, delta, 1.0),
                           0.0 if self.d_min == 0 else np.inf)
@@ -191,20 +210,29 @@ class WorldBoxPrior(Prior):
         def G(u):
             return 1.0 / (a + 1) - (al + be) * u / (a + 2) + al * be * u * u / (a + 3)
 
-        with np.errstate(divide="ignore", under="ignore"):
-            # u0^(a+1) underflows to 0 for the usual tiny u0 (d_min much smaller than the scale)
-            u0p = np.exp((a + 1) * np.log(u0))
-        inner = np.maximum(G(1.0) - u0p * G(u0), 0.0)
-        with np.errstate(divide="ignore"):
-            terms = (a + 1) * (np.log(s1) - np.log(c)[:, None]) + np.log(inner)  # -inf: inner 0
-        mx = terms.max(axis=1)
-        ok = np.isfinite(mx)
-        ssum = np.exp(terms - np.where(ok, mx, 0.0)[:, None]).sum(axis=1)
+        # u0^(a+1) by repeated squaring (it underflows to 0 for the usual tiny u0: d_min much
+        # smaller than the scale, and then the G(u0) term is skipped)
+        with np.errstate(under="ignore"):
+            u0p = _int_power(u0, a + 1)
+        inner = G(1.0)
+        if np.any(u0p > 0):
+            inner -= u0p * G(u0)
+        np.maximum(inner, 0.0, out=inner)
+        # the sum over rho of s1^(a+1) inner, with s1 relative to its largest value per row:
+        # max s1 / min s1 over rho is at most sqrt(2) max(W, H) / min(W, H) (every rotation has
+        # an extent >= diameter / sqrt(2)), so the powers cannot underflow for a sane box
+        s1max = np.max(s1, axis=1)
+        okm = np.isfinite(s1max) & (s1max > 0)
+        rel = s1 / np.where(okm, s1max, 1.0)[:, None]
+        with np.errstate(under="ignore"):
+            ssum = np.sum(_int_power(rel, a + 1) * inner, axis=1)
+        ok = okm & (ssum > 0)
         # trapezoid weight pi / M; the joint density of the k + 2 world points is (W H)^-(k+2)
         # and rho in [0, 2 pi) covers [0, pi) twice: normalized up to P(all pairs >= d_min)
         const = np.log(2.0 * np.pi / M) + np.log(W * H) - (k + 2) * np.log(W * H)
         with np.errstate(divide="ignore"):
-            return np.where(ok, mx + np.log(np.where(ok, ssum, 1.0)) + const, -np.inf)
+            return np.where(ok, (a + 1) * (np.log(np.where(okm, s1max, 1.0)) - np.log(c))
+                            + np.log(np.where(ok, ssum, 1.0)) + const, -np.inf)
 
     def sample_world(self, rng, n_points: int, size: int) -> np.ndarray:
         """(size, n_points, 2) world points i.i.d. uniform in [0, W] x [0, H], every pair of a
