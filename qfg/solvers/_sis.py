@@ -115,16 +115,22 @@ _LAPLACE_SPREAD = 0.25
 def _log_intermediate_c(state_like, tid, poses, bearings_c, gens):
     """log of C's integral with the per-point prior, for the intermediate weights: Laplace about
     the triangulation where C's depth is resolved, a :func:`._common.sample_landmarks` estimate
-    elsewhere."""
+    elsewhere. ``poses``: (N, n, 3), or a function of a row selection returning those rows (the
+    motion step's children are then never gathered all at once)."""
+    get = poses if callable(poses) else poses.__getitem__
     prior = state_like.opts["prior"]
     sig = state_like.sigma_v()[tid]
-    lz, Ls, spread = C.laplace_landmark(poses, bearings_c[tid], sig)
-    out = lz + C.point_log_prior(prior, Ls)
-    hard = np.flatnonzero(~(spread < _LAPLACE_SPREAD))
+    N = tid.size
+    out, hard = np.empty(N), np.empty(N, dtype=bool)
+    for lo in range(0, N, C.CHUNK_ROWS):
+        sl = slice(lo, lo + C.CHUNK_ROWS)
+        lz, Ls, spread = C.laplace_landmark(get(sl), bearings_c[tid[sl]], sig[sl])
+        out[sl] = lz + C.point_log_prior(prior, Ls)
+        hard[sl] = ~(spread < _LAPLACE_SPREAD)
+    hard = np.flatnonzero(hard)
     if hard.size:
         k = state_like.opts["landmark_samples"]
-        L, log_q, log_lik, _ = _c_weight(state_like, tid[hard], poses[hard], bearings_c, gens,
-                                         k)
+        L, log_q, log_lik, _ = _c_weight(state_like, tid[hard], get(hard), bearings_c, gens, k)
         lw = C.point_log_prior(prior, L) + log_lik - log_q
         lw = np.where(np.isnan(lw), -np.inf, lw)
         out[hard] = C.logsumexp(lw, axis=1) - np.log(k)
@@ -164,13 +170,17 @@ def _offsets(gens):
     return np.array([g.random() for g in gens])
 
 
+def _kept(tid, total, T, ratio):
+    """(N,) hypotheses that survive pruning: finite and at least ``ratio`` x the heaviest of
+    their triplet. Applying it twice keeps the same set (the heaviest always stays)."""
+    mx = _segment_max(tid, total, T)
+    floor = mx + np.log(ratio) if ratio > 0 else np.full(T, -np.inf)
+    return np.isfinite(total) & (total >= floor[tid])
+
+
 def _prune(st: SISState, gens) -> SISState:
     T = st.n_triplets
-    total = st.lw_base + st.lw_c
-    mx = _segment_max(st.tid, total, T)
-    ratio = st.opts["prune_ratio"]
-    floor = mx + np.log(ratio) if ratio > 0 else np.full(T, -np.inf)
-    keep = np.isfinite(total) & (total >= floor[st.tid])
+    keep = _kept(st.tid, st.lw_base + st.lw_c, T, st.opts["prune_ratio"])
     st = _take(st, np.flatnonzero(keep))
     cap = st.opts["max_hypotheses"]
     counts = np.bincount(st.tid, minlength=T)
@@ -429,13 +439,20 @@ def _extend(state: SISState, phi, psi, spread: float, purpose: int) -> SISState:
         order = np.argsort(ct[j], kind="stable")
         j, new_pose, lw, lpx = j[order], new_pose[order], lw[order], lpx[order]
     parent = par[j]
-    poses = np.concatenate([state.poses[parent], new_pose[:, None, :]], axis=1)
     ntid = tid[parent]
-    st = replace(state, bearings=bearings, headings=headings, tid=ntid, poses=poses, lw_base=lw,
-                 lp_x=state.lp_x[parent] + lpx, lw_c=np.zeros(ntid.size),
+
+    def child_poses(rows):
+        return np.concatenate([state.poses[parent[rows]], new_pose[rows][:, None, :]], axis=1)
+
+    st = replace(state, bearings=bearings, headings=headings,
                  same_pose=np.concatenate([state.same_pose, same[:, None]], axis=1))
-    if ntid.size:
-        st = replace(st, lw_c=_log_intermediate_c(st, ntid, poses, bearings[..., 2], gens))
+    lw_c = _log_intermediate_c(st, ntid, child_poses, bearings[..., 2], gens) if ntid.size \
+        else np.zeros(0)
+    # the children that pruning drops are never gathered (most of them: the C weights are sharp);
+    # _prune then finds all the rest kept and goes on as if it had pruned them itself
+    rows = np.flatnonzero(_kept(ntid, lw + lw_c, T, opts["prune_ratio"]))
+    st = replace(st, tid=ntid[rows], poses=child_poses(rows), lw_base=lw[rows],
+                 lp_x=state.lp_x[parent[rows]] + lpx[rows], lw_c=lw_c[rows])
     return _prune(st, gens)
 
 
@@ -449,9 +466,13 @@ def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
     pa = phi[ct, 0] + spread * sb * z[:, 1]
     pb = phi[ct, 1] + spread * sb * z[:, 2]
     # likelihood over proposal of the drawn noise: N(x; s) / N(x; spread s) per drawn component
-    noisy = np.stack([sh, sb, sb], axis=1) > 0
-    lcorr = np.sum(np.where(noisy, -0.5 * z * z * (spread * spread - 1.0) + np.log(spread), 0.0),
-                   axis=1)
+    # (exactly 0 when the noise is drawn at the model's width)
+    if spread == 1.0:
+        lcorr = np.zeros(z.shape[0])
+    else:
+        noisy = np.stack([sh, sb, sb], axis=1) > 0
+        lcorr = np.sum(np.where(noisy, -0.5 * z * z * (spread * spread - 1.0) + np.log(spread),
+                                0.0), axis=1)
     circ = locus_circle(pa, pb)
     pts, valid = ray_circle_intersection(prev[par, :2], th, circ.center, circ.radius, circ.side)
     j, b = np.nonzero(valid)
