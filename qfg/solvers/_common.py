@@ -662,16 +662,20 @@ def depth_spread(ok, h00, h01, h11, det, r2min, sig):
     return np.where(ok, np.sqrt(lam) * sig / np.sqrt(r2min), np.inf)
 
 
-def laplace_landmark(poses, phi_c, sigma):
+def laplace_landmark(poses, phi_c, sigma, parts=False):
     """Laplace approximation of C's integral ``log ∫ prod_t N(phi_C,t - f(L, X_t); sigma) dL``
     (normalized Gaussians) about the least-squares triangulation, without the prior:
     ``sum_t log N(r_t) + log(2 pi sigma^2 / sqrt(det H))``. Good where C's depth is resolved;
     returns (log Z (J,), L* (J, 2), depth spread (J,)) so that callers can fall back to sampling
-    (:func:`sample_landmarks`) where it is not."""
+    (:func:`sample_landmarks`) where it is not; with ``parts`` also the triangulation and ``H``
+    as :func:`sample_landmarks` takes them (``laplace=``): (L*, ok, h00, h01, h11, det H,
+    least squared camera distance)."""
     J, n = poses.shape[:2]
     sig = np.broadcast_to(np.asarray(sigma, dtype=float), (J,))
     phi_c = np.broadcast_to(np.asarray(phi_c, dtype=float), (J, n))
     lz, Ls, spread = np.empty(J), np.empty((J, 2)), np.empty(J)
+    if parts:
+        ok_all, H = np.empty(J, dtype=bool), np.empty((5, J))
     for i in range(0, J, CHUNK_ROWS):
         sl = slice(i, i + CHUNK_ROWS)
         P = poses[sl]
@@ -685,10 +689,16 @@ def laplace_landmark(poses, phi_c, sigma):
         lz[sl] = (-0.5 * _vsum(res) / (s * s) - n * (np.log(s) + 0.5 * np.log(2 * np.pi))
                   + np.log(2 * np.pi * s * s) - 0.5 * np.log(det))
         spread[sl] = depth_spread(ok, h00, h01, h11, det, r2min, s)
+        if parts:
+            ok_all[sl] = ok
+            H[0, sl], H[1, sl], H[2, sl], H[3, sl], H[4, sl] = h00, h01, h11, det, r2min
+    if parts:
+        return lz, Ls, spread, (Ls, ok_all, *H)
     return lz, Ls, spread
 
 
-def sample_landmarks(rng, poses, phi_c, sigma, k: int, ray_fraction: float, draws=None):
+def sample_landmarks(rng, poses, phi_c, sigma, k: int, ray_fraction: float, draws=None,
+                     laplace=None):
     """C samples for each camera trajectory, from a defensive mixture: a Gaussian about the
     least-squares triangulation with covariance ``(1.5 sigma)^2 H^-1`` (``H = sum_t g_t g_t^T``,
     ``g_t = grad_L f(L, X_t)``; the Laplace approximation of C's conditional, inflated) and, for
@@ -699,7 +709,9 @@ def sample_landmarks(rng, poses, phi_c, sigma, k: int, ray_fraction: float, draw
 
     ``poses`` (J, n, 3), ``phi_c`` (n,) or (J, n), ``sigma`` > 0 (scalar or (J,)); the random
     numbers come from ``rng`` or, if given, ``draws`` (dict: ``z`` (J, kg, 2) and ``eps`` (J, kr)
-    standard normals, ``t`` (J, kr) views, ``u`` (J, kr) uniforms). Returns ``L (J, k, 2)``, ``log q
+    standard normals, ``t`` (J, kr) views, ``u`` (J, kr) uniforms); ``laplace``: the
+    triangulation and ``H`` of these rows if already computed (:func:`laplace_landmark` with
+    ``parts``). Returns ``L (J, k, 2)``, ``log q
     (J, k)``, ``log lik (J, k)`` (sum over views of the normalized Gaussian C-bearing
     likelihood) and the depth spread ``(J,)``: the standard deviation of C along its least
     constrained direction over its distance from the nearest camera (inf without a
@@ -719,11 +731,12 @@ def sample_landmarks(rng, poses, phi_c, sigma, k: int, ray_fraction: float, draw
     for i in range(0, J, chunk):
         sl = slice(i, i + chunk)
         L[sl], log_q[sl], log_lik[sl], spread[sl] = _sample_landmarks_rows(
-            poses[sl], phi_c[sl], sig[sl], kg, kr, {key: v[sl] for key, v in draws.items()})
+            poses[sl], phi_c[sl], sig[sl], kg, kr, {key: v[sl] for key, v in draws.items()},
+            None if laplace is None else tuple(v[sl] for v in laplace))
     return L, log_q, log_lik, spread
 
 
-def _sample_landmarks_rows(poses, phi_c, sig, kg, kr, draws):
+def _sample_landmarks_rows(poses, phi_c, sig, kg, kr, draws, laplace=None):
     """:func:`sample_landmarks` on one block of rows."""
     J, n = poses.shape[:2]
     k = kg + kr
@@ -733,7 +746,7 @@ def _sample_landmarks_rows(poses, phi_c, sig, kg, kr, draws):
     spread = np.full(J, np.inf)
     c2 = (1.5 * sig) ** 2
     if kg:
-        Ls, ok, h00, h01, h11, det, r2min = _laplace(X, theta)
+        Ls, ok, h00, h01, h11, det, r2min = _laplace(X, theta) if laplace is None else laplace
         # covariance c2 H^-1 and its Cholesky factor
         s00, s11, s01 = c2 * h11 / det, c2 * h00 / det, -c2 * h01 / det
         l11 = np.sqrt(s00)

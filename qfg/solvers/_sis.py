@@ -99,12 +99,12 @@ def _landmark_draws(gens, tid, n, k, ray_fraction):
     return {"z": z, "t": t, "eps": e, "u": u}
 
 
-def _c_weight(state_like, tid, poses, bearings_c, gens, k):
+def _c_weight(state_like, tid, poses, bearings_c, gens, k, laplace=None):
     """(L, log q, log lik, spread) for hypotheses (N, i, 3) of triplets ``tid``."""
     n = poses.shape[1]
     draws = _landmark_draws(gens, tid, n, k, state_like.opts["ray_fraction"])
     return C.sample_landmarks(None, poses, bearings_c[tid], state_like.sigma_v()[tid], k,
-                              state_like.opts["ray_fraction"], draws=draws)
+                              state_like.opts["ray_fraction"], draws=draws, laplace=laplace)
 
 
 #: Depth spread below which the intermediate C weight uses the Laplace approximation; above it
@@ -121,16 +121,20 @@ def _log_intermediate_c(state_like, tid, poses, bearings_c, gens):
     prior = state_like.opts["prior"]
     sig = state_like.sigma_v()[tid]
     N = tid.size
-    out, hard = np.empty(N), np.empty(N, dtype=bool)
+    out, hard, lap = np.empty(N), [], []
     for lo in range(0, N, C.CHUNK_ROWS):
         sl = slice(lo, lo + C.CHUNK_ROWS)
-        lz, Ls, spread = C.laplace_landmark(get(sl), bearings_c[tid[sl]], sig[sl])
+        lz, Ls, spread, parts = C.laplace_landmark(get(sl), bearings_c[tid[sl]], sig[sl],
+                                                   parts=True)
         out[sl] = lz + C.point_log_prior(prior, Ls)
-        hard[sl] = ~(spread < _LAPLACE_SPREAD)
-    hard = np.flatnonzero(hard)
+        h = np.flatnonzero(~(spread < _LAPLACE_SPREAD))
+        hard.append(lo + h)
+        lap.append(tuple(v[h] for v in parts))
+    hard = np.concatenate(hard) if hard else np.zeros(0, dtype=int)
     if hard.size:
         k = state_like.opts["landmark_samples"]
-        L, log_q, log_lik, _ = _c_weight(state_like, tid[hard], get(hard), bearings_c, gens, k)
+        L, log_q, log_lik, _ = _c_weight(state_like, tid[hard], get(hard), bearings_c, gens, k,
+                                         laplace=tuple(np.concatenate(v) for v in zip(*lap)))
         lw = C.point_log_prior(prior, L) + log_lik - log_q
         lw = np.where(np.isnan(lw), -np.inf, lw)
         out[hard] = C.logsumexp(lw, axis=1) - np.log(k)
@@ -181,7 +185,8 @@ def _kept(tid, total, T, ratio):
 def _prune(st: SISState, gens) -> SISState:
     T = st.n_triplets
     keep = _kept(st.tid, st.lw_base + st.lw_c, T, st.opts["prune_ratio"])
-    st = _take(st, np.flatnonzero(keep))
+    if not keep.all():
+        st = _take(st, np.flatnonzero(keep))
     cap = st.opts["max_hypotheses"]
     counts = np.bincount(st.tid, minlength=T)
     # drawn for every triplet every time, so that a triplet's later draws do not depend on others
