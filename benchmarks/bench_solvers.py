@@ -54,3 +54,81 @@ def run():
         rows.append({"name": f"{method}, single call", "value": 1e3 * med, "unit": "ms/triplet",
                      "target": "", "note": f"median of {n}, p90 {1e3 * p90:.0f} ms"})
     return rows
+
+
+def _load_tree(src, name="qfg_before"):
+    """The ``qfg`` package found in directory ``src`` (e.g. ``git archive <commit> qfg | tar -x
+    -C src``), imported under ``name`` so that it runs next to the working tree's."""
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    init = Path(src) / "qfg" / "__init__.py"
+    if not init.is_file():
+        raise ValueError(f"--against: no qfg package in {src!r}")
+    spec = importlib.util.spec_from_file_location(name, init,
+                                                  submodule_search_locations=[str(init.parent)])
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def compare(src, method="full", T=50, repeats=5, seed=2024, extra=None):
+    """Time per triplet of ``method`` in the working tree and in an older tree ``src`` (its
+    ``qfg`` package), interleaved in one process on the same histories (the benchmark's), with
+    the older tree's default options (options it lacks at the working tree's defaults), next to
+    ``fast-paper`` as a yardstick of the machine's speed; ``extra``: options for the working
+    tree only (e.g. an option the older tree lacks, at its neutral value). Returns a dict of medians (ms) and the
+    largest difference of the landmark distributions between the trees."""
+    import importlib
+
+    old = _load_tree(src)
+    old_solvers = importlib.import_module(old.__name__ + ".solvers")
+    old_sim = importlib.import_module(old.__name__ + ".simulation")
+    old_opts = importlib.import_module(old.__name__ + ".solvers._common").DEFAULTS[method]
+    from qfg.solvers._common import DEFAULTS
+
+    new_opts = {**DEFAULTS[method], **old_opts, **(extra or {})}
+    ss = np.random.SeedSequence(seed)
+    kids = ss.spawn(T)
+    h_new = _histories(T, seed)
+    h_old = [old_sim.random_triplet_history(np.random.default_rng(c), 3, np.deg2rad(2.0),
+                                            np.deg2rad(5.0)) for c in kids]
+    runs = {"before": lambda s: old_solvers.solve_triplets(h_old, method=method, seed=s,
+                                                           **old_opts),
+            "after": lambda s: solve_triplets(h_new, method=method, seed=s, **new_opts),
+            "fast-paper": lambda s: solve_triplets(h_new, method="fast-paper", seed=s)}
+    dp = float(np.max(np.abs(np.array([e.landmark for e in runs["before"](0)])
+                             - np.array([e.landmark for e in runs["after"](0)]))))
+    runs["fast-paper"](0)
+    times = {k: [] for k in runs}
+    for r in range(repeats):
+        for k, f in runs.items():
+            t = time.perf_counter()
+            f(r + 1)
+            times[k].append(1e3 * (time.perf_counter() - t) / T)
+    out = {k: float(np.median(v)) for k, v in times.items()}
+    out["max_landmark_difference"] = dp
+    return out
+
+
+if __name__ == "__main__":
+    import argparse
+
+    ap = argparse.ArgumentParser(description="compare a solver's speed with an older tree")
+    ap.add_argument("--against", required=True, help="directory holding an older qfg package")
+    ap.add_argument("--method", default="full")
+    ap.add_argument("--triplets", type=int, default=50)
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--set", default="{}", help="JSON options for the working tree only")
+    a = ap.parse_args()
+    load = os.getloadavg()[0]
+    import json
+
+    r = compare(a.against, a.method, a.triplets, a.repeats, extra=json.loads(a.set))
+    print(f"{a.method}, {a.triplets} triplets per call, median of {a.repeats} (load {load:.1f} "
+          f"-> {os.getloadavg()[0]:.1f}): before {r['before']:.2f} ms/triplet, after "
+          f"{r['after']:.2f}, ratio {r['before'] / r['after']:.2f}; fast-paper "
+          f"{r['fast-paper']:.2f} ms (after / fast-paper {r['after'] / r['fast-paper']:.1f}); "
+          f"largest landmark difference {r['max_landmark_difference']:.1e}")
