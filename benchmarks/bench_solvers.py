@@ -79,8 +79,8 @@ def compare(src, method="full", T=50, repeats=5, seed=2024, extra=None):
     ``qfg`` package), interleaved in one process on the same histories (the benchmark's), with
     the older tree's default options (options it lacks at the working tree's defaults), next to
     ``fast-paper`` as a yardstick of the machine's speed; ``extra``: options for the working
-    tree only (e.g. an option the older tree lacks, at its neutral value). Returns a dict of medians (ms) and the
-    largest difference of the landmark distributions between the trees."""
+    tree only (e.g. an option the older tree lacks, at its neutral value). Returns a dict of
+    medians (ms) and the largest difference of the landmark distributions between the trees."""
     import importlib
 
     old = _load_tree(src)

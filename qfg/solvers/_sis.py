@@ -133,8 +133,9 @@ def _log_intermediate_c(state_like, tid, poses, bearings_c, gens):
     hard = np.concatenate(hard) if hard else np.zeros(0, dtype=int)
     if hard.size:
         k = state_like.opts["landmark_samples"]
+        lap = tuple(np.concatenate(v) for v in zip(*lap, strict=True))
         L, log_q, log_lik, _ = _c_weight(state_like, tid[hard], get(hard), bearings_c, gens, k,
-                                         laplace=tuple(np.concatenate(v) for v in zip(*lap)))
+                                         laplace=lap)
         lw = C.point_log_prior(prior, L) + log_lik - log_q
         lw = np.where(np.isnan(lw), -np.inf, lw)
         out[hard] = C.logsumexp(lw, axis=1) - np.log(k)
