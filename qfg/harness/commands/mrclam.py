@@ -26,8 +26,8 @@ def register(sub):
                                    "(docs/results/mrclam.md).")
     p.add_argument("path", help="an MRCLAM_DatasetN directory")
     p.add_argument("--robots", default="", help="comma-separated robot numbers (default: all)")
-    p.add_argument("--method", default="fast", choices=("fast", "full", "baseline"),
-                   help="single-triplet solver (robots without odometry: baseline; default fast)")
+    p.add_argument("--method", default="full", choices=("fast", "full", "baseline"),
+                   help="single-triplet solver (robots without odometry: baseline; default full)")
     p.add_argument("--mode", default="honest", choices=("honest", "paper"),
                    help="honest: measured bearings and odometry (default); paper: bearings and "
                         "headings from motion capture (paper emulation; dataset 6)")

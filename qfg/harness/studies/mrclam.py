@@ -79,7 +79,7 @@ DEFAULTS = {
     "data": "",                            # directory holding MRCLAM_Dataset* ("": $QFG_MRCLAM_DIR)
     "datasets": [],                        # dataset numbers (empty: every one found)
     "robots": [],                          # robot numbers (empty: every robot)
-    "method": "fast",
+    "method": "full",
     "mode": "honest",
     "prior": "arena",
     "combine": "geometric",
@@ -311,7 +311,7 @@ def _load_tensor(partition: str, path: str | None):
     return load(path, partition) if path else tensor(partition)
 
 
-def run_dataset(path, *, robots=None, method: str = "fast", mode: str = "honest",
+def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest",
                 prior: str = "arena", combine: str = "geometric", partition: str = "edc",
                 tensor=None, fix_landmarks: bool = True, seed=0, min_travel: float = 0.02,
                 max_gap: float = 120.0, max_views: int = 0, propagate: bool = True,
