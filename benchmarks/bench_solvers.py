@@ -2,7 +2,11 @@
 sigma_w = 5 deg), default options, measured side by side in one run. Batched: one
 ``solve_triplets`` call on T triplets, time / T, median of repeats (full and fast: T = 50, 3
 repeats; fast-paper: T = 200, 5 repeats). Single calls: median over triplets (baseline 20,
-reference 5). The paper's MATLAB took 0.05 s (fast), 18 s (full) and 26 s (baseline)."""
+reference 5). The paper's MATLAB took 0.05 s (fast), 18 s (full) and 26 s (baseline).
+
+``python -m benchmarks.bench_solvers --against DIR [--method full]`` times a solver against an
+older tree's ``qfg`` package in DIR (``git archive <commit> qfg | tar -x -C DIR``), interleaved in
+one process: the ratio survives the shared machine's load."""
 
 import os
 import time
