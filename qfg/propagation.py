@@ -48,7 +48,8 @@ from .metrics import information_score
 __all__ = [
     "GraphTooLargeError", "ZeroMassError", "Marginals", "PropagationResult", "ScoreResult",
     "LevelResult", "BPResult", "exact_marginals", "elimination_estimate", "propagate",
-    "topology_scores", "composition_levels", "loopy_bp", "compare_unseen",
+    "topology_scores", "composition_levels", "loopy_bp", "compare_unseen", "propagate_pooled",
+    "PROPAGATION_RULES",
 ]
 
 #: The result types of :func:`propagate` and :func:`loopy_bp` (formerly their own dataclasses)
@@ -145,8 +146,89 @@ def _label_correcting(g, sources_value, propose, close_used=False):
     return values, np.array(order, dtype=np.intp), updated_by, updated
 
 
-def propagate(g, close_used: bool = False) -> Marginals:
+#: How :func:`propagate` forms a reached triplet's value: the paper's best proposal, or the mean
+#: of all proposals of the nearest level (:func:`propagate_pooled`).
+PROPAGATION_RULES = ("best", "mean")
+
+
+def propagate_pooled(g) -> Marginals:
+    """Breadth-first propagation by pooled composition.
+
+    Round r = 1, 2, ...: every factor with both updated and non-updated triplets proposes, for
+    each non-updated one, the marginal composition from its updated triplets (the other
+    non-updated one uniform), as in :func:`propagate`; every triplet with at least one proposal
+    takes their linear mean
+
+        P_v = (1 / |F_v|) sum_{f in F_v} compose_f(V_updated),
+
+    and all of them become updated at once (level r). Sources (level 0) are the seen triplets.
+    Unlike Algorithm 2, which keeps the single proposal with the best information score, no
+    proposal is chosen for being sharp, and values come from the fewest composition steps: a
+    linear mean of distributions is never sharper than its sharpest member and is calibrated when
+    each member is. Returns :class:`~qfg.inference.Marginals` (``method="pooled_composition"``,
+    ``info``: ``level`` (n,) rounds from the seen triplets (0 seen, -1 unreachable),
+    ``n_proposals`` (n,), ``reached``, ``seen``).
+
+    >>> import numpy as np
+    >>> from qfg.graph import QualitativeFactorGraph
+    >>> T = np.zeros((2, 2, 2)); T[0, 0, 0] = T[1, 1, 1] = 1       # all three equal
+    >>> g = QualitativeFactorGraph("lr", tensor=T)
+    >>> for t, p in [((0, 1, 2), [0.9, 0.1]), ((1, 2, 3), None), ((0, 1, 3), None)]:
+    ...     _ = g.add_triplet(t, p)
+    >>> _ = g.discover_compositions()
+    >>> r = propagate_pooled(g)
+    >>> r.marginals.round(2).tolist(), r.info["level"].tolist()
+    ([[0.9, 0.1], [0.9, 0.1], [0.9, 0.1]], [0, 1, 1])
+
+    (Algorithm 2 gives the last triplet 0.99, counting triplet 0 twice; here both unseen
+    triplets are composed from triplet 0 alone, in one round.)
+    """
+    T = g.table
+    m = g.m
+    n = g.n_triplets
+    fvars = np.asarray(g.factor_vars, dtype=np.intp).reshape(-1, 3)
+    values = np.full((n, m), 1.0 / m)
+    level = np.full(n, -1, dtype=np.intp)
+    n_props = np.zeros(n, dtype=np.intp)
+    for v, p in enumerate(g.priors):
+        if p is not None:
+            values[v] = np.asarray(p, dtype=float) / np.sum(p)
+            level[v] = 0
+    r = 0
+    while len(fvars):
+        upd = level[fvars] >= 0
+        k = upd.sum(axis=1)
+        open_ = (k > 0) & (k < 3)
+        if not np.any(open_):
+            break
+        r += 1
+        sums = np.zeros((n, m))
+        cnt = np.zeros(n, dtype=np.intp)
+        fo, uo = fvars[open_], upd[open_]
+        for role in range(3):
+            sel = np.flatnonzero(~uo[:, role])
+            if len(sel) == 0:
+                continue
+            V = [None, None, None]
+            for other in range(3):
+                if other != role:
+                    V[other] = np.where(uo[sel, other][:, None], values[fo[sel, other]], 1.0)
+            p = np.atleast_2d(compose_marginal(T, V[0], V[1], V[2], role=role + 1).p)
+            np.add.at(sums, fo[sel, role], p)
+            np.add.at(cnt, fo[sel, role], 1)
+        new = cnt > 0
+        values[new] = sums[new] / cnt[new, None]
+        level[new] = r
+        n_props[new] = cnt[new]
+    return Marginals(tuple(g.triplets), g.partition, values, "pooled_composition",
+                     {"level": level, "n_proposals": n_props, "reached": level > 0,
+                      "seen": g.seen, "isc": information_score(values)})
+
+
+def propagate(g, close_used: bool = False, rule: str = "best") -> Marginals:
     """Algorithm 2 (label-correcting propagation by composition).
+
+    ``rule="mean"`` returns :func:`propagate_pooled` instead (``close_used`` does not apply).
 
     Returns a :class:`~qfg.inference.Marginals` (``method="label_correcting"``): ``marginals``
     (n, m) -- the prior for seen triplets, the kept composition marginal for reached ones,
@@ -174,6 +256,10 @@ def propagate(g, close_used: bool = False) -> Marginals:
     Triplet 2 is composed from triplet 0 and from triplet 1, itself a copy of triplet 0: the
     evidence is counted twice (0.99), where the exact marginal is 0.9 -- an approximation.
     """
+    if rule not in PROPAGATION_RULES:
+        raise ValueError(f"rule: expected one of {PROPAGATION_RULES}, got {rule!r}")
+    if rule == "mean":
+        return propagate_pooled(g)
     T = g.table
     m = g.m
     fvars = g.factor_vars

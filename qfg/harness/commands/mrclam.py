@@ -28,6 +28,10 @@ def register(sub):
     p.add_argument("--robots", default="", help="comma-separated robot numbers (default: all)")
     p.add_argument("--method", default="full", choices=("fast", "full", "baseline"),
                    help="single-triplet solver (robots without odometry: baseline; default full)")
+    p.add_argument("--propagation", default="mean", choices=("mean", "best"),
+                   help="unseen triplets: the mean of their compositions from the nearest "
+                        "updated triplets (default), or the paper's Algorithm 2 (best "
+                        "information score)")
     p.add_argument("--mode", default="honest", choices=("honest", "paper"),
                    help="honest: measured bearings and odometry (default); paper: bearings and "
                         "headings from motion capture (paper emulation; dataset 6)")
@@ -78,7 +82,8 @@ def run_one(task: dict, rng) -> list[dict]:
                              fix_landmarks=task["fix_landmarks"], seed=task["seed"],
                              min_travel=task["min_travel"], max_gap=task["max_gap"],
                              max_views=task["max_views"], temper=task["temper"],
-                             spread_views=task["spread_views"])
+                             spread_views=task["spread_views"],
+                             propagation=task.get("propagation", "mean"))
 
 
 def _main(args):
@@ -97,6 +102,7 @@ def _main(args):
               "mode": args.mode, "prior": args.prior, "combine": args.combine,
               "min_travel": args.min_travel, "max_gap": args.max_gap, "max_views": args.max_views,
               "temper": args.temper, "spread_views": args.spread_views, "partition": "edc",
+              "propagation": args.propagation,
               "tensor": args.tensor or "",
               "fix_landmarks": not args.no_fix_landmarks, "seed": args.seed,
               "figures": not args.no_figures}

@@ -24,7 +24,8 @@ For one MRCLAM dataset directory (:func:`run_dataset`):
    evidence, :func:`qfg.combine.geometric_pool`); ``"product"`` (the plain product of posteriors,
    the prior counted k times) is kept to measure the difference.
 6. The whole qualitative map (:func:`qfg.graph.full_map`, every ordered triplet), the combined
-   estimates as priors, the rest propagated by Algorithm 2 (:func:`qfg.propagation.propagate`).
+   estimates as priors, the rest propagated by pooled composition (:func:`qfg.propagation.propagate_pooled`;
+   ``propagation="best"``: the paper's Algorithm 2, :func:`qfg.propagation.propagate`).
 7. Scores (:mod:`qfg.metrics`) against the landmark ground truth (:func:`qfg.graph.truth_states`)
    of seen and propagated triplets: the probability of the truth, log score (clip 1e-4), Brier,
    GT rating with ties split, truth under 1%, DMSE, entropy, flagged and uniform estimates; each
@@ -90,6 +91,7 @@ DEFAULTS = {
     "max_gap": 120.0,                      # s unseen that ends a pass
     "max_views": 0,                        # first views of each pass kept (0: all)
     "propagate": True,                     # map and propagate (False: seen triplets only)
+    "propagation": "mean",                 # "mean": pooled composition; "best": Algorithm 2
     "sigma_bearing_deg": 0.0,              # bearing sigma the solver assumes (0: loader default)
     "sigma_heading_deg": 0.0,              # heading sigma the solver assumes (0: loader default)
     "temper": 1.0,                         # power on each estimate's likelihood part (1: none)
@@ -317,7 +319,7 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
                 max_gap: float = 120.0, max_views: int = 0, propagate: bool = True,
                 sigma_bearing_deg: float = 0.0, sigma_heading_deg: float = 0.0,
                 temper: float = 1.0, spread_views: int = 3, return_details: bool = False,
-                **solver_options):
+                propagation: str = "mean", **solver_options):
     """Solve, combine, map, propagate and score one dataset directory.
 
     Args:
@@ -333,6 +335,9 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
             ``SeedSequence(seed)``).
         min_travel, max_gap, max_views: history options (module docstring, step 2).
         propagate: build the map and propagate (False: seen triplets and cameras only).
+        propagation: ``"mean"`` (:func:`qfg.propagation.propagate_pooled`: every unseen triplet
+            the mean of its compositions from the nearest updated triplets) or ``"best"`` (the
+            paper's Algorithm 2, :func:`qfg.propagation.propagate`: the sharpest proposal).
         sigma_bearing_deg, sigma_heading_deg: noise the solver assumes, degrees (0: the loader's
             measured defaults, ``DEFAULT_SIGMA_BEARING`` / ``DEFAULT_SIGMA_HEADING``).
         temper: each history's estimate (C and cameras) tempered before anything else,
@@ -387,7 +392,7 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
         T = _load_tensor(part.name, None) if tensor is None else tensor
         g = full_map(ids.size, partition=part.name, tensor=T,
                      priors={t: c.probabilities for t, c in combined.items()})
-        res = _propagate(g)
+        res = _propagate(g, rule=propagation)
         trip = np.array(g.triplets, dtype=np.intp)
         P = np.asarray(res.probabilities, dtype=float)
         seen = np.asarray(g.seen, dtype=bool)
@@ -679,6 +684,7 @@ def _params(params: dict) -> dict:
         raise ValueError(f"params: unknown keys {sorted(unknown)}; known: {sorted(DEFAULTS)}")
     p = {**DEFAULTS, **params}
     for key, allowed in (("method", METHODS), ("combine", COMBINE), ("mode", MODES),
+                         ("propagation", ("mean", "best")),
                          ("prior", PRIORS)):
         if p[key] not in allowed:
             raise ValueError(f"{key}: expected one of {allowed}, got {p[key]!r}")
@@ -704,7 +710,7 @@ def dataset_dirs(data, numbers=()) -> list[Path]:
 
 _TASK_KEYS = ("method", "mode", "prior", "combine", "partition", "fix_landmarks", "tensor",
               "min_travel", "max_gap", "max_views", "propagate", "sigma_bearing_deg",
-              "sigma_heading_deg", "temper", "spread_views")
+              "sigma_heading_deg", "temper", "spread_views", "propagation")
 
 
 def tasks(params: dict) -> list[dict]:

@@ -166,7 +166,7 @@ def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
         opts = task["options"].get(method, {})
         seed = np.random.SeedSequence(solver_root.entropy, spawn_key=(METHODS.index(method),))
         ests, dt = _solve_batch([hists[c] for c in cs], method, part, seed, opts)
-        for c, est in zip(cs, ests):
+        for c, est in zip(cs, ests, strict=True):
             sv, sw = grid[c]
             rows.append(_row(hists[c], est, method, sv, sw, part, dt, n))
     sweep = task.get("views_sweep", [])
