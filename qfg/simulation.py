@@ -117,6 +117,10 @@ class TripletHistory:
         views: (n,) index or time of each view (pose index in a scenario, time stamp in data).
         truth: ground truth for simulated data, None for real data.
         has_motion: False when headings are not available (the solver then has no motion model).
+        distances: (n - 1,) travelled distance from view i to view i+1 by odometry (any unit:
+            only ratios of consecutive entries are used; 0 = unknown, no factor), or None.
+        sigma_distance_ratio: noise of log(d_i / d_(i-1)) the data was made with, or the value
+            the solver should assume; None when there are no distances.
     """
 
     landmarks: tuple
@@ -127,6 +131,8 @@ class TripletHistory:
     views: np.ndarray = field(default=None)
     truth: TripletTruth | None = None
     has_motion: bool = True
+    distances: np.ndarray | None = None
+    sigma_distance_ratio: float | None = None
 
     def __post_init__(self):
         b = as_float_array("bearings", self.bearings, ndim=2, last_dim=3)
@@ -143,6 +149,16 @@ class TripletHistory:
         views = np.arange(b.shape[0]) if self.views is None else np.asarray(self.views)
         if views.shape != (b.shape[0],):
             raise ValueError(f"views: expected shape ({b.shape[0]},), got {views.shape}")
+        if self.distances is not None:
+            d = as_float_array("distances", self.distances, ndim=1)
+            if d.shape[0] != b.shape[0] - 1:
+                raise ValueError(f"distances: expected {b.shape[0] - 1} values for {b.shape[0]} "
+                                 f"views, got {d.shape[0]}")
+            if np.any(d < 0):
+                raise ValueError(f"distances: expected values >= 0, got {d.min()!r}")
+            object.__setattr__(self, "distances", d)
+        if self.sigma_distance_ratio is not None:
+            non_negative("sigma_distance_ratio", self.sigma_distance_ratio)
         object.__setattr__(self, "bearings", b)
         object.__setattr__(self, "headings", h)
         object.__setattr__(self, "views", views)
@@ -165,12 +181,17 @@ def _make_truth(landmarks_world, poses_world, partition) -> TripletTruth:
 
 def random_triplet_history(rng, n_views: int = 3, sigma_bearing: float = 0.0,
                            sigma_heading: float = 0.0, *, config: SimulationConfig = SimulationConfig(),
-                           partition="edc", landmarks=(0, 1, 2)) -> TripletHistory:
+                           partition="edc", landmarks=(0, 1, 2),
+                           sigma_distance_ratio: float | None = None) -> TripletHistory:
     """One landmark triplet seen from ``n_views`` random poses (the single-triplet study).
 
     Landmarks and camera positions are uniform in the config's box and at least ``min_distance``
     apart; headings uniform. Bearings get N(0, sigma_bearing^2) noise and the headings between
-    consecutive views N(0, sigma_heading^2) noise (radians).
+    consecutive views N(0, sigma_heading^2) noise (radians). With ``sigma_distance_ratio`` (not
+    None) the history also carries odometry distances: the true step lengths times
+    exp(N(0, sigma_distance_ratio^2 / 2)), so that the log ratio of consecutive distances has
+    noise ``sigma_distance_ratio`` (what the field means to the solvers), drawn after everything
+    else (the other values are those drawn without it).
 
     >>> h = random_triplet_history(np.random.default_rng(0), n_views=3)
     >>> h.bearings.shape, h.headings.shape, 0 <= h.truth.state < 20
@@ -188,9 +209,15 @@ def random_triplet_history(rng, n_views: int = 3, sigma_bearing: float = 0.0,
     phi = wrap_angle(phi + rng.normal(0.0, 1.0, size=phi.shape) * sb)
     psi = motion_heading(poses[:-1], poses[1:, :2])
     psi = wrap_angle(psi + rng.normal(0.0, 1.0, size=psi.shape) * sh)
+    dist = sd = None
+    if sigma_distance_ratio is not None:
+        sd = non_negative("sigma_distance_ratio", sigma_distance_ratio)
+        step = np.hypot(*np.diff(poses[:, :2], axis=0).T)
+        dist = step * np.exp(rng.normal(0.0, 1.0, size=step.shape) * (sd / np.sqrt(2.0)))
     return TripletHistory(landmarks=tuple(landmarks), bearings=phi, headings=psi,
                           sigma_bearing=sb, sigma_heading=sh, views=np.arange(n_views),
-                          truth=_make_truth(L, poses, partition))
+                          truth=_make_truth(L, poses, partition), distances=dist,
+                          sigma_distance_ratio=sd)
 
 
 @dataclass(frozen=True)

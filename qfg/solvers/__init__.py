@@ -72,7 +72,8 @@ def _resolve(method, options):
 
 
 def solve_triplet(bearings, headings=None, *, method: str = "full", partition="edc",
-                  sigma_bearing=None, sigma_heading=None, seed=None, **options) -> TripletEstimate:
+                  sigma_bearing=None, sigma_heading=None, seed=None, distances=None,
+                  sigma_distance_ratio=None, **options) -> TripletEstimate:
     """Estimate the qualitative states of C and of the cameras of one triplet AB:C.
 
     Args:
@@ -87,6 +88,13 @@ def solve_triplet(bearings, headings=None, *, method: str = "full", partition="e
         sigma_bearing, sigma_heading: noise standard deviations (radians, >= 0; zero works: the
             likelihood widths have floors, see ``bearing_floor``).
         seed: None, int, SeedSequence or Generator. Same seed, same estimate.
+        distances: (n - 1,) the odometry's travelled distance from view i to view i+1 (any
+            unit, finite, >= 0; 0 = unknown), or None; a history's own ``distances`` are used
+            when present. Only ``full`` and ``fast`` use them: a scale-free factor
+            ``N(log(s_i / s_(i-1)) - log(d_i / d_(i-1)); sigma_distance_ratio)`` on the ratio of
+            consecutive step lengths s (views 3..n); the other methods ignore them.
+        sigma_distance_ratio: noise of that log ratio (>= 0, floored at 0.01; required with
+            distances; default the history's).
         **options: method options (``qfg.solvers.DEFAULTS[method]``), e.g. ``n_samples``.
 
     Returns:
@@ -102,7 +110,8 @@ def solve_triplet(bearings, headings=None, *, method: str = "full", partition="e
     >>> est.cameras.shape, est.method
     ((1, 20), 'fast')
     """
-    meas = C.measurements(bearings, headings, sigma_bearing, sigma_heading)
+    meas = C.measurements(bearings, headings, sigma_bearing, sigma_heading, distances,
+                          sigma_distance_ratio)
     part = C.get_partition(partition)
     model = _model(method, meas)
     opts = _options(method, model, options)
@@ -165,19 +174,27 @@ def _solve_sis_batch(model, metas, roots, part, opts):
     b = np.stack([m.bearings for m in metas])
     sv = np.array([m.sigma_bearing for m in metas])
     sh = np.array([m.sigma_heading for m in metas])
-    st = _sis.start(b[:, 0], sv, sh, roots, opts, part, model)
+    d = sd = None
+    if any(m.distances is not None for m in metas):
+        # triplets without distances get zeros: no factor
+        d = np.stack([np.zeros(b.shape[1] - 1) if m.distances is None else m.distances
+                      for m in metas])
+        sd = np.array([m.sigma_distance_ratio or 0.0 for m in metas])
+    st = _sis.start(b[:, 0], sv, sh, roots, opts, part, model, sd)
     for i in range(1, b.shape[1]):
-        st = _sis.step(st, b[:, i], np.array([m.headings[i - 1] for m in metas]))
+        st = _sis.step(st, b[:, i], np.array([m.headings[i - 1] for m in metas]),
+                       None if d is None else d[:, i - 1])
     return [e for e, _ in _sis.finish(st)]
 
 
 def solve_triplets(histories, headings=None, *, method: str = "full", partition="edc",
-                   sigma_bearing=None, sigma_heading=None, seed=None, **options
-                   ) -> list[TripletEstimate]:
+                   sigma_bearing=None, sigma_heading=None, seed=None, distances=None,
+                   sigma_distance_ratio=None, **options) -> list[TripletEstimate]:
     """Solve many triplets in one call; returns one :class:`TripletEstimate` per triplet.
 
-    ``histories`` is a sequence of TripletHistory objects, or bearings (T, n, 3) with
-    ``headings`` (T, n - 1) and the sigmas (scalars, or (T,) arrays). Triplet t is solved with
+    ``histories`` is a sequence of TripletHistory objects (their ``distances`` used when
+    present), or bearings (T, n, 3) with ``headings`` (T, n - 1), optional ``distances``
+    (T, n - 1) and the sigmas (scalars, or (T,) arrays; :func:`solve_triplet`). Triplet t is solved with
     seed ``SeedSequence(seed).spawn``-style child ``t``, so
     ``solve_triplets(hs, seed=s)[t]`` equals ``solve_triplet(hs[t], seed=child)`` with
     ``child = SeedSequence(entropy, spawn_key=(t,))``. The fast variant is vectorized over all
@@ -190,7 +207,8 @@ def solve_triplets(histories, headings=None, *, method: str = "full", partition=
     >>> [e.landmark.shape for e in solve_triplets(hs, method="fast")]
     [(20,), (20,), (20,), (20,)]
     """
-    metas = _batch_measurements(histories, headings, sigma_bearing, sigma_heading)
+    metas = _batch_measurements(histories, headings, sigma_bearing, sigma_heading, distances,
+                                sigma_distance_ratio)
     part = C.get_partition(partition)
     root = C.root_seed(seed)
     out: list = [None] * len(metas)
@@ -214,7 +232,21 @@ def solve_triplets(histories, headings=None, *, method: str = "full", partition=
     return out
 
 
-def _batch_measurements(histories, headings, sigma_bearing, sigma_heading):
+def _per_triplet_sigma(name, value, T):
+    """(T,) list of a sigma given as None, a scalar or (T,) values (None entries: unset)."""
+    if value is None:
+        return [None] * T
+    try:
+        v = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected numbers, got {value!r}") from None
+    if v.ndim > 1 or (v.ndim == 1 and v.shape[0] != T):
+        raise ValueError(f"{name}: expected a number or shape ({T},), got shape {v.shape}")
+    return [float(x) for x in np.broadcast_to(v, (T,))]
+
+
+def _batch_measurements(histories, headings, sigma_bearing, sigma_heading, distances=None,
+                        sigma_distance_ratio=None):
     from ..simulation import TripletHistory
 
     if isinstance(histories, TripletHistory):
@@ -225,7 +257,12 @@ def _batch_measurements(histories, headings, sigma_bearing, sigma_heading):
         if headings is not None:
             raise ValueError("headings: pass either TripletHistory objects or bearings and "
                              "headings, not both")
-        return [C.measurements(h, None, sigma_bearing, sigma_heading) for h in histories]
+        if distances is not None:
+            raise ValueError("distances: pass either TripletHistory objects (with their "
+                             "distances) or bearings and distances, not both")
+        sds = _per_triplet_sigma("sigma_distance_ratio", sigma_distance_ratio, len(histories))
+        return [C.measurements(h, None, sigma_bearing, sigma_heading, None, sd)
+                for h, sd in zip(histories, sds, strict=True)]
     b = np.asarray(histories, dtype=float) if not isinstance(histories, Sequence) or histories \
         else np.zeros((0, 1, 3))
     if b.ndim != 3 or b.shape[-1] != 3:
@@ -244,8 +281,17 @@ def _batch_measurements(histories, headings, sigma_bearing, sigma_heading):
                                     dtype=float), (T,))
     sh = np.broadcast_to(np.asarray(sigma_heading if sigma_heading is not None else np.nan,
                                     dtype=float), (T,))
+    if distances is None:
+        ds = [None] * T
+    else:
+        d = np.asarray(distances, dtype=float)
+        if d.shape != (T, n - 1):
+            raise ValueError(f"distances: expected shape ({T}, {n - 1}) for bearings {b.shape}, "
+                             f"got {d.shape}")
+        ds = list(d)
+    sds = _per_triplet_sigma("sigma_distance_ratio", sigma_distance_ratio, T)
     return [C.measurements(b[t], hs[t], None if np.isnan(sb[t]) else sb[t],
-                           None if np.isnan(sh[t]) else sh[t]) for t in range(T)]
+                           None if np.isnan(sh[t]) else sh[t], ds[t], sds[t]) for t in range(T)]
 
 
 def add_view(solver, bearings, heading=None) -> TripletEstimate:
@@ -272,6 +318,8 @@ class TripletSolver:
         partition: partition name or :class:`qfg.partitions.Partition`.
         sigma_bearing, sigma_heading: noise standard deviations (radians, >= 0).
         seed: None, int, SeedSequence or Generator.
+        sigma_distance_ratio: noise of the log ratio of consecutive travelled distances
+            (required before a ``distance`` is added; :func:`solve_triplet`).
         **options: method options (``qfg.solvers.DEFAULTS[method]``), ``prior`` included.
 
     >>> import numpy as np
@@ -289,40 +337,46 @@ class TripletSolver:
     """
 
     def __init__(self, method: str = "full", *, partition="edc", sigma_bearing=0.0,
-                 sigma_heading=0.0, seed=None, **options):
+                 sigma_heading=0.0, seed=None, sigma_distance_ratio=None, **options):
         if method not in METHODS:
             raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
         part = C.get_partition(partition)
         opts = _resolve(method, options)
         self._init(method, part, opts, C.root_seed(seed),
                    C.check_sigma("sigma_bearing", sigma_bearing),
-                   C.check_sigma("sigma_heading", sigma_heading))
+                   C.check_sigma("sigma_heading", sigma_heading),
+                   C.check_distance_sigma(sigma_distance_ratio, None))
 
     @classmethod
     def solve(cls, bearings, headings=None, *, method: str = "full", partition="edc",
-              sigma_bearing=None, sigma_heading=None, seed=None, **options) -> "TripletSolver":
+              sigma_bearing=None, sigma_heading=None, seed=None, distances=None,
+              sigma_distance_ratio=None, **options) -> "TripletSolver":
         """A solver with every view of a history added; the arguments and the model chosen are
         those of :func:`solve_triplet` (``.estimate()`` equals its result). Use it when the
         hypotheses are wanted too (``.hypotheses()``)."""
-        meas = C.measurements(bearings, headings, sigma_bearing, sigma_heading)
+        meas = C.measurements(bearings, headings, sigma_bearing, sigma_heading, distances,
+                              sigma_distance_ratio)
         part = C.get_partition(partition)
         model = _model(method, meas)
         solver = cls._from_parts(model, part, _options(method, model, options),
-                                 C.root_seed(seed), meas.sigma_bearing, meas.sigma_heading)
+                                 C.root_seed(seed), meas.sigma_bearing, meas.sigma_heading,
+                                 meas.sigma_distance_ratio)
         for i in range(meas.n_views):
-            solver.add_view(meas.bearings[i], None if i == 0 or meas.headings is None
-                            else meas.headings[i - 1])
+            first = i == 0 or meas.headings is None
+            solver.add_view(meas.bearings[i], None if first else meas.headings[i - 1],
+                            None if first or meas.distances is None else meas.distances[i - 1])
         return solver
 
     @classmethod
-    def _from_parts(cls, method, part, opts, root, sigma_bearing, sigma_heading):
+    def _from_parts(cls, method, part, opts, root, sigma_bearing, sigma_heading,
+                    sigma_distance_ratio=None):
         self = cls.__new__(cls)
-        self._init(method, part, opts, root, sigma_bearing, sigma_heading)
+        self._init(method, part, opts, root, sigma_bearing, sigma_heading, sigma_distance_ratio)
         return self
 
-    def _init(self, method, part, opts, root, sb, sh):
+    def _init(self, method, part, opts, root, sb, sh, sd=None):
         self.method, self.partition, self.options = method, part, opts
-        self._root, self._sb, self._sh = root, float(sb), float(sh)
+        self._root, self._sb, self._sh, self._sd = root, float(sb), float(sh), sd
         self._state = None
         self._cache = None
 
@@ -334,10 +388,12 @@ class TripletSolver:
             return self._state.meas.n_views
         return self._state.n_views
 
-    def add_view(self, bearings, heading=None) -> "TripletSolver":
-        """Add one view: ``bearings`` (3,) [phi_A, phi_B, phi_C] radians and ``heading`` psi
+    def add_view(self, bearings, heading=None, distance=None) -> "TripletSolver":
+        """Add one view: ``bearings`` (3,) [phi_A, phi_B, phi_C] radians, ``heading`` psi
         (radians) from the previous view (None for the first view, required after it except for
-        the baseline, which ignores it). Returns the solver (for chaining)."""
+        the baseline, which ignores it) and optionally ``distance``, travelled from the
+        previous view by odometry (>= 0; 0 or None: unknown; needs ``sigma_distance_ratio``;
+        used by ``full`` and ``fast`` only). Returns the solver (for chaining)."""
         phi = C.check_bearings(bearings)
         if phi.shape[0] != 1:
             raise ValueError(f"bearings: expected one view (3,), got shape {phi.shape}")
@@ -346,6 +402,13 @@ class TripletSolver:
         if heading is not None:
             # checked for every method, the baseline included (which then ignores it)
             heading = C.check_heading(heading)
+        if distance is not None:
+            distance = C.check_distance(distance)
+            if first:
+                raise ValueError("distance: the first view has no previous view (pass None)")
+            if self._sd is None:
+                raise ValueError("sigma_distance_ratio: required when distances are given "
+                                 "(TripletSolver(..., sigma_distance_ratio=...))")
         if first:
             if heading is not None and self.method != "baseline":
                 raise ValueError("heading: the first view has no previous view (pass None)")
@@ -362,9 +425,11 @@ class TripletSolver:
         elif self.method in _SIS:
             if first:
                 self._state = _sis.start(phi[None, :], np.array([self._sb]), np.array([self._sh]),
-                                         (self._root,), opts, part, self.method)
+                                         (self._root,), opts, part, self.method,
+                                         None if self._sd is None else np.array([self._sd]))
             else:
-                self._state = _sis.step(self._state, phi[None, :], np.array([heading]))
+                self._state = _sis.step(self._state, phi[None, :], np.array([heading]),
+                                        None if distance is None else np.array([distance]))
         elif self.method == "fast-paper":
             if first:
                 self._state = _fast.start(phi[None, :], np.array([self._sb]),

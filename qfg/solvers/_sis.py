@@ -53,6 +53,8 @@ class SISState(C.TripletBatchSizes):
     headings: np.ndarray       # (T, i - 1)
     sigma_bearing: np.ndarray  # (T,)
     sigma_heading: np.ndarray  # (T,)
+    distances: np.ndarray      # (T, i - 1) odometry's travelled distances (0: unknown, no factor)
+    sigma_distance: np.ndarray  # (T,) width of the step-length-ratio factor (floored)
     roots: tuple               # T SeedSequences
     opts: dict
     part: object
@@ -71,6 +73,31 @@ class SISState(C.TripletBatchSizes):
 
     def noiseless(self) -> np.ndarray:
         return (self.sigma_bearing == 0) & (self.sigma_heading == 0)
+
+
+def log_distance_factor(step, prev_step, distance, prev_distance, sigma):
+    """log of the odometry's scale-free factor on the ratio of consecutive step lengths,
+
+        log N(log(s_i / s_(i-1)) - log(d_i / d_(i-1)); sigma),
+
+    for steps ``s`` (AB units) of hypotheses and the measured distances ``d`` (any unit), all
+    broadcast together. 0 (no factor) where a measured distance is 0 or a step is not > 0 (a
+    view taken as "camera did not move"): the ratio says nothing there.
+
+    >>> float(log_distance_factor(2.0, 1.0, 0.4, 0.2, 0.1)) == float(-np.log(0.1 * np.sqrt(2 * np.pi)))
+    True
+    >>> float(log_distance_factor(2.0, 1.0, 0.4, 0.0, 0.1))
+    0.0
+    """
+    s, sp, d, dp, sig = np.broadcast_arrays(*(np.asarray(v, dtype=float)
+                                              for v in (step, prev_step, distance,
+                                                        prev_distance, sigma)))
+    ok = (s > 0) & (sp > 0) & (d > 0) & (dp > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.log(s / sp) - np.log(d / dp)
+        out = -0.5 * (r / sig) ** 2 - np.log(sig) - 0.5 * np.log(2.0 * np.pi)
+    out = np.where(ok, out, 0.0)
+    return np.where(np.isnan(out), -np.inf, out)
 
 
 def _gens(roots, view, purpose):
@@ -240,7 +267,8 @@ def _log_pose_target(st: SISState, tid, poses):
         sum_t [log p1(X_t) + log N(phi_A,t - f_A(X_t); sv) + log N(phi_B,t - f_B(X_t); sv)]
         + sum_t log N(psi_t - g(X_t+1, X_t); sw),
 
-    the density (in x, y, alpha) that the sampling and motion steps' weights make the
+    plus the odometry's step-length-ratio factors (:func:`log_distance_factor`) where distances
+    are given: the density (in x, y, alpha) that the sampling and motion steps' weights make the
     hypotheses represent. Returns (log target (J,), sum_t log p1(X_t) (J,))."""
     X, al = poses[..., :2], poses[..., 2]
     b = st.bearings[tid]
@@ -253,6 +281,12 @@ def _log_pose_target(st: SISState, tid, poses):
     lp = np.sum(C.point_log_prior(st.opts["prior"], X), axis=1)
     out = lp - 0.5 * (np.sum(ra * ra + rb * rb, axis=1) / sv[:, 0] ** 2
                       + np.sum(rh * rh, axis=1) / sw[:, 0] ** 2)
+    dist = st.distances[tid]
+    if X.shape[1] >= 3 and np.any(dist > 0):
+        step = np.hypot(d[..., 0], d[..., 1])
+        out = out + np.sum(log_distance_factor(step[:, 1:], step[:, :-1], dist[:, 1:],
+                                               dist[:, :-1], st.sigma_distance[tid][:, None]),
+                           axis=1)
     return np.where(np.isnan(out), -np.inf, out), lp
 
 
@@ -322,12 +356,18 @@ def _take(st: SISState, idx) -> SISState:
                    lp_x=st.lp_x[idx], lw_c=st.lw_c[idx])
 
 
-def start(bearings0, sigma_bearing, sigma_heading, roots, opts, part, method) -> SISState:
-    """First view of T triplets: bearings0 (T, 3), sigmas (T,), roots: T SeedSequences."""
+def start(bearings0, sigma_bearing, sigma_heading, roots, opts, part, method,
+          sigma_distance_ratio=None) -> SISState:
+    """First view of T triplets: bearings0 (T, 3), sigmas (T,), roots: T SeedSequences;
+    ``sigma_distance_ratio`` (T,) the noise of the log ratio of the distances :func:`step` is
+    given (None: no distances)."""
     b0 = np.asarray(bearings0, dtype=float).reshape(-1, 3)
     T = b0.shape[0]
     sb = np.asarray(sigma_bearing, dtype=float).reshape(T)
     sh = np.asarray(sigma_heading, dtype=float).reshape(T)
+    sd = np.zeros(T) if sigma_distance_ratio is None else \
+        np.asarray(sigma_distance_ratio, dtype=float).reshape(T)
+    sd = C.effective_sigma(np.nan_to_num(sd), C.DISTANCE_RATIO_FLOOR)
     quiet = (sb == 0) & (sh == 0)
     M = np.where(quiet, opts["n_samples"] * opts["motion_samples"], opts["n_samples"])
 
@@ -346,7 +386,8 @@ def start(bearings0, sigma_bearing, sigma_heading, roots, opts, part, method) ->
     lw = C.log_camera_prior(X, gamma, log_dadw, opts["prior"])
     poses = np.concatenate([X, alpha[:, None]], axis=-1)[:, None, :]
     st = SISState(bearings=b0[:, None, :], headings=np.zeros((T, 0)), sigma_bearing=sb,
-                  sigma_heading=sh, roots=tuple(roots), opts=opts, part=part, method=method,
+                  sigma_heading=sh, distances=np.zeros((T, 0)), sigma_distance=sd,
+                  roots=tuple(roots), opts=opts, part=part, method=method,
                   tid=tid, poses=poses, lw_base=lw, lp_x=C.point_log_prior(opts["prior"], X),
                   lw_c=np.zeros(tid.size), same_pose=np.zeros((T, 1), dtype=bool),
                   lost=np.zeros(T, dtype=int))
@@ -355,13 +396,18 @@ def start(bearings0, sigma_bearing, sigma_heading, roots, opts, part, method) ->
     return replace(st, lost=np.where(alive, 0, 1))
 
 
-def step(state: SISState, phi, psi) -> SISState:
-    """Add one view to T triplets: ``phi`` (T, 3), ``psi`` (T,). A triplet whose hypotheses
-    all die (every ray misses its locus arc) is proposed again with the noise drawn
-    ``RETRY_SPREAD`` times wider (importance-weighted), before it is given up."""
+def step(state: SISState, phi, psi, distance=None) -> SISState:
+    """Add one view to T triplets: ``phi`` (T, 3), ``psi`` (T,), ``distance`` (T,) travelled
+    from the previous view by odometry (0 or None: unknown). From the third view on, each
+    child's weight carries :func:`log_distance_factor` of its step and its parent's last step.
+    A triplet whose hypotheses all die (every ray misses its locus arc) is proposed again with
+    the noise drawn ``RETRY_SPREAD`` times wider (importance-weighted), before it is given up."""
     phi = np.asarray(phi, dtype=float).reshape(-1, 3)
     psi = np.asarray(psi, dtype=float).reshape(-1)
     T, i = state.n_triplets, state.n_views
+    dist = np.zeros(T) if distance is None else np.asarray(distance, dtype=float).reshape(T)
+    # the new distance goes in first: the motion step reads it as distances[:, -1]
+    state = replace(state, distances=np.concatenate([state.distances, dist[:, None]], axis=1))
     st = _extend(state, phi, psi, state.opts["motion_spread"], C.STREAM_CAMERAS)
     alive = np.bincount(st.tid, minlength=T) > 0
     retry = ~alive & (state.lost == 0)
@@ -383,6 +429,7 @@ def _subset(st: SISState, mask) -> SISState:
     new_id = np.cumsum(mask) - 1
     return replace(st, bearings=st.bearings[mask], headings=st.headings[mask],
                    sigma_bearing=st.sigma_bearing[mask], sigma_heading=st.sigma_heading[mask],
+                   distances=st.distances[mask], sigma_distance=st.sigma_distance[mask],
                    roots=tuple(r for r, m in zip(st.roots, mask, strict=True) if m),
                    tid=new_id[st.tid[rows]],
                    poses=st.poses[rows], lw_base=st.lw_base[rows], lp_x=st.lp_x[rows],
@@ -486,6 +533,14 @@ def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
     lpx = C.point_log_prior(state.opts["prior"], X)
     lw = state.lw_base[par[j]] + C.log_ray_jacobian(X, prev[par[j], :2], th[j]) + lpx \
         + lcorr[j] - np.log(r[ct[j]])
+    i = state.n_views
+    if i >= 2 and np.any(state.distances[ct[j], -1] > 0):
+        pj, tj = par[j], ct[j]
+        back = state.poses[pj, -2, :2]
+        lw = lw + log_distance_factor(np.hypot(*(X - prev[pj, :2]).T),
+                                      np.hypot(*(prev[pj, :2] - back).T),
+                                      state.distances[tj, -1], state.distances[tj, -2],
+                                      state.sigma_distance[tj])
     alpha = wrap_angle(np.arctan2(-X[:, 1], -X[:, 0]) - pa[j])
     return j + offset, np.concatenate([X, alpha[:, None]], axis=-1), lw, lpx
 
