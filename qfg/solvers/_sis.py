@@ -528,6 +528,19 @@ def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
                                 0.0), axis=1)
     circ = locus_circle(pa, pb)
     pts, valid = ray_circle_intersection(prev[par, :2], th, circ.center, circ.radius, circ.side)
+    mixed = _mixed(state, ct, r, spread)
+    if np.any(mixed):
+        # the last r // 2 draws of each parent: the step length from the distance ratio
+        # (t = t* exp(sigma z0)) instead of the heading; the circle of radius t about X_(i-1)
+        # meets the drawn locus arc at 0, 1 or 2 points
+        first = np.cumsum(r[state.tid]) - r[state.tid]
+        kk = offset + np.arange(par.size) - first[par]
+        rows = np.flatnonzero(mixed & (kk >= r[ct] - r[ct] // 2))
+        p, tt = par[rows], ct[rows]
+        t = _prev_step(state, p) * state.distances[tt, -1] / state.distances[tt, -2] \
+            * np.exp(state.sigma_distance[tt] * z[rows, 0])
+        pts[rows], valid[rows] = _circle_arc_intersection(
+            prev[p, :2], t, circ.center[rows], circ.radius[rows], circ.side[rows])
     j, b = np.nonzero(valid)
     X = pts[j, b]
     lpx = C.point_log_prior(state.opts["prior"], X)
@@ -536,13 +549,107 @@ def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
     i = state.n_views
     if i >= 2 and np.any(state.distances[ct[j], -1] > 0):
         pj, tj = par[j], ct[j]
-        back = state.poses[pj, -2, :2]
-        lw = lw + log_distance_factor(np.hypot(*(X - prev[pj, :2]).T),
-                                      np.hypot(*(prev[pj, :2] - back).T),
+        lw = lw + log_distance_factor(np.hypot(*(X - prev[pj, :2]).T), _prev_step(state, pj),
                                       state.distances[tj, -1], state.distances[tj, -2],
                                       state.sigma_distance[tj])
+        m = np.flatnonzero(mixed[j])
+        if m.size:
+            pm = par[j[m]]
+            lw[m] = state.lw_base[pm] + lpx[m] - np.log(r[ct[j[m]]]) \
+                + _mixture_weight(state, X[m], prev, psi, r, pm)
     alpha = wrap_angle(np.arctan2(-X[:, 1], -X[:, 0]) - pa[j])
     return j + offset, np.concatenate([X, alpha[:, None]], axis=-1), lw, lpx
+
+
+#: Heading noise (radians) up to which the motion step also proposes children from the distance
+#: ratio: above it the heading's wrapped normal is no longer the plain normal the mixture
+#: density evaluates.
+_MIX_MAX_SIGMA_HEADING = 0.5
+#: Whether triplets with distances draw half their motion-step children from the step-length
+#: ratio (a switch for the tests, which compare both proposals).
+_MIX_DISTANCE_PROPOSAL = True
+
+
+def _mixed(state: SISState, ct, r, spread) -> np.ndarray:
+    """(B,) children (of triplets ``ct``) proposed by the two-component mixture of
+    :func:`_mixture_weight`: the triplet has a step-length-ratio factor at this view, the
+    noise is drawn at the model's width, and its heading noise is within
+    (0, :data:`_MIX_MAX_SIGMA_HEADING`]."""
+    if not _MIX_DISTANCE_PROPOSAL or state.n_views < 2 or spread != 1.0:
+        return np.zeros(ct.size, dtype=bool)
+    d = state.distances[ct]
+    sh = state.sigma_heading[ct]
+    return (d[:, -1] > 0) & (d[:, -2] > 0) & (r[ct] >= 2) & (sh > 0) \
+        & (sh <= _MIX_MAX_SIGMA_HEADING)
+
+
+def _prev_step(state: SISState, par) -> np.ndarray:
+    """(B,) length of the last step of hypotheses ``par`` (AB units)."""
+    return np.hypot(*(state.poses[par, -1, :2] - state.poses[par, -2, :2]).T)
+
+
+def _circle_arc_intersection(origin, radius, center, arc_radius, side):
+    """Points at distance ``radius`` (B,) from ``origin`` (B, 2) on locus arcs (centre (B, 2),
+    radius (B,), side (B,) as :func:`qfg.geometry.ray_circle_intersection`): (points (B, 2, 2),
+    valid (B, 2)); invalid slots hold the origin."""
+    q = center - origin
+    dd = np.hypot(q[:, 0], q[:, 1])
+    R = np.where(np.isfinite(arc_radius), arc_radius, 0.0)
+    ok = np.isfinite(arc_radius) & (radius > 0) & (dd > 0) & (dd <= radius + R) \
+        & (dd >= np.abs(radius - R))
+    dsafe = np.where(ok, dd, 1.0)
+    a = (radius * radius - R * R + dsafe * dsafe) / (2.0 * dsafe)
+    h = np.sqrt(np.maximum(radius * radius - a * a, 0.0))
+    ex, ey = q[:, 0] / dsafe, q[:, 1] / dsafe
+    pts = np.repeat(origin[:, None, :], 2, axis=1)
+    valid = np.zeros((origin.shape[0], 2), dtype=bool)
+    for k, sgn in enumerate((1.0, -1.0)):
+        px = origin[:, 0] + a * ex - sgn * h * ey
+        py = origin[:, 1] + a * ey + sgn * h * ex
+        v = ok & ((side * px) < 0)
+        pts[:, k, 0], pts[:, k, 1] = np.where(v, px, origin[:, 0]), np.where(v, py, origin[:, 1])
+        valid[:, k] = v
+    return pts, valid
+
+
+def _mixture_weight(state: SISState, X, prev, psi, r, par):
+    """Log of the heading and distance factors over the proposal density, for children ``X`` (K, 2) of parents ``par`` whose triplets propose them from a
+    mixture: ``r - r // 2`` draws along the heading (ray, density q_ray) and ``r // 2`` at the
+    step length of the distance ratio (circle, q_circ), both meeting the drawn locus arc. Over
+    the position, with the A/B bearing parts common to both and left out,
+
+        q_ray  = N(theta(X) - theta*; sigma_w) |grad Gamma . u| / t
+        q_circ = N(log t - log t*; sigma_d) |grad Gamma . u_perp| / t
+
+    (t = |X - X_(i-1)|, u its direction, theta* = alpha_(i-1) + psi, t* the previous step times
+    the distance ratio), and the target's heading and distance factors are those two Gaussians:
+    returns ``log(N_theta F / q_mix)``, ``q_mix = (n_ray q_ray + n_circ q_circ) / r`` (balance
+    heuristic; with the circle left out it is the ray-only ``F t / |grad Gamma . u|``). A parent
+    whose last step is 0 draws no circle children (q_circ = 0 there)."""
+    ct = state.tid[par]
+    O = prev[par, :2]
+    dx, dy = X[:, 0] - O[:, 0], X[:, 1] - O[:, 1]
+    t = np.hypot(dx, dy)
+    th = np.arctan2(dy, dx)
+    sh, sd = state.sigma_heading[ct], state.sigma_distance[ct]
+    half_log_2pi = 0.5 * np.log(2.0 * np.pi)
+    log_n_th = C.log_gauss(wrap_angle(th - prev[par, 2] - psi[ct]), sh) - half_log_2pi
+    sp = _prev_step(state, par)
+    log_f = log_distance_factor(t, sp, state.distances[ct, -1], state.distances[ct, -2], sd)
+    lj_ray = C.log_ray_jacobian(X, O, th)   # log t - log |grad Gamma . u|
+    # log t - log |grad Gamma . u_perp|: the ray Jacobian along u_perp from one unit back
+    perp = np.stack([-np.sin(th), np.cos(th)], axis=1)
+    with np.errstate(divide="ignore"):
+        lj_circ = np.log(t) + C.log_ray_jacobian(X, X - perp, th + 0.5 * np.pi)
+    log_q_ray = log_n_th - lj_ray
+    log_q_circ = np.where(sp > 0, log_f - lj_circ, -np.inf)
+    rr = r[ct].astype(float)
+    n_circ = np.floor(rr / 2.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        log_mix = np.logaddexp(np.log((rr - n_circ) / rr) + log_q_ray,
+                               np.log(n_circ / rr) + log_q_circ)
+        out = log_n_th + log_f - log_mix
+    return np.where(np.isnan(out), -np.inf, out)
 
 
 def finish(state: SISState, hypotheses: bool = False):

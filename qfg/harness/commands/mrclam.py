@@ -50,6 +50,9 @@ def register(sub):
                    help="keep the first N views of each pass (default 0: all)")
     p.add_argument("--spread-views", type=int, default=3,
                    help="keep N views spread evenly over each pass (default 3; 0: all)")
+    p.add_argument("--no-distances", action="store_true",
+                   help="solve without the odometry's travelled distances (default: with them, "
+                        "a factor on ratios of consecutive step lengths)")
     p.add_argument("--temper", type=float, default=1.0,
                    help="temper each estimate's likelihood part by this power in [0, 1] before "
                         "combining (default 1: none; docs/results/mrclam.md)")
@@ -83,7 +86,8 @@ def run_one(task: dict, rng) -> list[dict]:
                              min_travel=task["min_travel"], max_gap=task["max_gap"],
                              max_views=task["max_views"], temper=task["temper"],
                              spread_views=task["spread_views"],
-                             propagation=task.get("propagation", "mean"))
+                             propagation=task.get("propagation", "mean"),
+                             distances=task.get("distances", True))
 
 
 def _main(args):
@@ -102,7 +106,7 @@ def _main(args):
               "mode": args.mode, "prior": args.prior, "combine": args.combine,
               "min_travel": args.min_travel, "max_gap": args.max_gap, "max_views": args.max_views,
               "temper": args.temper, "spread_views": args.spread_views, "partition": "edc",
-              "propagation": args.propagation,
+              "propagation": args.propagation, "distances": not args.no_distances,
               "tensor": args.tensor or "",
               "fix_landmarks": not args.no_fix_landmarks, "seed": args.seed,
               "figures": not args.no_figures}
@@ -134,7 +138,8 @@ def _main(args):
                                  mode=args.mode, prior=args.prior, combine=args.combine,
                                  min_travel=args.min_travel, max_gap=args.max_gap,
                                  temper=args.temper, spread_views=args.spread_views,
-                                 fix_landmarks=not args.no_fix_landmarks, seed=args.seed)
+                                 fix_landmarks=not args.no_fix_landmarks, seed=args.seed,
+                                 distances=not args.no_distances)
         study.write_curve(out, recs, figures=not args.no_figures)
         for line in study.curve_lines(recs):
             print(line)

@@ -96,6 +96,7 @@ DEFAULTS = {
     "sigma_heading_deg": 0.0,              # heading sigma the solver assumes (0: loader default)
     "temper": 1.0,                         # power on each estimate's likelihood part (1: none)
     "spread_views": 3,                     # views spread over each pass (0: all)
+    "distances": True,                     # odometry's travelled distances in the motion model
 }
 
 
@@ -319,7 +320,7 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
                 max_gap: float = 120.0, max_views: int = 0, propagate: bool = True,
                 sigma_bearing_deg: float = 0.0, sigma_heading_deg: float = 0.0,
                 temper: float = 1.0, spread_views: int = 3, return_details: bool = False,
-                propagation: str = "mean", **solver_options):
+                propagation: str = "mean", distances: bool = True, **solver_options):
     """Solve, combine, map, propagate and score one dataset directory.
 
     Args:
@@ -345,6 +346,9 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
             (p / prior)^temper`` (1: as solved). Chosen on a development dataset, never on the
             one reported (docs/results/mrclam.md).
         spread_views: keep this many views spread evenly over each pass (0: all).
+        distances: the histories' odometry distances (between the kept views) go to the solver
+            (``full``/``fast``: a factor on ratios of consecutive step lengths, noise
+            ``DEFAULT_SIGMA_DISTANCE_RATIO``); False solves without them.
 
     Returns:
         rows (list of dicts; module docstring). With ``return_details``: ``(rows, details)``.
@@ -371,6 +375,8 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
                    partition=part,
                    min_travel=min_travel, max_gap=max_gap, **sig)
     hs = [h for _, h in rh]
+    if not distances:
+        hs = [dataclasses.replace(h, distances=None) for h in hs]
     ests = _solve(hs, method, part, seed, dict(solver_options, prior=pr))
     t_solve = time.perf_counter() - t0
     if temper != 1:
@@ -710,7 +716,7 @@ def dataset_dirs(data, numbers=()) -> list[Path]:
 
 _TASK_KEYS = ("method", "mode", "prior", "combine", "partition", "fix_landmarks", "tensor",
               "min_travel", "max_gap", "max_views", "propagate", "sigma_bearing_deg",
-              "sigma_heading_deg", "temper", "spread_views", "propagation")
+              "sigma_heading_deg", "temper", "spread_views", "propagation", "distances")
 
 
 def tasks(params: dict) -> list[dict]:
