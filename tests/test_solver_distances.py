@@ -1,0 +1,203 @@
+"""The odometry's travelled distances in the SIS motion model (full, fast): the factor on ratios
+of consecutive step lengths, the mixture proposal that uses it, incremental = batch, unchanged
+results without distances, the development check, and bad input."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from qfg import metrics
+from qfg.simulation import TripletHistory, random_triplet_history
+from qfg.solvers import TripletSolver, solve_triplet, solve_triplets
+from qfg.solvers import _common as C
+from qfg.solvers import _sis
+
+SB, SH = np.deg2rad(2), np.deg2rad(5)
+
+
+def _hist(seed, n=3, sd=0.05):
+    return random_triplet_history(np.random.default_rng(seed), n, SB, SH, sigma_distance_ratio=sd)
+
+
+def _steps(poses):
+    return np.hypot(*np.diff(poses[..., :2], axis=-2).T).T
+
+
+def test_factor_is_the_gaussian_of_the_log_ratio():
+    rng = np.random.default_rng(0)
+    s, sp, d, dp = rng.uniform(0.1, 3.0, (4, 50))
+    sig = rng.uniform(0.2, 1.0, 50)       # exp() of the direct formula stays above 0
+    r = np.log(s / sp) - np.log(d / dp)
+    direct = np.log(np.exp(-0.5 * (r / sig) ** 2) / (sig * np.sqrt(2 * np.pi)))
+    np.testing.assert_allclose(_sis.log_distance_factor(s, sp, d, dp, sig), direct, rtol=1e-12)
+    # no factor where a distance is 0 or a step is 0 (camera taken as not moved)
+    zero = _sis.log_distance_factor([1.0, 1.0, 0.0], [1.0, 1.0, 1.0], [0.0, 1.0, 1.0],
+                                    [1.0, 0.0, 1.0], 0.1)
+    assert zero.tolist() == [0.0, 0.0, 0.0]
+
+
+def test_intermediate_weights_carry_the_factor(monkeypatch):
+    # Ray proposal only and nothing pruned or resampled: the same children with and without
+    # distances, whose weights differ by exactly the factor of their step lengths.
+    monkeypatch.setattr(_sis, "_MIX_DISTANCE_PROPOSAL", False)
+    h = _hist(11, 4)
+    kw = dict(method="full", seed=2, n_samples=100, motion_samples=4, max_hypotheses=10**6,
+              prune_ratio=0.0)
+    a = TripletSolver.solve(replace(h, distances=None), **kw)._state
+    b = TripletSolver.solve(h, sigma_distance_ratio=0.2, **kw)._state
+    np.testing.assert_array_equal(a.poses, b.poses)
+    st = _steps(b.poses)                                  # (N, 3)
+    f = _sis.log_distance_factor(st[:, 1:], st[:, :-1], h.distances[1:], h.distances[:-1], 0.2)
+    np.testing.assert_allclose(b.lw_base - a.lw_base, f.sum(axis=1), rtol=1e-9, atol=1e-9)
+    # the final weights keep it: finish() divides out only the per-point prior and C's integral
+    e_a, e_b = solve_triplet(replace(h, distances=None), **kw), solve_triplet(
+        h, sigma_distance_ratio=0.2, **kw)
+    assert not np.array_equal(e_a.landmark, e_b.landmark)
+
+
+def test_mixture_proposal_targets_the_same_posterior(monkeypatch):
+    # Half the children drawn at the distance ratio's step length (balance heuristic) against
+    # the ray proposal alone: the weighted means of the step-length log ratio and of the new
+    # camera agree (both unbiased for the same target), and the mixture's ESS is larger.
+    h = _hist(900038, 3, 0.02)
+    kw = dict(method="full", n_samples=1000, motion_samples=16, max_hypotheses=10**6,
+              prune_ratio=0.0, sigma_distance_ratio=0.02)
+    out = {}
+    for mix in (False, True):
+        monkeypatch.setattr(_sis, "_MIX_DISTANCE_PROPOSAL", mix)
+        vals = []
+        for seed in range(2):
+            st = TripletSolver.solve(h, seed=seed, **kw)._state
+            w = np.exp(st.lw_base - st.lw_base.max())
+            w /= w.sum()
+            s = _steps(st.poses)
+            vals.append([np.sum(w * np.log(s[:, 1] / s[:, 0])), np.sum(w * st.poses[:, 2, 0]),
+                         np.sum(w * st.poses[:, 2, 1]), 1.0 / np.sum(w * w)])
+        out[mix] = np.mean(vals, axis=0)
+    np.testing.assert_allclose(out[True][:3], out[False][:3], atol=0.01)
+    assert out[True][3] > 2 * out[False][3]
+
+
+@pytest.mark.parametrize("method", ["full", "fast"])
+def test_incremental_equals_batch_with_distances(method):
+    hs = [_hist(900 + i, 4) for i in range(3)]
+    hs[1] = replace(hs[1], distances=None)              # a batch mixing both kinds
+    batch = solve_triplets(hs, method=method, seed=5)
+    root = np.random.SeedSequence(5)
+    for t, h in enumerate(hs):
+        one = solve_triplet(h, method=method, seed=C.child_seed(root, t))
+        np.testing.assert_array_equal(one.landmark, batch[t].landmark)
+        s = TripletSolver(method, sigma_bearing=h.sigma_bearing, sigma_heading=h.sigma_heading,
+                          sigma_distance_ratio=h.sigma_distance_ratio,
+                          seed=C.child_seed(root, t))
+        s.add_view(h.bearings[0])
+        for i in range(1, h.n_views):
+            s.add_view(h.bearings[i], h.headings[i - 1],
+                       None if h.distances is None else h.distances[i - 1])
+        np.testing.assert_array_equal(s.estimate().landmark, one.landmark)
+        np.testing.assert_array_equal(s.estimate().cameras, one.cameras)
+
+
+@pytest.mark.parametrize("method", ["full", "fast"])
+def test_zero_distances_are_no_distances(method):
+    h = _hist(31, 4)
+    none = solve_triplet(replace(h, distances=None), method=method, seed=1)
+    zeros = solve_triplet(replace(h, distances=np.zeros(3)), method=method, seed=1)
+    np.testing.assert_array_equal(none.landmark, zeros.landmark)
+    np.testing.assert_array_equal(none.cameras, zeros.cameras)
+
+
+def test_simulated_distances_leave_the_rest_unchanged():
+    a = random_triplet_history(np.random.default_rng(4), 5, SB, SH)
+    b = random_triplet_history(np.random.default_rng(4), 5, SB, SH, sigma_distance_ratio=0.0)
+    np.testing.assert_array_equal(a.bearings, b.bearings)
+    np.testing.assert_array_equal(a.headings, b.headings)
+    assert a.distances is None and b.sigma_distance_ratio == 0.0
+    np.testing.assert_allclose(b.distances, _steps(b.truth.poses_world), rtol=1e-12)
+
+
+def test_mrclam_histories_carry_the_measured_sigma():
+    from qfg.datasets.mrclam import DEFAULT_SIGMA_DISTANCE_RATIO, MRCLAMHistory
+
+    h = MRCLAMHistory(landmarks=(1, 2, 3), bearings=np.zeros((3, 3)) + [0.1, 0.5, 0.3],
+                      headings=np.zeros(2), sigma_bearing=0.01, sigma_heading=0.02,
+                      distances=np.array([0.3, 0.4]))
+    m = C.measurements(h, None, None, None)
+    assert m.sigma_distance_ratio == DEFAULT_SIGMA_DISTANCE_RATIO == 0.074
+    np.testing.assert_array_equal(m.distances, [0.3, 0.4])
+
+
+def test_exact_distances_do_not_hurt_on_development_histories():
+    # 40 development geometries (seeds 900000 + i), 5 views, 2/5 deg, distances with 1 % noise
+    hs = [random_triplet_history(np.random.default_rng(900000 + i), 5, SB, SH,
+                                 sigma_distance_ratio=0.01) for i in range(40)]
+    g = np.array([h.truth.state for h in hs])
+    with_d = np.array([e.landmark for e in solve_triplets(hs, method="full", seed=7)])
+    without = np.array([e.landmark for e in solve_triplets(
+        [replace(h, distances=None) for h in hs], method="full", seed=7)])
+    assert metrics.log_score(with_d, g).mean() >= metrics.log_score(without, g).mean()
+
+
+def test_bad_distances():
+    h = _hist(1, 3)
+    b, psi = h.bearings, h.headings
+    kw = dict(sigma_bearing=0.01, sigma_heading=0.02, method="fast")
+    with pytest.raises(ValueError, match="distances"):
+        solve_triplet(b, psi, distances=[1.0], sigma_distance_ratio=0.1, **kw)
+    with pytest.raises(ValueError, match="distances"):
+        solve_triplet(b, psi, distances=[1.0, -1.0], sigma_distance_ratio=0.1, **kw)
+    with pytest.raises(ValueError, match="distances"):
+        solve_triplet(b, psi, distances=[1.0, np.nan], sigma_distance_ratio=0.1, **kw)
+    with pytest.raises(ValueError, match="sigma_distance_ratio"):
+        solve_triplet(b, psi, distances=[1.0, 2.0], **kw)
+    with pytest.raises(ValueError, match="sigma_distance_ratio"):
+        solve_triplet(b, psi, distances=[1.0, 2.0], sigma_distance_ratio=-0.1, **kw)
+    with pytest.raises(ValueError, match="distances"):
+        solve_triplet(h, distances=[1.0, 2.0])
+    with pytest.raises(ValueError, match="distances"):
+        solve_triplets([h, h], distances=np.ones((2, 2)))
+    with pytest.raises(ValueError, match="distances"):
+        solve_triplets(np.stack([b, b]), np.stack([psi, psi]), distances=np.ones((2, 3)),
+                       sigma_distance_ratio=0.1, **kw)
+    with pytest.raises(ValueError, match="sigma_distance_ratio"):
+        solve_triplets([h, h], sigma_distance_ratio=[0.1, 0.2, 0.3])
+    with pytest.raises(ValueError, match="distances"):
+        TripletHistory((0, 1, 2), b, psi, 0.01, 0.02, distances=[0.1, -0.2])
+    with pytest.raises(ValueError, match="distances"):
+        TripletHistory((0, 1, 2), b, psi, 0.01, 0.02, distances=[0.1])
+    with pytest.raises(ValueError, match="sigma_distance_ratio"):
+        solve_triplet(TripletHistory((0, 1, 2), b, psi, 0.01, 0.02, distances=[0.1, 0.2]))
+    s = TripletSolver("fast", sigma_bearing=0.01, sigma_heading=0.02)
+    with pytest.raises(ValueError, match="distance"):
+        s.add_view(b[0], None, 0.3)
+    s.add_view(b[0])
+    with pytest.raises(ValueError, match="sigma_distance_ratio"):
+        s.add_view(b[1], psi[0], 0.3)
+    s = TripletSolver("fast", sigma_bearing=0.01, sigma_heading=0.02, sigma_distance_ratio=0.1)
+    s.add_view(b[0])
+    with pytest.raises(ValueError, match="distance"):
+        s.add_view(b[1], psi[0], -0.3)
+    with pytest.raises(ValueError, match="distance"):
+        s.add_view(b[1], psi[0], [0.3, 0.4])
+
+
+@pytest.mark.parametrize("method", ["fast-paper", "baseline"])
+def test_other_methods_ignore_distances(method):
+    h = _hist(7, 3)
+    a = solve_triplet(h, method=method, seed=1)
+    b = solve_triplet(replace(h, distances=None), method=method, seed=1)
+    np.testing.assert_array_equal(a.landmark, b.landmark)
+
+
+def test_move_target_includes_the_factor():
+    h = _hist(13, 4, 0.1)
+    s = TripletSolver.solve(h, method="fast", seed=0)
+    st = s._state
+    tid = np.zeros(1, dtype=int)
+    true = np.asarray(h.truth.poses_ab, dtype=float)[None]
+    lt, _ = _sis._log_pose_target(st, tid, true)
+    lt0, _ = _sis._log_pose_target(replace(st, distances=np.zeros_like(st.distances)), tid, true)
+    stp = _steps(true)
+    f = _sis.log_distance_factor(stp[:, 1:], stp[:, :-1], h.distances[1:], h.distances[:-1], 0.1)
+    np.testing.assert_allclose(lt - lt0, f.sum(axis=1), rtol=1e-9)
