@@ -1,13 +1,16 @@
 """Development views sweep: how a solver's proper scores change with the number of views.
 
     python -m benchmarks.solver_views [--n 200] [--views 3,6,10] [--method fast]
-        [--variants '{}' '{"mc_shrinkage": 0}']
+        [--variants '{}' '{"mc_shrinkage": 0}'] [--distances 0.074]
 
 Geometries come from development seeds (``default_rng(900000 + i)``, 10 views at 2/5 deg, the
 first k views solved for every k), never from the single-triplet study's seeds. Per variant and
 k: mean log p(truth) (clipped at 1e-4) with its standard error, mean Brier score, the share of
 confidently wrong estimates (more than 0.9 on a wrong state), the top-1 rate, the mean top
 probability and the time per triplet of one batched call (shared machine: compare within a run).
+With ``--distances SIGMA`` the geometries also carry odometry distances whose log ratios have
+noise SIGMA (drawn after everything else: the same bearings and headings), and every variant is
+solved without and with them.
 """
 
 from __future__ import annotations
@@ -26,14 +29,15 @@ from qfg.solvers import solve_triplets
 DEV_SEED = 900000
 
 
-def histories(n, k_max=10, sv=2.0, sw=5.0):
+def histories(n, k_max=10, sv=2.0, sw=5.0, sd=None):
     return [random_triplet_history(np.random.default_rng(DEV_SEED + i), k_max, np.deg2rad(sv),
-                                   np.deg2rad(sw)) for i in range(n)]
+                                   np.deg2rad(sw), sigma_distance_ratio=sd) for i in range(n)]
 
 
-def first_views(h, k):
+def first_views(h, k, distances=True):
+    d = h.distances[:k - 1] if distances and h.distances is not None else None
     return replace(h, bearings=h.bearings[:k], headings=h.headings[:k - 1], views=h.views[:k],
-                   truth=None)
+                   truth=None, distances=d)
 
 
 def main(argv=None):
@@ -42,24 +46,30 @@ def main(argv=None):
     ap.add_argument("--views", default="3,6,10")
     ap.add_argument("--method", default="fast")
     ap.add_argument("--variants", nargs="*", default=["{}"])
+    ap.add_argument("--distances", type=float, default=None, metavar="SIGMA",
+                    help="also solve with odometry distances (log-ratio noise SIGMA)")
     a = ap.parse_args(argv)
     ks = [int(k) for k in a.views.split(",")]
-    hs = histories(a.n, max(ks))
+    hs = histories(a.n, max(ks), sd=a.distances)
     g = np.array([h.truth.state for h in hs])
-    print(f"{a.n} development geometries (seeds {DEV_SEED}+i), 2/5 deg, method {a.method}\n")
+    dist = f", distances {a.distances}" if a.distances is not None else ""
+    print(f"{a.n} development geometries (seeds {DEV_SEED}+i), 2/5 deg{dist}, "
+          f"method {a.method}\n")
     print("| options | views | mean log p(truth) | mean Brier | confidently wrong | top-1 | "
           "mean p_max | ms per triplet |")
     print("|---|---|---|---|---|---|---|---|")
-    for v in a.variants:
+    uses = (False, True) if a.distances is not None else (False,)
+    for v, use in ((v, u) for v in a.variants for u in uses):
         opts = json.loads(v)
+        label = (json.dumps(opts) if opts else "defaults") + (" + distances" if use else "")
         for k in ks:
             t = time.perf_counter()
-            P = np.array([e.landmark for e in solve_triplets([first_views(h, k) for h in hs],
-                                                             method=a.method, seed=7, **opts)])
+            P = np.array([e.landmark for e in solve_triplets(
+                [first_views(h, k, use) for h in hs], method=a.method, seed=7, **opts)])
             ms = 1e3 * (time.perf_counter() - t) / len(hs)
             lp = log_score(P, g)
             cw = (P.max(axis=1) > 0.9) & (P.argmax(axis=1) != g)
-            print(f"| {json.dumps(opts) if opts else 'defaults'} | {k} | {lp.mean():.3f} +- "
+            print(f"| {label} | {k} | {lp.mean():.3f} +- "
                   f"{lp.std(ddof=1) / np.sqrt(len(lp)):.3f} | {np.mean(brier(P, g)):.3f} | "
                   f"{cw.mean():.3f} | {np.mean(P.argmax(axis=1) == g):.2f} | "
                   f"{P.max(axis=1).mean():.2f} | {ms:.1f} |", flush=True)
