@@ -13,6 +13,10 @@ Per view i of every triplet (AB frame, A = (0, 0), B = (0, 1)):
   the drawn locus arc at 0, 1 or 2 points, each a new hypothesis. The drawn noise carries the
   heading and A/B likelihoods exactly; the weight is the change of variables
   ``t / |grad Gamma . u|`` (:func:`._common.log_ray_jacobian`) times the per-point prior.
+* odometry distances (optional, views 3..n): the weight also carries
+  :func:`log_distance_factor` of the step-length ratio; such triplets draw half their children
+  at the step length the distance ratio predicts instead of along the heading (a circle about
+  X_{i-1} meets the arc), weighted by the balance heuristic (:func:`_mixture_weight`).
 * C (views 2..n): its integral ``∫ p1(L) prod_t N(phi_C,t - f(L, X_t); sigma_v) dL`` is
   estimated with ``landmark_samples`` draws from a defensive mixture (Laplace Gaussian about the
   triangulation, and draws along the lines of sight: :func:`._common.sample_landmarks`), which
