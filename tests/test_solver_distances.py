@@ -9,9 +9,8 @@ import pytest
 
 from qfg import metrics
 from qfg.simulation import TripletHistory, random_triplet_history
-from qfg.solvers import TripletSolver, solve_triplet, solve_triplets
+from qfg.solvers import TripletSolver, _sis, solve_triplet, solve_triplets
 from qfg.solvers import _common as C
-from qfg.solvers import _sis
 
 SB, SH = np.deg2rad(2), np.deg2rad(5)
 

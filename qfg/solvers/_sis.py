@@ -617,9 +617,10 @@ def _circle_arc_intersection(origin, radius, center, arc_radius, side):
 
 
 def _mixture_weight(state: SISState, X, prev, psi, r, par):
-    """Log of the heading and distance factors over the proposal density, for children ``X`` (K, 2) of parents ``par`` whose triplets propose them from a
-    mixture: ``r - r // 2`` draws along the heading (ray, density q_ray) and ``r // 2`` at the
-    step length of the distance ratio (circle, q_circ), both meeting the drawn locus arc. Over
+    """Log of the heading and distance factors over the proposal density, for children ``X``
+    (K, 2) of parents ``par`` whose triplets propose them from a mixture: ``r - r // 2`` draws
+    along the heading (ray, density q_ray) and ``r // 2`` at the step length of the distance
+    ratio (circle, q_circ), both meeting the drawn locus arc. Over
     the position, with the A/B bearing parts common to both and left out,
 
         q_ray  = N(theta(X) - theta*; sigma_w) |grad Gamma . u| / t

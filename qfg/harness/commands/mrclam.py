@@ -8,6 +8,8 @@ with one line.
 
 from __future__ import annotations
 
+import argparse
+
 from qfg.harness.commands import add_format, seed_int
 
 
@@ -50,9 +52,11 @@ def register(sub):
                    help="keep the first N views of each pass (default 0: all)")
     p.add_argument("--spread-views", type=int, default=3,
                    help="keep N views spread evenly over each pass (default 3; 0: all)")
-    p.add_argument("--no-distances", action="store_true",
-                   help="solve without the odometry's travelled distances (default: with them, "
-                        "a factor on ratios of consecutive step lengths)")
+    p.add_argument("--distances", action=argparse.BooleanOptionalAction, default=False,
+                   help="use the odometry's travelled distances (a factor on ratios of "
+                        "consecutive step lengths; default off: no gain on dataset 6)")
+    p.add_argument("--sigma-distance-ratio", type=float, default=0.0,
+                   help="noise of their log ratio (default 0: the loader's 0.074)")
     p.add_argument("--temper", type=float, default=1.0,
                    help="temper each estimate's likelihood part by this power in [0, 1] before "
                         "combining (default 1: none; docs/results/mrclam.md)")
@@ -87,7 +91,8 @@ def run_one(task: dict, rng) -> list[dict]:
                              max_views=task["max_views"], temper=task["temper"],
                              spread_views=task["spread_views"],
                              propagation=task.get("propagation", "mean"),
-                             distances=task.get("distances", True))
+                             distances=task.get("distances", False),
+                             sigma_distance_ratio=task.get("sigma_distance_ratio", 0.0))
 
 
 def _main(args):
@@ -106,7 +111,8 @@ def _main(args):
               "mode": args.mode, "prior": args.prior, "combine": args.combine,
               "min_travel": args.min_travel, "max_gap": args.max_gap, "max_views": args.max_views,
               "temper": args.temper, "spread_views": args.spread_views, "partition": "edc",
-              "propagation": args.propagation, "distances": not args.no_distances,
+              "propagation": args.propagation, "distances": args.distances,
+              "sigma_distance_ratio": args.sigma_distance_ratio,
               "tensor": args.tensor or "",
               "fix_landmarks": not args.no_fix_landmarks, "seed": args.seed,
               "figures": not args.no_figures}
@@ -139,7 +145,8 @@ def _main(args):
                                  min_travel=args.min_travel, max_gap=args.max_gap,
                                  temper=args.temper, spread_views=args.spread_views,
                                  fix_landmarks=not args.no_fix_landmarks, seed=args.seed,
-                                 distances=not args.no_distances)
+                                 distances=args.distances,
+                                 sigma_distance_ratio=args.sigma_distance_ratio)
         study.write_curve(out, recs, figures=not args.no_figures)
         for line in study.curve_lines(recs):
             print(line)

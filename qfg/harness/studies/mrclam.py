@@ -96,7 +96,9 @@ DEFAULTS = {
     "sigma_heading_deg": 0.0,              # heading sigma the solver assumes (0: loader default)
     "temper": 1.0,                         # power on each estimate's likelihood part (1: none)
     "spread_views": 3,                     # views spread over each pass (0: all)
-    "distances": True,                     # odometry's travelled distances in the motion model
+    "distances": False,                    # odometry's travelled distances in the motion model
+                                           # (off: no gain on dataset 6, docs/mrclam.md)
+    "sigma_distance_ratio": 0.0,           # their log-ratio noise (0: loader default, 0.074)
 }
 
 
@@ -320,7 +322,8 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
                 max_gap: float = 120.0, max_views: int = 0, propagate: bool = True,
                 sigma_bearing_deg: float = 0.0, sigma_heading_deg: float = 0.0,
                 temper: float = 1.0, spread_views: int = 3, return_details: bool = False,
-                propagation: str = "mean", distances: bool = True, **solver_options):
+                propagation: str = "mean", distances: bool = False,
+                sigma_distance_ratio: float = 0.0, **solver_options):
     """Solve, combine, map, propagate and score one dataset directory.
 
     Args:
@@ -347,8 +350,10 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
             one reported (docs/results/mrclam.md).
         spread_views: keep this many views spread evenly over each pass (0: all).
         distances: the histories' odometry distances (between the kept views) go to the solver
-            (``full``/``fast``: a factor on ratios of consecutive step lengths, noise
-            ``DEFAULT_SIGMA_DISTANCE_RATIO``); False solves without them.
+            (``full``/``fast``: a factor on ratios of consecutive step lengths); False (default:
+            no gain on dataset 6, docs/mrclam.md) solves without them.
+        sigma_distance_ratio: noise of their log ratio the solver assumes (0: the loader's
+            ``DEFAULT_SIGMA_DISTANCE_RATIO``).
 
     Returns:
         rows (list of dicts; module docstring). With ``return_details``: ``(rows, details)``.
@@ -377,6 +382,9 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
     hs = [h for _, h in rh]
     if not distances:
         hs = [dataclasses.replace(h, distances=None) for h in hs]
+    elif sigma_distance_ratio:
+        hs = [dataclasses.replace(h, sigma_distance_ratio=float(sigma_distance_ratio))
+              for h in hs]
     ests = _solve(hs, method, part, seed, dict(solver_options, prior=pr))
     t_solve = time.perf_counter() - t0
     if temper != 1:
@@ -716,7 +724,8 @@ def dataset_dirs(data, numbers=()) -> list[Path]:
 
 _TASK_KEYS = ("method", "mode", "prior", "combine", "partition", "fix_landmarks", "tensor",
               "min_travel", "max_gap", "max_views", "propagate", "sigma_bearing_deg",
-              "sigma_heading_deg", "temper", "spread_views", "propagation", "distances")
+              "sigma_heading_deg", "temper", "spread_views", "propagation", "distances",
+              "sigma_distance_ratio")
 
 
 def tasks(params: dict) -> list[dict]:
