@@ -152,6 +152,8 @@ def test_paper_mode_recomputes_inputs_from_the_capture(data):
         assert np.abs(wrap_angle(h.bearings - m.bearings)).max() < 2e-3
         P = h.truth.poses_world
         assert np.allclose(h.bearings, bearing(P[:, None], h.truth.landmarks_world[None]))
+        # distances from the capture too, not the odometry's
+        assert np.allclose(h.distances, np.hypot(*np.diff(P[:, :2], axis=0).T))
     with pytest.raises(ValueError, match="mode"):
         study.histories(ds, robots=[2], mode="paper")
     with pytest.raises(ValueError, match="mode"):

@@ -195,10 +195,11 @@ def spread(h, n: int, poses=None, view_times=None):
 
 
 def paper_history(h):
-    """Paper emulation: the history with bearings and headings computed from the captured
-    camera poses (``truth.poses_world``) instead of measured, or None when the capture does not
-    cover every view. Bearings ``bearing(pose_i, L)`` for L = A, B, C; headings
-    ``motion_heading(pose_i, position_{i+1})`` (conventions.md); sigmas unchanged."""
+    """Paper emulation: the history with bearings, headings and distances computed from the
+    captured camera poses (``truth.poses_world``) instead of measured, or None when the capture
+    does not cover every view. Bearings ``bearing(pose_i, L)`` for L = A, B, C; headings
+    ``motion_heading(pose_i, position_{i+1})`` (conventions.md); distances
+    ``|position_{i+1} - position_i|`` (when the history has distances); sigmas unchanged."""
     from qfg.geometry import bearing, motion_heading
 
     t = h.truth
@@ -208,7 +209,12 @@ def paper_history(h):
     P = np.asarray(t.poses_world, dtype=float)
     phi = bearing(P[:, None, :], np.asarray(t.landmarks_world)[None, :, :])
     psi = motion_heading(P[:-1], P[1:, :2])
-    return dataclasses.replace(h, bearings=phi, headings=psi, has_motion=True)
+    extra = {}
+    if getattr(h, "distances", None) is not None:
+        # clean inputs throughout: odometry distances next to captured bearings would mix
+        # measured and true geometry
+        extra["distances"] = np.hypot(*np.diff(P[:, :2], axis=0).T)
+    return dataclasses.replace(h, bearings=phi, headings=psi, has_motion=True, **extra)
 
 
 def histories(ds, robots=None, *, mode: str = "honest", max_views: int = 0,
