@@ -269,26 +269,23 @@ def _batch_measurements(histories, headings, sigma_bearing, sigma_heading, dista
         raise ValueError(f"histories: expected TripletHistory objects or bearings of shape "
                          f"(T, n, 3), got shape {b.shape}")
     T, n = b.shape[:2]
-    if headings is None:
-        hs = [None] * T
-    else:
-        h = np.asarray(headings, dtype=float)
-        if h.shape != (T, n - 1):
-            raise ValueError(f"headings: expected shape ({T}, {n - 1}) for bearings {b.shape}, "
-                             f"got {h.shape}")
-        hs = list(h)
+
+    def per_step(name, values):
+        # (T, n - 1) per-step inputs as T rows, or T Nones
+        if values is None:
+            return [None] * T
+        v = np.asarray(values, dtype=float)
+        if v.shape != (T, n - 1):
+            raise ValueError(f"{name}: expected shape ({T}, {n - 1}) for bearings {b.shape}, "
+                             f"got {v.shape}")
+        return list(v)
+
+    hs = per_step("headings", headings)
     sb = np.broadcast_to(np.asarray(sigma_bearing if sigma_bearing is not None else np.nan,
                                     dtype=float), (T,))
     sh = np.broadcast_to(np.asarray(sigma_heading if sigma_heading is not None else np.nan,
                                     dtype=float), (T,))
-    if distances is None:
-        ds = [None] * T
-    else:
-        d = np.asarray(distances, dtype=float)
-        if d.shape != (T, n - 1):
-            raise ValueError(f"distances: expected shape ({T}, {n - 1}) for bearings {b.shape}, "
-                             f"got {d.shape}")
-        ds = list(d)
+    ds = per_step("distances", distances)
     sds = _per_triplet_sigma("sigma_distance_ratio", sigma_distance_ratio, T)
     return [C.measurements(b[t], hs[t], None if np.isnan(sb[t]) else sb[t],
                            None if np.isnan(sh[t]) else sh[t], ds[t], sds[t]) for t in range(T)]
