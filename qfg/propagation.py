@@ -164,8 +164,8 @@ def propagate_pooled(g) -> Marginals:
     and all of them become updated at once (level r). Sources (level 0) are the seen triplets.
     Unlike Algorithm 2, which keeps the single proposal with the best information score, no
     proposal is chosen for being sharp, and values come from the fewest composition steps: a
-    linear mean of distributions is never sharper than its sharpest member and is calibrated when
-    each member is. Returns :class:`~qfg.inference.Marginals` (``method="pooled_composition"``,
+    linear mean of distributions never puts more on a state than its sharpest member does.
+    Returns :class:`~qfg.inference.Marginals` (``method="pooled_composition"``,
     ``info``: ``level`` (n,) rounds from the seen triplets (0 seen, -1 unreachable),
     ``n_proposals`` (n,), ``reached``, ``seen``).
 
@@ -228,7 +228,8 @@ def propagate_pooled(g) -> Marginals:
 def propagate(g, close_used: bool = False, rule: str = "best") -> Marginals:
     """Algorithm 2 (label-correcting propagation by composition).
 
-    ``rule="mean"`` returns :func:`propagate_pooled` instead (``close_used`` does not apply).
+    ``rule="mean"`` returns :func:`propagate_pooled` instead (breadth-first rounds: no factor is
+    closed, so ``close_used=True`` with it is a ValueError).
 
     Returns a :class:`~qfg.inference.Marginals` (``method="label_correcting"``): ``marginals``
     (n, m) -- the prior for seen triplets, the kept composition marginal for reached ones,
@@ -259,6 +260,9 @@ def propagate(g, close_used: bool = False, rule: str = "best") -> Marginals:
     if rule not in PROPAGATION_RULES:
         raise ValueError(f"rule: expected one of {PROPAGATION_RULES}, got {rule!r}")
     if rule == "mean":
+        if close_used:
+            raise ValueError("close_used: applies to rule='best' only (rule='mean' pools every "
+                             "proposal of a round; no factor is closed)")
         return propagate_pooled(g)
     T = g.table
     m = g.m

@@ -63,3 +63,5 @@ def test_unknown_rule_is_named():
     g = full_map(4, partition=None, tensor=np.ones((2, 2, 2)), priors={(0, 1, 2): [0.5, 0.5]})
     with pytest.raises(ValueError, match="rule"):
         propagate(g, rule="sharpest")
+    with pytest.raises(ValueError, match="close_used"):
+        propagate(g, close_used=True, rule="mean")
