@@ -46,6 +46,7 @@ _NAMES = {
     "ZeroMassError": "propagation",
     "Marginals": "inference",
     "Assignment": "inference",
+    "MissingKeyError": "inference",
     "map_assignment": "inference",
     "k_best": "inference",
     "write_uai": "inference",

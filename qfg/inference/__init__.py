@@ -13,10 +13,10 @@ and return the same :class:`Marginals` type.
 
 from .exact import ENGINES, elimination_estimate, exact_marginals, k_best, map_assignment
 from .junction import MAX_TABLE, FactorModel, JunctionTree, SizeEstimate, size_estimate
-from .results import Assignment, GraphTooLargeError, Marginals, ZeroMassError
+from .results import Assignment, GraphTooLargeError, Marginals, MissingKeyError, ZeroMassError
 from .uai import read_uai, read_uai_graph, write_uai
 
 __all__ = ["exact_marginals", "map_assignment", "k_best", "elimination_estimate", "ENGINES",
            "FactorModel", "JunctionTree", "SizeEstimate", "size_estimate", "MAX_TABLE",
-           "Marginals", "Assignment", "GraphTooLargeError", "ZeroMassError",
+           "Marginals", "Assignment", "GraphTooLargeError", "ZeroMassError", "MissingKeyError",
            "write_uai", "read_uai", "read_uai_graph"]

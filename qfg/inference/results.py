@@ -14,7 +14,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-__all__ = ["Marginals", "Assignment", "GraphTooLargeError", "ZeroMassError"]
+__all__ = ["Marginals", "Assignment", "GraphTooLargeError", "ZeroMassError", "MissingKeyError"]
 
 
 class GraphTooLargeError(ValueError):
@@ -48,6 +48,35 @@ class ZeroMassError(ValueError):
         self.local_factors = tuple(local_factors)
 
 
+class MissingKeyError(KeyError, ValueError):
+    """A triplet or variable that a result does not hold. A ``KeyError`` (the mapping rule) and,
+    for code written against the older results, a ``ValueError``."""
+
+    def __str__(self) -> str:  # KeyError would quote the whole message
+        return str(self.args[0]) if self.args else ""
+
+
+def _is_int(x) -> bool:
+    return isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_))
+
+
+def _row_of(rows: dict, n: int, key) -> int:
+    """One indexing rule for labelled results: a triplet ``(i, j, k)`` of ints, or a variable
+    index ``0 <= v < n`` (no negative wrap-around, no slices or masks)."""
+    if _is_int(key):
+        if 0 <= key < n:
+            return int(key)
+        raise MissingKeyError(f"variable: {int(key)} is not in this result (it has {n} "
+                              f"variables, 0..{n - 1})")
+    if isinstance(key, tuple) and len(key) == 3 and all(_is_int(x) for x in key):
+        t = tuple(int(x) for x in key)
+        if t in rows:
+            return rows[t]
+        raise MissingKeyError(f"triplet: {t} is not in this result")
+    raise TypeError(f"key: expected a triplet (i, j, k) of ints or a variable index, got "
+                    f"{key!r}; for array indexing use .probabilities")
+
+
 def _frozen_array(a) -> np.ndarray:
     a = np.array(a, dtype=float)
     a.setflags(write=False)
@@ -67,14 +96,17 @@ class Marginals:
         info: read-only mapping of engine-specific extras (e.g. ``log_partition``,
             ``largest_table``, ``converged``, ``iterations``, ``isc``, ``reached``).
 
-    ``res[(i, j, k)]`` is that triplet's (m,) row; ``res[v]`` with an int, slice, mask or index
-    array indexes rows as a numpy array would (for code written against the old bare arrays).
-    ``len(res)``, ``iter(res)`` (triplets), ``(i, j, k) in res``, ``res.to_dict()``,
-    ``np.asarray(res)``. Extras are also attributes: ``res.converged`` = ``res.info["converged"]``.
+    One indexing rule: ``res[(i, j, k)]`` is that triplet's (m,) row and ``res[v]`` (an int,
+    ``0 <= v < n``) row ``v``; an absent key raises :class:`MissingKeyError` (a ``KeyError``),
+    anything else (slices, masks, negative indices) a ``TypeError`` or ``KeyError``: array work
+    goes through ``res.probabilities``. ``key in res`` follows the same rule. ``len(res)``,
+    ``iter(res)`` (triplets), ``res.to_dict()``, ``np.asarray(res)``. Extras are also attributes: ``res.converged`` = ``res.info["converged"]``.
 
     >>> r = Marginals(((0, 1, 2), (1, 2, 3)), "lr", [[0.9, 0.1], [0.5, 0.5]], "exact")
-    >>> r[(1, 2, 3)].tolist(), len(r), np.asarray(r).shape, list(r)
-    ([0.5, 0.5], 2, (2, 2), [(0, 1, 2), (1, 2, 3)])
+    >>> r[(1, 2, 3)].tolist(), r[0].tolist(), len(r), np.asarray(r).shape, list(r)
+    ([0.5, 0.5], [0.9, 0.1], 2, (2, 2), [(0, 1, 2), (1, 2, 3)])
+    >>> (0, 1, 2) in r, 1 in r, 2 in r, (0, 1, 3) in r
+    (True, True, False, False)
     """
 
     triplets: tuple
@@ -105,24 +137,22 @@ class Marginals:
                              self.method, dict(self.info)))
 
     # ------------------------------------------------------------- mapping-like
-    def row(self, triplet) -> int:
-        """Row index of ``triplet`` (ValueError naming it when absent)."""
-        try:
-            return self._rows[tuple(int(x) for x in triplet)]
-        except (KeyError, TypeError, ValueError):
-            raise ValueError(f"triplet: {triplet!r} is not in this result") from None
+    def row(self, key) -> int:
+        """Row index of ``key``: a triplet ``(i, j, k)`` or a variable index ``v`` (an int,
+        ``0 <= v < n``). :class:`MissingKeyError` (a ``KeyError``) naming it when absent."""
+        return _row_of(self._rows, len(self.triplets), key)
 
-    def __getitem__(self, key):
-        if isinstance(key, tuple) and len(key) == 3 and all(
-                isinstance(x, (int, np.integer)) and not isinstance(x, bool) for x in key):
-            return self.probabilities[self.row(key)]
-        return self.probabilities[key]
+    def __getitem__(self, key) -> np.ndarray:
+        """The (m,) row of a triplet ``(i, j, k)`` or of variable ``v`` (one rule for every key;
+        for array work use :attr:`probabilities`)."""
+        return self.probabilities[self.row(key)]
 
-    def __contains__(self, triplet) -> bool:
+    def __contains__(self, key) -> bool:
         try:
-            return tuple(int(x) for x in triplet) in self._rows
-        except (TypeError, ValueError):
+            self.row(key)
+        except (KeyError, TypeError):
             return False
+        return True
 
     def __len__(self) -> int:
         return len(self.triplets)
@@ -181,7 +211,8 @@ class Assignment:
         log_probabilities: (K,) natural logs of ``probabilities`` (finite even when those
             underflow to 0).
 
-    ``res[(i, j, k)]`` is that triplet's column (K,); ``res.best`` the best assignment as a dict.
+    ``res[(i, j, k)]`` (or ``res[v]``) is that triplet's column (K,), by the rule of
+    :class:`Marginals`; ``res.best`` the best assignment as a dict.
 
     >>> a = Assignment(((0, 1, 2),), "lr", [[1], [0]], [0.7, 0.3], np.log([0.7, 0.3]))
     >>> a[(0, 1, 2)].tolist(), a.best, len(a)
@@ -202,15 +233,20 @@ class Assignment:
         object.__setattr__(self, "states", S)
         object.__setattr__(self, "probabilities", _frozen_array(self.probabilities))
         object.__setattr__(self, "log_probabilities", _frozen_array(self.log_probabilities))
+        object.__setattr__(self, "_rows", {t: v for v, t in enumerate(ts)})
         if self.probabilities.shape != (len(S),) or self.log_probabilities.shape != (len(S),):
             raise ValueError(f"probabilities: expected ({len(S)},) values for {len(S)} assignments")
 
-    def __getitem__(self, triplet) -> np.ndarray:
+    def __getitem__(self, key) -> np.ndarray:
+        """The (K,) column of a triplet ``(i, j, k)`` or of variable ``v``."""
+        return self.states[:, _row_of(self._rows, len(self.triplets), key)]
+
+    def __contains__(self, key) -> bool:
         try:
-            v = self.triplets.index(tuple(int(x) for x in triplet))
-        except (ValueError, TypeError):
-            raise ValueError(f"triplet: {triplet!r} is not in this result") from None
-        return self.states[:, v]
+            _row_of(self._rows, len(self.triplets), key)
+        except (KeyError, TypeError):
+            return False
+        return True
 
     def __len__(self) -> int:
         return len(self.states)
