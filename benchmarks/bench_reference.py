@@ -36,7 +36,7 @@ def evaluate(n_views, sb_deg, sh_deg, n_triplets, seed, **options):
     rows = []
     for i in range(n_triplets):
         t = time.perf_counter()
-        out = solve_reference(phi[i], psi[i], sb, sh, rng=np.random.default_rng([seed, i]),
+        out = solve_reference(phi[i], psi[i], sb, sh, seed=np.random.default_rng([seed, i]),
                               **options)
         rows.append({"p": out["landmark"], "truth": int(truth[i]), "ess": out["ess"],
                      "ess_final": out["ess_rounds"][-1], "err": float(out["mc_error"].max()),
@@ -146,8 +146,8 @@ def seed_check(n_views, sb_deg, sh_deg, n_triplets, seed=31):
                                                 sb, sh, n_triplets)
     zs, flagged = [], 0
     for i in range(n_triplets):
-        a = solve_reference(phi[i], psi[i], sb, sh, rng=np.random.default_rng([1, i]))
-        b = solve_reference(phi[i], psi[i], sb, sh, rng=np.random.default_rng([2, i]))
+        a = solve_reference(phi[i], psi[i], sb, sh, seed=np.random.default_rng([1, i]))
+        b = solve_reference(phi[i], psi[i], sb, sh, seed=np.random.default_rng([2, i]))
         flagged += a["degenerate"] or b["degenerate"]
         sd = np.sqrt(a["mc_error"] ** 2 + b["mc_error"] ** 2)
         ok = sd > 1e-4

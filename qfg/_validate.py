@@ -52,10 +52,33 @@ def positive_int(name: str, value, *, minimum: int = 1) -> int:
     return int(value)
 
 
-def as_rng(seed) -> np.random.Generator:
-    """A ``numpy.random.Generator`` from a Generator, an int seed, a SeedSequence or None."""
-    if isinstance(seed, np.random.Generator):
+def _check_seed(seed):
+    if isinstance(seed, (np.random.Generator, np.random.SeedSequence)) or seed is None:
         return seed
-    if seed is None or isinstance(seed, (int, np.integer, np.random.SeedSequence)):
-        return np.random.default_rng(seed)
-    raise ValueError(f"seed: expected None, an int, a SeedSequence or a numpy Generator, got {seed!r}")
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed: expected an int >= 0, a numpy SeedSequence, a numpy Generator or "
+                         f"None, got {seed!r}")
+    return int(seed)
+
+
+def as_rng(seed) -> np.random.Generator:
+    """The project's one seed rule (docs/conventions.md): ``seed`` is an int >= 0, a numpy
+    ``SeedSequence``, a numpy ``Generator`` (used as it is: draws advance the caller's stream) or
+    None (fresh entropy). Returns a ``numpy.random.Generator``.
+
+    >>> bool(as_rng(3).random() == np.random.default_rng(3).random())
+    True
+    """
+    seed = _check_seed(seed)
+    return seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+
+
+def as_seed_sequence(seed) -> np.random.SeedSequence:
+    """The same rule as :func:`as_rng`, for code that spawns independent streams: an int or None
+    becomes ``SeedSequence(seed)``; a Generator gives one draw (advancing it) as the entropy."""
+    seed = _check_seed(seed)
+    if isinstance(seed, np.random.SeedSequence):
+        return seed
+    if isinstance(seed, np.random.Generator):
+        return np.random.SeedSequence(int(seed.integers(0, 2**63)))
+    return np.random.SeedSequence(seed)

@@ -1,7 +1,7 @@
 """Priors over AB-frame configurations ``[C, X_1, ..., X_n]`` (the points a triplet solver
 reasons about), as objects.
 
-Every prior has a ``name``, ``log_density(points)`` and ``sample(rng, n_cameras, size)``:
+Every prior has a ``name``, ``log_density(points)`` and ``sample(seed, n_cameras, size)``:
 
 * :class:`WorldBoxPrior` (``"world"``): exact for the simulator's world, every object (the three
   landmarks and every camera position) i.i.d. uniform in a W x H box, every pair at least
@@ -79,7 +79,7 @@ class Prior:
     * ``log_density(points)``: points (..., k, 2), k = n + 1 >= 1, AB-frame positions in the order
       [C, X_1, ..., X_n]; returns (...,) the log density up to an additive constant that depends
       only on k. Finite wherever the density is positive; -inf only where it is truly 0.
-    * ``sample(rng, n_cameras, size)``: (size, 1 + n_cameras, 2) configurations drawn exactly from
+    * ``sample(seed, n_cameras, size)``: (size, 1 + n_cameras, 2) configurations drawn exactly from
       the prior.
     """
 
@@ -88,7 +88,7 @@ class Prior:
     def log_density(self, points) -> np.ndarray:  # pragma: no cover - interface
         raise NotImplementedError
 
-    def sample(self, rng, n_cameras: int, size: int) -> np.ndarray:  # pragma: no cover
+    def sample(self, seed, n_cameras: int, size: int) -> np.ndarray:  # pragma: no cover
         raise NotImplementedError
 
     def __repr__(self):
@@ -234,10 +234,10 @@ class WorldBoxPrior(Prior):
             return np.where(ok, (a + 1) * (np.log(np.where(okm, s1max, 1.0)) - np.log(c))
                             + np.log(np.where(ok, ssum, 1.0)) + const, -np.inf)
 
-    def sample_world(self, rng, n_points: int, size: int) -> np.ndarray:
+    def sample_world(self, seed, n_points: int, size: int) -> np.ndarray:
         """(size, n_points, 2) world points i.i.d. uniform in [0, W] x [0, H], every pair of a
         configuration at least d_min apart (whole configurations rejected and redrawn)."""
-        rng = as_rng(rng)
+        rng = as_rng(seed)
         n_points = positive_int("n_points", n_points)
         size = positive_int("size", size, minimum=0)
         out = rng.uniform((0.0, 0.0), (self.width, self.height), size=(size, n_points, 2))
@@ -257,12 +257,12 @@ class WorldBoxPrior(Prior):
         raise ValueError(f"d_min: could not place {n_points} points {self.d_min} apart in a "
                          f"{self.width} x {self.height} box")
 
-    def sample(self, rng, n_cameras: int, size: int) -> np.ndarray:
+    def sample(self, seed, n_cameras: int, size: int) -> np.ndarray:
         """Exact draws: simulate worlds [A, B, C, X_1..X_n] and map them to the AB frame."""
         from .geometry import to_frame
 
         n_cameras, size = _sample_args(n_cameras, size)
-        w = self.sample_world(rng, n_cameras + 3, size)
+        w = self.sample_world(seed, n_cameras + 3, size)
         return to_frame(w[:, 2:], w[:, :1], w[:, 1:2])
 
 
@@ -296,10 +296,10 @@ class WindowPrior(Prior):
                         & (p[..., 1] <= ymax), axis=-1)
         return np.where(inside, -p.shape[-2] * np.log(self.area), -np.inf)
 
-    def sample(self, rng, n_cameras: int, size: int) -> np.ndarray:
+    def sample(self, seed, n_cameras: int, size: int) -> np.ndarray:
         n_cameras, size = _sample_args(n_cameras, size)
         xmin, xmax, ymin, ymax = self.window
-        return as_rng(rng).uniform((xmin, ymin), (xmax, ymax), size=(size, n_cameras + 1, 2))
+        return as_rng(seed).uniform((xmin, ymin), (xmax, ymax), size=(size, n_cameras + 1, 2))
 
 
 class ProductPrior(Prior):
@@ -333,9 +333,9 @@ class ProductPrior(Prior):
         s2 = self.scale ** 2
         return np.sum(np.log(s2 / np.pi) - 2.0 * np.log(s2 + np.sum(d * d, axis=-1)), axis=-1)
 
-    def sample(self, rng, n_cameras: int, size: int) -> np.ndarray:
+    def sample(self, seed, n_cameras: int, size: int) -> np.ndarray:
         n_cameras, size = _sample_args(n_cameras, size)
-        rng = as_rng(rng)
+        rng = as_rng(seed)
         u = rng.random((size, n_cameras + 1))
         r = self.scale * np.sqrt(u / (1.0 - u))          # inverse of R^2 / (s^2 + R^2)
         th = rng.uniform(-np.pi, np.pi, size=u.shape)
@@ -344,7 +344,7 @@ class ProductPrior(Prior):
 
 class CallablePrior(Prior):
     """A user's prior: ``log_density_fn(points (..., k, 2)) -> (...,)`` and optionally
-    ``sample_fn(rng, n_cameras, size) -> (size, 1 + n_cameras, 2)``.
+    ``sample_fn(rng, n_cameras, size) -> (size, 1 + n_cameras, 2)`` (``rng`` a numpy Generator).
 
     The log density may be unnormalized by a constant that depends only on k. Solvers need only
     ``log_density``; ``sample`` (calibration checks, baselines drawing from the prior) raises a
@@ -371,11 +371,11 @@ class CallablePrior(Prior):
             raise ValueError("log_density_fn: returned NaN or +inf")
         return out
 
-    def sample(self, rng, n_cameras: int, size: int) -> np.ndarray:
+    def sample(self, seed, n_cameras: int, size: int) -> np.ndarray:
         n_cameras, size = _sample_args(n_cameras, size)
         if self._sample is None:
             raise ValueError(f"sample_fn: prior {self.name!r} was built without a sampler")
-        out = as_float_array("sample_fn", self._sample(as_rng(rng), n_cameras, size))
+        out = as_float_array("sample_fn", self._sample(as_rng(seed), n_cameras, size))
         if out.shape != (size, n_cameras + 1, 2):
             raise ValueError(f"sample_fn: returned shape {out.shape}, expected "
                              f"{(size, n_cameras + 1, 2)}")
@@ -404,7 +404,7 @@ def get(prior) -> Prior:
     raise ValueError(f"prior: expected a qfg.priors.Prior or one of {NAMES}, got {prior!r}")
 
 
-def sample_measurements(prior, rng, n_views: int, sigma_bearing: float, sigma_heading: float,
+def sample_measurements(prior, seed, n_views: int, sigma_bearing: float, sigma_heading: float,
                         size: int):
     """Configurations drawn from ``prior`` and measurements made from them by the solvers' model
     (calibration checks: a correct posterior is calibrated on these).
@@ -423,7 +423,7 @@ def sample_measurements(prior, rng, n_views: int, sigma_bearing: float, sigma_he
     from .geometry import bearing, motion_heading, wrap_angle
 
     pr = get(prior)
-    rng = as_rng(rng)
+    rng = as_rng(seed)
     n = positive_int("n_views", n_views)
     size = positive_int("size", size)
     sb = non_negative("sigma_bearing", sigma_bearing)

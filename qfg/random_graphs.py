@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._validate import as_rng
 from .graph import QualitativeFactorGraph
 
 __all__ = ["PropagationGraph", "propagation_graph", "candidate_graph", "connectivity_score",
@@ -57,8 +58,9 @@ def _build(triplets, seen, priors, factors, table, partition="edc"):
     return g
 
 
-def candidate_graph(rng, n_landmarks, n_fc, coverage_rate, table, partition="edc"):
+def candidate_graph(seed, n_landmarks, n_fc, coverage_rate, table, partition="edc"):
     """A random candidate: factors, triplets (sorted), seen mask, graph with placeholder priors."""
+    rng = as_rng(seed)
     all_f = list(itertools.permutations(range(n_landmarks), 4))
     pick = np.sort(rng.choice(len(all_f), size=n_fc, replace=False))
     factors = [all_f[i] for i in pick]
@@ -82,7 +84,7 @@ class PropagationGraph:
     kept_candidate: int
 
 
-def propagation_graph(rng: np.random.Generator, table, *, n_landmarks: int = 6, n_fc_min: int = 5,
+def propagation_graph(seed, table, *, n_landmarks: int = 6, n_fc_min: int = 5,
                       n_fc_max: int = 40, n_candidates: int = 10, coverage_rate: float = 0.5,
                       n_views: int = 3, sigma_bearing_deg: float = 2.0,
                       sigma_heading_deg: float = 5.0, solver: str = "fast",
@@ -100,6 +102,7 @@ def propagation_graph(rng: np.random.Generator, table, *, n_landmarks: int = 6, 
     from .solvers import solve_triplets
 
     table = as_table(table)
+    rng = as_rng(seed)
     n_l = int(n_landmarks)
     best = None
     for c in range(int(n_candidates)):

@@ -54,14 +54,14 @@ class SimulationConfig:
         non_negative("min_distance", self.min_distance)
 
 
-def sample_positions(rng: np.random.Generator, n: int, config: SimulationConfig = SimulationConfig()
-                     ) -> np.ndarray:
+def sample_positions(seed, n: int, config: SimulationConfig = SimulationConfig()) -> np.ndarray:
     """``n`` points (n, 2) uniform in the config's box, pairwise at least ``min_distance`` apart.
 
     Rejection in whole batches: every point closer than ``min_distance`` to an earlier one is drawn
     again, until none is.
     """
     n = positive_int("n", n)
+    rng = as_rng(seed)
     lo = np.array([config.xlim[0], config.ylim[0]])
     hi = np.array([config.xlim[1], config.ylim[1]])
     pts = rng.uniform(lo, hi, size=(n, 2))
@@ -179,7 +179,7 @@ def _make_truth(landmarks_world, poses_world, partition) -> TripletTruth:
                         camera_states=part.state_of(poses_ab[:, :2]))
 
 
-def random_triplet_history(rng, n_views: int = 3, sigma_bearing: float = 0.0,
+def random_triplet_history(seed, n_views: int = 3, sigma_bearing: float = 0.0,
                            sigma_heading: float = 0.0, *, config: SimulationConfig = SimulationConfig(),
                            partition="edc", landmarks=(0, 1, 2),
                            sigma_distance_ratio: float | None = None) -> TripletHistory:
@@ -197,7 +197,7 @@ def random_triplet_history(rng, n_views: int = 3, sigma_bearing: float = 0.0,
     >>> h.bearings.shape, h.headings.shape, 0 <= h.truth.state < 20
     ((3, 3), (2,), True)
     """
-    rng = as_rng(rng)
+    rng = as_rng(seed)
     n_views = positive_int("n_views", n_views)
     sb = non_negative("sigma_bearing", sigma_bearing)
     sh = non_negative("sigma_heading", sigma_heading)
@@ -257,7 +257,7 @@ class Scenario:
         return wrap_angle(true + self.heading_noise[i, j])
 
 
-def random_scenario(rng, n_landmarks: int, n_poses: int, landmarks_per_view: int = 3, *,
+def random_scenario(seed, n_landmarks: int, n_poses: int, landmarks_per_view: int = 3, *,
                     sigma_bearing: float = 0.0, sigma_heading: float = 0.0,
                     config: SimulationConfig = SimulationConfig()) -> Scenario:
     """A trajectory of ``n_poses`` uniform random poses, each observing ``landmarks_per_view``
@@ -267,7 +267,7 @@ def random_scenario(rng, n_landmarks: int, n_poses: int, landmarks_per_view: int
     >>> s.visible.sum(axis=1).tolist()
     [3, 3, 3, 3, 3, 3, 3, 3]
     """
-    rng = as_rng(rng)
+    rng = as_rng(seed)
     n_landmarks = positive_int("n_landmarks", n_landmarks, minimum=3)
     n_poses = positive_int("n_poses", n_poses)
     k = positive_int("landmarks_per_view", landmarks_per_view)

@@ -105,7 +105,7 @@ def test_two_passes_combined_are_closer_to_the_reference_on_both_than_the_produc
     tv_once, tv_prod = [], []
     for i in range(phi.shape[0]):
         def ref(b, s):
-            return solve_reference(b, None, sb, 0.1, rng=s, n_samples=2000)["landmark"]
+            return solve_reference(b, None, sb, 0.1, seed=s, n_samples=2000)["landmark"]
 
         both = ref(phi[i], 0)
         p1, p2 = ref(phi[i, :1], 1), ref(phi[i, 1:], 2)

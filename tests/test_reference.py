@@ -84,7 +84,7 @@ def test_matches_brute_force_integral_two_views(seed):
                                                    0.0, 1)
     bf = _brute_force_two_views(phi[0], psi[0], prior)
     assert np.sum(bf > 0.01) >= 2
-    out = solve_reference(phi[0], psi[0], 1e-5, 1e-5, rng=np.random.default_rng(1),
+    out = solve_reference(phi[0], psi[0], 1e-5, 1e-5, seed=np.random.default_rng(1),
                           bearing_floor=1e-6, heading_floor=1e-6)
     tol = 4 * out["mc_error"] + 0.005          # MC error + the grid's error
     assert np.all(np.abs(out["landmark"] - bf) <= tol), (out["landmark"], bf, out["mc_error"])
@@ -94,13 +94,13 @@ def test_matches_brute_force_integral_two_views(seed):
 def test_two_seeds_agree_within_reported_error():
     phi, psi, _, _ = priors.sample_measurements("world", np.random.default_rng(21), 3,
                                                 np.deg2rad(2), np.deg2rad(5), 1)
-    a = solve_reference(phi[0], psi[0], np.deg2rad(2), np.deg2rad(5), rng=1, n_samples=6000)
-    b = solve_reference(phi[0], psi[0], np.deg2rad(2), np.deg2rad(5), rng=2, n_samples=6000)
+    a = solve_reference(phi[0], psi[0], np.deg2rad(2), np.deg2rad(5), seed=1, n_samples=6000)
+    b = solve_reference(phi[0], psi[0], np.deg2rad(2), np.deg2rad(5), seed=2, n_samples=6000)
     sd = np.sqrt(a["mc_error"] ** 2 + b["mc_error"] ** 2)
     assert np.all(np.abs(a["landmark"] - b["landmark"]) <= 4.5 * sd + 2e-3)
     assert np.all(np.abs(a["cameras"] - b["cameras"]) <= 4.5 * np.sqrt(
         a["cameras_mc_error"] ** 2 + b["cameras_mc_error"] ** 2) + 2e-3)
-    c = solve_reference(phi[0], psi[0], np.deg2rad(2), np.deg2rad(5), rng=1, n_samples=6000)
+    c = solve_reference(phi[0], psi[0], np.deg2rad(2), np.deg2rad(5), seed=1, n_samples=6000)
     np.testing.assert_array_equal(a["landmark"], c["landmark"])      # same seed, same answer
 
 
@@ -111,7 +111,7 @@ def test_calibrated_on_data_from_its_own_prior():
     n, sb, sh = 60, np.deg2rad(2), np.deg2rad(5)
     phi, psi, conf, _ = priors.sample_measurements("world", np.random.default_rng(5), 3, sb, sh, n)
     truth = EDC.state_of(conf[:, 0])
-    P = np.array([solve_reference(phi[i], psi[i], sb, sh, rng=i, n_samples=3000)["landmark"]
+    P = np.array([solve_reference(phi[i], psi[i], sb, sh, seed=i, n_samples=3000)["landmark"]
                   for i in range(n)])
     top, pt = P.argmax(1), P.max(1)
     z = np.sum((top == truth) - pt) / np.sqrt(np.sum(pt * (1 - pt)))
@@ -133,7 +133,7 @@ def test_coinciding_lines_of_sight_flagged_and_spread():
     b = [[-2.3433983565, 0.842300949939, 0.267824910126],
          [-2.57720998567, 1.144027291146, 0.267824910126],
          [-2.670018674713, 1.717907968331, 0.267824910126]]
-    out = solve_reference(b, [0.267824910126, 0.267824910126], 0.0, 0.0, rng=0, n_samples=6000)
+    out = solve_reference(b, [0.267824910126, 0.267824910126], 0.0, 0.0, seed=0, n_samples=6000)
     assert out["degenerate"] and "lines of sight" in out["reason"]
     assert out["landmark"][3] > 0.1 and out["landmark"].max() < 0.9
     assert np.isclose(out["landmark"].sum(), 1.0) and np.all(np.isfinite(out["landmark"]))
@@ -141,11 +141,11 @@ def test_coinciding_lines_of_sight_flagged_and_spread():
 
 def test_all_views_at_one_pose_and_camera_on_ab():
     b = [[-2.3433983565, 0.842300949939, 0.267824910126]] * 3
-    out = solve_reference(b, [0.0, 0.0], 0.0, 0.0, rng=0, n_samples=4000)
+    out = solve_reference(b, [0.0, 0.0], 0.0, 0.0, seed=0, n_samples=4000)
     assert out["degenerate"] and np.isclose(out["landmark"].sum(), 1.0)
     assert out["landmark"].max() < 0.9
     # camera between A and B: gamma = pi
-    out = solve_reference([[np.pi / 2, -np.pi / 2, 0.3]], None, 0.01, 0.0, rng=0, n_samples=4000)
+    out = solve_reference([[np.pi / 2, -np.pi / 2, 0.3]], None, 0.01, 0.0, seed=0, n_samples=4000)
     assert out["degenerate"] and "line AB" in out["reason"]
     assert np.isclose(out["landmark"].sum(), 1.0) and out["cameras"].shape == (1, 20)
 
@@ -153,10 +153,10 @@ def test_all_views_at_one_pose_and_camera_on_ab():
 def test_one_view_and_no_motion():
     phi, psi, conf, _ = priors.sample_measurements("world", np.random.default_rng(8), 2,
                                                    np.deg2rad(1), np.deg2rad(2), 1)
-    one = solve_reference(phi[0, :1], None, np.deg2rad(1), 0.0, rng=0, n_samples=4000)
+    one = solve_reference(phi[0, :1], None, np.deg2rad(1), 0.0, seed=0, n_samples=4000)
     assert one["ess"] > 500 and one["cameras"].shape == (1, 20)
     assert one["landmark"].max() < 0.99                 # one view leaves C along a ray
-    two = solve_reference(phi[0], None, np.deg2rad(1), np.deg2rad(2), partition="lr", rng=0,
+    two = solve_reference(phi[0], None, np.deg2rad(1), np.deg2rad(2), partition="lr", seed=0,
                           n_samples=4000)
     assert two["landmark"].shape == (2,) and two["cameras"].shape == (2, 2)
 

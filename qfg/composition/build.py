@@ -53,7 +53,7 @@ import shapely
 from scipy.stats import qmc
 
 from .. import partitions as _partitions
-from .._validate import non_negative, positive_int
+from .._validate import as_rng, as_seed_sequence, non_negative, positive_int
 from .._version import __version__
 from ..geometry import from_frame, to_frame
 from .store import CompositionTensor, checksum
@@ -79,7 +79,7 @@ _BATCH = 64
 _B = np.array([0.0, 1.0])
 
 
-def sample_state(partition, state: int, n: int, rng: np.random.Generator) -> np.ndarray:
+def sample_state(partition, state: int, n: int, seed) -> np.ndarray:
     """``n`` points (n, 2) uniform in one state of a partition, within its window; low-discrepancy.
 
     A scrambled Sobol sequence over the state polygon's bounding box (widened by 1e-6 |AB| so that
@@ -102,7 +102,7 @@ def sample_state(partition, state: int, n: int, rng: np.random.Generator) -> np.
     x0, y0 = max(x0 - 1e-6, w[0]), max(y0 - 1e-6, w[2])
     x1, y1 = min(x1 + 1e-6, w[1]), min(y1 + 1e-6, w[3])
     frac = part.areas[state] / ((x1 - x0) * (y1 - y0))
-    sob = qmc.Sobol(d=2, scramble=True, seed=rng)
+    sob = qmc.Sobol(d=2, scramble=True, seed=as_rng(seed))
     kept = np.empty((0, 2))
     total = 0
     while kept.shape[0] < n:
@@ -145,7 +145,7 @@ def _rings(geom):
         yield from g.interiors
 
 
-def support_sample_points(partition, state: int, n: int, rng: np.random.Generator,
+def support_sample_points(partition, state: int, n: int, seed,
                           radii=(1e-1, 1e-2, 1e-3, 1e-4)) -> np.ndarray:
     """``n`` points (n, 2) in one state, concentrated at the corners of its polygon, at many scales.
 
@@ -161,6 +161,7 @@ def support_sample_points(partition, state: int, n: int, rng: np.random.Generato
     if corners.shape[0] == 0:  # pragma: no cover - every built-in state has corners
         return np.empty((0, 2))
     radii = np.asarray(radii, dtype=float)
+    rng = as_rng(seed)
     kept = np.empty((0, 2))
     for _ in range(1000):
         want = 4 * (n - kept.shape[0]) + 16
@@ -334,7 +335,7 @@ def _work(C: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndar
     return np.einsum("s,sjk->jk", w, areas), biggest, confirmed
 
 
-def build(partition, samples: int = 4096, *, seed: int = 0, support_samples: int | None = None,
+def build(partition, samples: int = 4096, *, seed=0, support_samples: int | None = None,
           support_weight: float = DEFAULT_SUPPORT_WEIGHT, symmetric: bool = True,
           workers: int = 1, progress: bool = True) -> CompositionTensor:
     """Compute the composition tensor of a partition (module docstring gives the method).
@@ -365,9 +366,8 @@ def build(partition, samples: int = 4096, *, seed: int = 0, support_samples: int
     if support_weight >= 1:
         raise ValueError(f"support_weight: expected a share below 1, got {support_weight}")
     workers = positive_int("workers", workers)
-    seed = positive_int("seed", seed, minimum=0)
     m = part.n_states
-    streams = np.random.SeedSequence(seed).spawn(2 * m)
+    streams = as_seed_sequence(seed).spawn(2 * m)
 
     # With a mirror symmetry sigma, only one state of each pair {i, sigma i} is sampled and the
     # other's slice is its mirror image: half the work, an exactly symmetric T.
@@ -437,7 +437,7 @@ def build(partition, samples: int = 4096, *, seed: int = 0, support_samples: int
                              version=__version__, sha256=checksum(T), meta=meta)
 
 
-def random_configurations(partition, n: int, rng, *, batch: int = 2_000_000):
+def random_configurations(partition, n: int, seed, *, batch: int = 2_000_000):
     """Counts (m, m, m) of the states (AB:C, BC:D, AB:D) of ``n`` random configurations.
 
     In the AB frame (A = (0, 0), B = (0, 1)): C and D uniform in the window, kept when D is also
@@ -448,7 +448,7 @@ def random_configurations(partition, n: int, rng, *, batch: int = 2_000_000):
     """
     part = _partitions.get(partition)
     n = positive_int("n", n)
-    rng = np.random.default_rng(rng)
+    rng = as_rng(seed)
     m = part.n_states
     x0, x1, y0, y1 = part.window
     counts = np.zeros(m ** 3, dtype=np.int64)
