@@ -1,7 +1,8 @@
 """The ``qfg`` console command. Subcommands live in :mod:`qfg.harness.commands`, one module each.
 
 Exit status: 0 done; 1 the work failed (every scenario of a run failed, a study of ``qfg
-experiment all`` failed, a check found problems); 2 bad input (arguments, parameters, an output
+experiment all`` failed, a check found problems, a run stopped by a full disk or a worker that
+kept dying: ``--resume`` continues it); 2 bad input (arguments, parameters, an output
 that is a file or in use by another run) with one line on stderr; 130 interrupted by Ctrl-C
 (one line saying how far the run got; ``--resume`` continues it).
 """
@@ -34,7 +35,7 @@ def main(argv=None) -> int:
     # Figures are written to files: a non-interactive backend unless the user chose one. Set
     # here, at the entry point, so that importing qfg in a notebook changes nothing.
     os.environ.setdefault("MPLBACKEND", "Agg")
-    from qfg.harness.runner import RunInterrupted, ScenariosFailed
+    from qfg.harness.runner import RunAborted, RunInterrupted, ScenariosFailed
 
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -49,7 +50,7 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print(f"qfg {args.command}: interrupted", file=sys.stderr)
         return 130
-    except ScenariosFailed as exc:
+    except (ScenariosFailed, RunAborted) as exc:
         print(f"qfg {args.command}: error: {exc}", file=sys.stderr)
         return 1
     except ValueError as exc:  # bad input: one clear line, not a traceback

@@ -1,16 +1,17 @@
 """Run a study's scenarios on a Dask cluster (``qfg experiment NAME --scheduler ADDRESS``).
 
-:class:`DaskExecutor` has the runner's executor interface (``map_unordered(fn, arglists)`` yielding
-results as they complete, ``close()``), so :func:`qfg.runner.run_study` neither knows nor cares
-where scenarios run. Results do not depend on the executor: each scenario draws from its own
-seeded stream (:func:`qfg.runner.scenario_rng`) and rows are sorted by scenario before writing.
+:class:`DaskExecutor` has the runner's executor interface (``map_unordered(fn, arglists)``
+yielding results as they complete, ``close()``), so :func:`qfg.harness.runner.run_study` neither
+knows nor cares where scenarios run. Results do not depend on the executor: each scenario draws
+from its own seeded stream (:func:`qfg.harness.runner.scenario_rng`) and rows are sorted by
+scenario before writing.
 
 Dask is an optional extra (``pip install qfg[dask]``); it is imported when an executor is made.
 
 Workers must be able to import ``qfg`` (and the study's module): start them from the same
 environment, e.g. ``dask scheduler`` then ``dask worker tcp://HOST:8786`` on each machine.
 
->>> from qfg.cluster import DaskExecutor                 # doctest: +SKIP
+>>> from qfg.harness.cluster import DaskExecutor         # doctest: +SKIP
 >>> ex = DaskExecutor("tcp://127.0.0.1:8786")           # doctest: +SKIP
 >>> sorted(ex.map_unordered(pow, [(2, 3), (3, 2)]))     # doctest: +SKIP
 [8, 9]
@@ -28,7 +29,7 @@ def import_distributed():
     """The ``dask.distributed`` module, or an ImportError telling how to install it."""
     try:
         import dask.distributed as distributed
-    except ImportError as exc:  # pragma: no cover - depends on the environment
+    except ImportError as exc:  # tested by hiding dask (tests/test_cli.py)
         raise ImportError("--scheduler needs Dask's distributed scheduler, which is not installed: "
                           "pip install qfg[dask]  (or: pip install 'dask[distributed]')") from exc
     return distributed

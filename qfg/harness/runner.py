@@ -52,10 +52,12 @@ import os
 import signal
 import socket
 import sys
+import tempfile
 import threading
 import time
 import traceback
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterable, Iterator, Mapping, Protocol
@@ -95,6 +97,9 @@ __all__ = [
     "OutputInUse",
     "ScenariosFailed",
     "RunInterrupted",
+    "RunAborted",
+    "WorkerLost",
+    "write_text",
     "write_table",
     "format_table",
     "print_table",
@@ -109,6 +114,8 @@ __all__ = [
 TIMING_PREFIX = "time"
 #: The lock file a running study holds in its output directory.
 LOCK_NAME = "run.lock"
+#: Open flag that refuses to follow a symlink (0 where the platform has none).
+_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
 #: Figure formats ``--format`` accepts.
 FIGURE_FORMATS = ("png", "pdf", "svg")
 
@@ -123,6 +130,13 @@ class OutputInUse(RunnerError):
 
 class ScenariosFailed(RuntimeError):
     """Every scenario of a run failed (exit 1); the details are in ``errors.json``."""
+
+
+class RunAborted(RuntimeError):
+    """The run stopped for a reason outside the study (exit 1): a full disk or an unwritable
+    output file, a worker process that dies every time it runs a scenario. Every scenario
+    recorded before stays in ``records.jsonl`` (which ends at its last complete record) and
+    ``resume`` continues from there."""
 
 
 class RunInterrupted(KeyboardInterrupt):
@@ -342,30 +356,123 @@ def _worker_init(main_pid: int):
                      name="qfg-parent-watch").start()
 
 
+class WorkerLost(RuntimeError):
+    """A call whose worker process died (a signal, ``os._exit``) every time it ran, alone in the
+    pool, ``retries + 1`` times. ``args`` is the call's argument tuple, ``reason`` how the
+    worker died (``"killed by SIGKILL"``)."""
+
+    def __init__(self, args: tuple, reason: str, attempts: int):
+        super().__init__(f"a worker process died {attempts} times running the same call "
+                         f"({reason})")
+        self.call_args, self.reason, self.attempts = args, reason, attempts
+
+
+def _death_reason(procs) -> str:
+    """How the dead ones of ``procs`` (multiprocessing Processes) ended, e.g. "killed by
+    SIGKILL". The pool terminates the survivors of a break with SIGTERM, so another cause wins."""
+    codes = [p.exitcode for p in procs if p.exitcode not in (None, 0)]
+    codes.sort(key=lambda c: c == -signal.SIGTERM)
+    if not codes:
+        return "exited"
+    c = codes[0]
+    if c < 0:
+        with contextlib.suppress(ValueError):
+            return f"killed by {signal.Signals(-c).name}"
+        return f"killed by signal {-c}"
+    return f"exited with status {c}"
+
+
 class ProcessExecutor:
     """A local process pool (``--workers N``), at most ``2 N`` calls in flight. Workers ignore
-    Ctrl-C and die with the main process (:func:`_worker_init`)."""
+    Ctrl-C and die with the main process (:func:`_worker_init`).
 
-    def __init__(self, workers: int):
+    A worker that dies (killed by a signal: the OOM killer, a segfault, ``kill -9``) breaks the
+    whole pool and every call in flight is lost. The pool is then restarted and the lost calls
+    are run again one at a time, so that a break while a call runs alone is that call's own
+    doing: a call that kills its worker ``retries + 1`` times alone raises :class:`WorkerLost`.
+    Calls that merely shared the pool with a dying worker are never blamed.
+    """
+
+    def __init__(self, workers: int, retries: int = 2):
         if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
             raise RunnerError(f"workers: expected an integer >= 1, got {workers!r}")
-        self.workers = workers
-        self._pool = ProcessPoolExecutor(max_workers=workers, initializer=_worker_init,
-                                         initargs=(os.getpid(),))
+        if isinstance(retries, bool) or not isinstance(retries, int) or retries < 0:
+            raise RunnerError(f"retries: expected an integer >= 0, got {retries!r}")
+        self.workers, self.retries = workers, retries
+        self.restarts = 0  # pool restarts after a worker died, for reports and tests
+        self._procs: dict = {}
+        self._pool = self._new_pool()
+
+    def _new_pool(self):
+        return ProcessPoolExecutor(max_workers=self.workers, initializer=_worker_init,
+                                   initargs=(os.getpid(),))
+
+    def _submit(self, pending, fn, args, attempts):
+        pending[self._pool.submit(fn, *args)] = (args, attempts)
+        # remember the worker processes: after a break the pool forgets them, and their exit
+        # codes say how the worker died
+        self._procs.update(getattr(self._pool, "_processes", None) or {})
 
     def map_unordered(self, fn, arglists):
         it = iter(arglists)
-        pending = set()
-        for args in it:
-            pending.add(self._pool.submit(fn, *args))
-            if len(pending) >= 2 * self.workers:
-                done, pending = wait(pending, return_when=FIRST_COMPLETED)
-                for f in done:
-                    yield f.result()
-        while pending:
-            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+        pending: dict = {}    # future -> (args, times it ran alone and its worker died)
+        suspects: list = []   # calls lost in a break, run again one at a time
+        alone = False
+        while True:
+            if suspects:
+                if not pending:
+                    self._submit(pending, fn, *suspects.pop(0))
+                    alone = True
+            else:
+                alone = False
+                for args in it:
+                    self._submit(pending, fn, args, 0)
+                    if len(pending) >= 2 * self.workers:
+                        break
+            if not pending:
+                return
+            done, _ = wait(pending, return_when=FIRST_COMPLETED)
+            lost = []
             for f in done:
-                yield f.result()
+                args, attempts = pending.pop(f)
+                try:
+                    res = f.result()
+                except BrokenProcessPool:
+                    lost.append((args, attempts))
+                    continue
+                yield res
+            if not lost:
+                continue
+            # the pool is broken: every call still in flight fails (or finished just before)
+            for f in wait(pending)[0]:
+                args, attempts = pending.pop(f)
+                try:
+                    res = f.result()
+                except BrokenProcessPool:
+                    lost.append((args, attempts))
+                    continue
+                yield res
+            reason = self._restart()
+            if alone:
+                (args, attempts), = lost
+                if attempts + 1 > self.retries:
+                    raise WorkerLost(args, reason, attempts + 1)
+                suspects.insert(0, (args, attempts + 1))
+            else:
+                suspects.extend(lost)
+
+    def _restart(self) -> str:
+        """A fresh pool after a break; returns how the old pool's worker died."""
+        old = list(self._procs.values())
+        self._pool.shutdown(wait=False, cancel_futures=True)
+        for p in old:
+            with contextlib.suppress(Exception):
+                p.join(5)
+        reason = _death_reason(old)
+        self._procs = {}
+        self._pool = self._new_pool()
+        self.restarts += 1
+        return reason
 
     def worker_pids(self) -> list[int]:
         return [p.pid for p in (getattr(self._pool, "_processes", None) or {}).values()]
@@ -396,7 +503,10 @@ def make_executor(workers: int = 1, scheduler: str | None = None) -> Executor:
     if scheduler:
         from qfg.harness import cluster  # optional extra: dask.distributed
 
-        return cluster.DaskExecutor(scheduler)
+        try:
+            return cluster.DaskExecutor(scheduler)
+        except ImportError as exc:  # not installed: one line saying how to install it
+            raise RunnerError(str(exc)) from None
     workers = _check_workers(workers)
     return SerialExecutor() if workers == 1 else ProcessExecutor(workers)
 
@@ -471,7 +581,7 @@ class OutputLock:
         give_up = time.monotonic() + self.stale_wait
         for _ in range(1000):
             if fcntl is not None:
-                fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+                fd = os.open(self.path, os.O_RDWR | os.O_CREAT | _NOFOLLOW, 0o644)
                 try:
                     fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
                 except OSError:
@@ -501,7 +611,7 @@ class OutputLock:
                 self._fd = fd
                 return self
             try:  # pragma: no cover - exercised on POSIX by monkeypatching fcntl away
-                fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o644)
+                fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_EXCL | _NOFOLLOW, 0o644)
             except FileExistsError:
                 holder = self._read()
                 if not self._stale(holder):
@@ -547,17 +657,39 @@ class OutputLock:
 # records.jsonl
 
 
-def read_records(path: Path) -> tuple[list[dict], int]:
+def _record_problem(rec) -> str | None:
+    """What makes ``rec`` not a runner record (None if it is one)."""
+    if not isinstance(rec, dict):
+        return f"expected a JSON object, got {type(rec).__name__}"
+    i = rec.get("index")
+    if isinstance(i, bool) or not isinstance(i, int) or i < 0:
+        return f"index: expected an integer >= 0, got {i!r}"
+    if "rows" in rec:
+        rows = rec["rows"]
+        if not isinstance(rows, list) or not all(isinstance(r, dict) for r in rows):
+            return f"rows: expected a list of objects, got {json.dumps(rows)[:60]}"
+    elif not isinstance(rec.get("error"), str):
+        return "expected rows or an error"
+    return None
+
+
+def read_records(path: Path, seed: int | None = None) -> tuple[list[dict], int]:
     """Complete records of a records file, and the byte length of its complete part.
 
     A last line without its newline (a kill mid-write) or that is not valid JSON is not data: it
     is left out and the returned length stops before it, so the caller can truncate it away.
-    Records are returned as written (see :func:`dedupe_records`).
+    Records are returned as written (see :func:`dedupe_records`). A line that is not a record
+    (an ``index`` that is not an integer >= 0, ``rows`` that are not a list of objects), a corrupt
+    line before the last, or with ``seed`` given a record made with another seed, raises
+    RunnerError naming the file and line.
     """
     path = Path(path)
     if not path.exists():
         return [], 0
-    data = path.read_bytes()
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise RunnerError(f"{path}: cannot read the records: {exc.strerror or exc}") from None
     records, good = [], 0
     pos = 0
     while pos < len(data):
@@ -565,17 +697,23 @@ def read_records(path: Path) -> tuple[list[dict], int]:
         if nl < 0:
             break  # partial last line
         line = data[pos:nl]
+        lineno = data.count(b"\n", 0, pos) + 1
         try:
             rec = json.loads(line)
-        except json.JSONDecodeError:
+        except (json.JSONDecodeError, UnicodeDecodeError):
             if data.find(b"\n", nl + 1) >= 0:
-                lineno = data.count(b"\n", 0, pos) + 1
                 raise RunnerError(f"{path}:{lineno}: corrupt record in the middle of the file; "
                                   "not resuming over it") from None
             break  # garbled last line
-        if not isinstance(rec, dict) or not isinstance(rec.get("index"), int):
-            lineno = data.count(b"\n", 0, pos) + 1
-            raise RunnerError(f"{path}:{lineno}: not a runner record")
+        problem = _record_problem(rec)
+        if problem:
+            raise RunnerError(f"{path}:{lineno}: not a runner record ({problem})")
+        if seed is not None and rec.get("seed") != [seed, rec["index"]]:
+            # the records carry the seed, so a resume with another seed is refused even when
+            # run.json is gone
+            raise RunnerError(f"{path}:{lineno}: scenario {rec['index']} was recorded with seed "
+                              f"{rec.get('seed')!r}, not [{seed}, {rec['index']}]: resume with "
+                              "the run's own seed, or --overwrite to start again")
         records.append(rec)
         pos = nl + 1
         good = pos
@@ -613,10 +751,50 @@ def _dump(rec) -> str:
     return json.dumps(rec, default=_jsonable, separators=(",", ":")) + "\n"
 
 
-def _atomic_write(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+@contextlib.contextmanager
+def _replacing(path):
+    """A binary file object whose content replaces ``path`` when the block ends without error.
+
+    Written to a new temporary file in the same folder (created exclusively, so a link planted
+    there is never followed), then renamed over ``path``: a symlink at ``path`` is replaced, its
+    target untouched, and a reader never sees half a file. On error the temporary file is
+    removed and ``path`` is as it was.
+    """
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        os.fchmod(fd, 0o666 & ~_umask())  # mkstemp's 0600 would hide outputs from others
+        with os.fdopen(fd, "wb") as fh:
+            yield fh
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def write_text(path, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` atomically, replacing a link there instead of writing
+    through it (see :func:`_replacing`). Returns the path."""
+    with _replacing(path) as fh:
+        fh.write(text.encode("utf-8"))
+    return Path(path)
+
+
+_atomic_write = write_text
+
+
+def _append(fd: int, data: bytes) -> None:
+    """All of ``data`` to ``fd`` (os.write may write part of it)."""
+    view = memoryview(data)
+    while view:
+        view = view[os.write(fd, view):]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -648,9 +826,7 @@ def write_table(path, recs: list[dict], columns: list[str] | None = None, *,
     w.writerow(cols)
     for r in recs:
         w.writerow([_cell(r.get(k), digits) for k in cols])
-    path = Path(path)
-    path.write_text(buf.getvalue())
-    return path
+    return write_text(path, buf.getvalue())
 
 
 def format_table(recs: list[dict], columns: list[str] | None = None, *, digits: int = 3) -> str:
@@ -726,10 +902,13 @@ def save_figure(fig, outdir, name: str, *, dpi: int = 130, fmt: str | None = Non
     figdir = Path(outdir) / "figures"
     figdir.mkdir(parents=True, exist_ok=True)
     path = figdir / f"{name}.{fmt}"
-    fig.savefig(path, dpi=dpi, format=fmt)
     import matplotlib.pyplot as plt
 
-    plt.close(fig)
+    try:
+        with _replacing(path) as fh:
+            fig.savefig(fh, dpi=dpi, format=fmt)
+    finally:
+        plt.close(fig)
     return path
 
 
@@ -775,31 +954,61 @@ def run_study(study: Study, params: dict, output, *, seed: int = 0, workers: int
                            progress, command, figure_format)
 
 
+def _read_run_json(path: Path) -> dict:
+    try:
+        old = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        why = exc.strerror if isinstance(exc, OSError) else f"not JSON: {exc}"
+        raise RunnerError(f"{path}: cannot read this run's description ({why}); restore it, or "
+                          "--overwrite to start again") from None
+    if not isinstance(old, dict):
+        raise RunnerError(f"{path}: expected a JSON object (study, params, seed), got a "
+                          f"{type(old).__name__}; restore it, or --overwrite to start again")
+    return old
+
+
 def _run_locked(study, params, tasks, out, seed, workers, resume, overwrite, executor, progress,
                 command, fig_format):
     rec_path = out / "records.jsonl"
     meta = {"study": study.name, "params": params, "seed": int(seed)}
     run_json = out / "run.json"
+    if rec_path.is_symlink():
+        raise RunnerError(f"output: {rec_path} is a symbolic link; the runner does not write "
+                          "through links (remove it)")
     if rec_path.exists() and not (resume or overwrite):
         raise RunnerError(f"output: {out} already holds a run; pass --resume to continue it or "
                           "--overwrite to start again")
     if resume and run_json.exists():
-        old = json.loads(run_json.read_text())
+        old = _read_run_json(run_json)
         old_meta = {k: old.get(k) for k in meta}
         if json.loads(json.dumps(old_meta)) != json.loads(json.dumps(meta, default=_jsonable)):
             raise RunnerError(f"output: {out} holds a run with different study/params/seed "
                               f"({old_meta}); resume needs the same ones")
     if overwrite or not resume:
-        rec_path.unlink(missing_ok=True)
-    records, good = read_records(rec_path)
-    if rec_path.exists() and good < rec_path.stat().st_size:
-        print(f"runner: dropping a partial last record in {rec_path}", file=sys.stderr)
-        with open(rec_path, "r+b") as fh:
-            fh.truncate(good)
+        try:
+            rec_path.unlink(missing_ok=True)
+        except OSError as exc:
+            raise RunnerError(f"output: cannot remove {rec_path}: {exc.strerror or exc}") from None
+    records, good = read_records(rec_path, seed=int(seed))
+    if records and not run_json.exists():
+        raise RunnerError(f"output: {run_json} is missing, so the study and parameters of the "
+                          f"records in {rec_path} cannot be checked; restore it, or --overwrite "
+                          "to start again")
+    try:
+        if rec_path.exists() and good < rec_path.stat().st_size:
+            print(f"runner: dropping a partial last record in {rec_path}", file=sys.stderr)
+            with open(rec_path, "r+b") as fh:
+                fh.truncate(good)
+        _atomic_write(run_json, json.dumps({**meta, "version": __version__,
+                                            "command": command or " ".join(sys.argv)},
+                                           indent=2, default=_jsonable) + "\n")
+        # O_APPEND: every record lands at the end; O_NOFOLLOW: never through a planted link
+        fd = os.open(rec_path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | _NOFOLLOW, 0o666)
+    except OSError as exc:
+        raise RunnerError(f"output: cannot write {exc.filename or out}: "
+                          f"{exc.strerror or exc}") from None
+    size = good
     records = [r for r in records if r["index"] < len(tasks)]
-    _atomic_write(run_json, json.dumps({**meta, "version": __version__,
-                                        "command": command or " ".join(sys.argv)},
-                                       indent=2, default=_jsonable) + "\n")
 
     # failed scenarios are tried again on resume
     ok, _ = dedupe_records(records)
@@ -817,61 +1026,98 @@ def _run_locked(study, params, tasks, out, seed, workers, resume, overwrite, exe
     own = executor is None
     ex = make_executor(workers) if own else executor
     interrupted = False
+    stop = None  # why the run stops early (not Ctrl-C): RunAborted
+    results = None
     try:
-        with open(rec_path, "a", encoding="utf-8") as fh:
-            arglists = ((study.run_task, tasks[i], int(seed), i) for i in todo)
-            for rec in ex.map_unordered(_execute, arglists):
-                fh.write(_dump(rec))
-                fh.flush()
-                if "rows" in rec:
-                    by_index.setdefault(rec["index"], rec)
-                    errors.pop(rec["index"], None)
-                elif rec["index"] not in by_index:
-                    errors[rec["index"]] = rec
-                if bar is not None:
-                    bar.update(1)
-                    if errors:
-                        bar.set_postfix(failed=len(errors))
+        arglists = ((study.run_task, tasks[i], int(seed), i) for i in todo)
+        results = ex.map_unordered(_execute, arglists)
+        for rec in results:
+            data = _dump(rec).encode("utf-8")
+            try:
+                _append(fd, data)
+            except OSError as exc:  # a full disk, a file gone read-only: stop, keep what is in
+                with contextlib.suppress(OSError):
+                    os.ftruncate(fd, size)  # drop the partial record (resume would, too)
+                stop = RunAborted(
+                    f"cannot write {rec_path}: {exc.strerror or exc}; {len(by_index) + len(errors)}"
+                    f" of {len(tasks)} scenarios are recorded there (the file ends at the last "
+                    "complete record): make room and continue with --resume")
+                break
+            size += len(data)
+            if "rows" in rec:
+                by_index.setdefault(rec["index"], rec)
+                errors.pop(rec["index"], None)
+            elif rec["index"] not in by_index:
+                errors[rec["index"]] = rec
+            if bar is not None:
+                bar.update(1)
+                if errors:
+                    bar.set_postfix(failed=len(errors))
     except KeyboardInterrupt:
         interrupted = True
-        if own and hasattr(ex, "terminate"):
-            ex.terminate()
+    except WorkerLost as exc:
+        i = exc.call_args[3] if len(exc.call_args) == 4 else "?"
+        stop = RunAborted(
+            f"scenario {i}: its worker process died {exc.attempts} times ({exc.reason}; out of "
+            f"memory?); {len(by_index) + len(errors)} of {len(tasks)} scenarios are recorded in "
+            f"{rec_path}: continue with --resume (--workers 1 shows the scenario's own error)")
     finally:
-        if own and not interrupted:
+        os.close(fd)
+        if results is not None and hasattr(results, "close"):
+            with contextlib.suppress(Exception):
+                results.close()
+        if own and (interrupted or stop is not None) and hasattr(ex, "terminate"):
+            ex.terminate()
+        elif own:
             ex.close()
-        elif not own and interrupted:
+        elif interrupted or stop is not None:
             with contextlib.suppress(Exception):
                 ex.close()
         if bar is not None:
             bar.close()
     if interrupted:
         raise RunInterrupted(len(by_index) + len(errors), len(tasks), out) from None
+    if stop is not None:
+        raise stop
 
     rows = []
     for i in sorted(by_index):
         for r in by_index[i]["rows"]:
             rows.append({"scenario": i, **r})
     cols = _columns(rows)
-    write_table(out / "rows.csv", rows, [c for c in cols if not c.startswith(TIMING_PREFIX)],
-                digits=None)
-    tcols = [c for c in cols if c.startswith(TIMING_PREFIX)]
-    if tcols:
-        write_table(out / "timings.csv", rows, ["scenario", *tcols], digits=None)
     err_path = out / "errors.json"
     errs = [errors[i] for i in sorted(errors)]
+    try:
+        write_table(out / "rows.csv", rows, [c for c in cols if not c.startswith(TIMING_PREFIX)],
+                    digits=None)
+        tcols = [c for c in cols if c.startswith(TIMING_PREFIX)]
+        if tcols:
+            write_table(out / "timings.csv", rows, ["scenario", *tcols], digits=None)
+        if errs:
+            write_text(err_path, json.dumps(errs, indent=2) + "\n")
+        else:
+            err_path.unlink(missing_ok=True)
+    except OSError as exc:
+        raise _outputs_failed(exc, out, rec_path) from None
     if errs:
-        err_path.write_text(json.dumps(errs, indent=2) + "\n")
         print(f"runner: {len(errs)} scenario(s) failed; see {err_path} "
               f"(first: scenario {errs[0]['index']}: {errs[0]['error']})", file=sys.stderr)
-    else:
-        err_path.unlink(missing_ok=True)
     if not by_index:
         raise ScenariosFailed(f"every scenario failed ({len(errs)} of {len(tasks)}); see "
                               f"{err_path} (first: {errs[0]['error'] if errs else '?'})")
     if study.summarize is not None and rows:
-        with use_figure_format(fig_format):
-            study.summarize(out, rows, params)
+        try:
+            with use_figure_format(fig_format):
+                study.summarize(out, rows, params)
+        except OSError as exc:
+            raise _outputs_failed(exc, out, rec_path) from None
     return rows
+
+
+def _outputs_failed(exc: OSError, out: Path, rec_path: Path) -> RunAborted:
+    return RunAborted(f"writing the outputs: {exc.filename or out}: {exc.strerror or exc}; every "
+                      f"scenario is recorded in {rec_path}: fix that and rerun with --resume to "
+                      "write the outputs")
 
 
 # ----------------------------------------------------------------------------------------------
