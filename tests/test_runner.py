@@ -319,3 +319,199 @@ def test_tables_and_figures_have_one_writer(tmp_path):
     with pytest.raises(runner.RunnerError, match="format"):
         runner.run_study(toy_study.STUDY, {"n": 1}, tmp_path / "f", figure_format="jpg",
                          progress=False)
+
+
+# ------------------------------------------------------------------ issue 18: nothing lost
+def _no_time(rows):
+    return [{k: v for k, v in r.items() if k != "time_s"} for r in rows]
+
+
+def test_a_worker_killed_by_a_signal_is_replaced_and_its_scenarios_rerun(tmp_path):
+    import toy_faults
+
+    flags = tmp_path / "flags"
+    flags.mkdir()
+    params = {"n": 12, "kill": [3, 7], "mode": "once", "flags": str(flags)}
+    ref = runner.run_study(toy_study.STUDY, {"n": 12}, tmp_path / "ref", seed=4, progress=False)
+    ex = runner.ProcessExecutor(2)
+    try:
+        rows = runner.run_study(toy_faults.KILLING, params, tmp_path / "o", seed=4, executor=ex,
+                                progress=False)
+    finally:
+        ex.close()
+    assert (flags / "killed-3").exists() and (flags / "killed-7").exists()
+    assert ex.restarts >= 1
+    assert rows == _no_time(ref)
+    assert not (tmp_path / "o" / "errors.json").exists()
+    # with the runner's own pool (no executor given) as well
+    for f in flags.iterdir():
+        f.unlink()
+    rows2 = runner.run_study(toy_faults.KILLING, params, tmp_path / "o2", seed=4, workers=2,
+                             progress=False)
+    assert rows2 == rows and (flags / "killed-3").exists()
+
+
+def test_a_scenario_that_always_kills_its_worker_stops_with_one_line_and_resumes(tmp_path):
+    import toy_faults
+
+    flags = tmp_path / "flags"
+    flags.mkdir()
+    params = {"n": 10, "kill": [4], "mode": "until-healed", "flags": str(flags)}
+    out = tmp_path / "o"
+    with pytest.raises(runner.RunAborted) as info:
+        runner.run_study(toy_faults.KILLING, params, out, seed=2, workers=2, progress=False)
+    msg = str(info.value)
+    assert "\n" not in msg and "scenario 4" in msg and "SIGKILL" in msg and "--resume" in msg
+    # alone in the pool 1 + retries times, then blamed; the other scenarios are all recorded
+    assert (flags / "killed-4").read_text().count("x") >= 3
+    recs = runner.read_records(out / "records.jsonl")[0]
+    assert 4 not in {r["index"] for r in recs} and len(recs) >= 1
+    (flags / "healed").touch()
+    rows = runner.run_study(toy_faults.KILLING, params, out, seed=2, resume=True, workers=2,
+                            progress=False)
+    ref = runner.run_study(toy_study.STUDY, {"n": 10}, tmp_path / "ref", seed=2, progress=False)
+    assert rows == _no_time(ref)
+
+
+def _mount(target: Path, *opts: str) -> bool:
+    """Mount (root only); False when this test process cannot."""
+    if not sys.platform.startswith("linux") or os.geteuid() != 0:
+        return False
+    r = subprocess.run(["mount", *opts, str(target)], capture_output=True)
+    return r.returncode == 0
+
+
+def _umount(target: Path):
+    subprocess.run(["umount", "-l", str(target)], capture_output=True)
+
+
+def test_a_full_disk_stops_with_one_line_and_loses_nothing(tmp_path):
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    if not _mount(disk, "-t", "tmpfs", "-o", "size=64k", "tmpfs"):
+        pytest.skip("cannot mount a small tmpfs here (needs root on Linux)")
+    try:
+        out = disk / "o"
+        params = {"n": 600}  # about 170 kB of records: the disk fills mid-run
+        with pytest.raises(runner.RunAborted) as info:
+            runner.run_study(toy_study.STUDY, params, out, seed=6, progress=False)
+        msg = str(info.value)
+        assert "\n" not in msg and "No space left on device" in msg and "--resume" in msg
+        rec = out / "records.jsonl"
+        recs, good = runner.read_records(rec)
+        assert good == rec.stat().st_size, "the file must end at its last complete record"
+        assert 10 < len(recs) < 600
+        assert f"{len(recs)} of 600 scenarios" in msg
+        assert not (out / runner.LOCK_NAME).exists()
+        # room again: the resume completes it, identical to an uninterrupted run
+        assert _mount(disk, "-o", "remount,size=4m")
+        rows = runner.run_study(toy_study.STUDY, params, out, seed=6, resume=True,
+                                progress=False)
+        ref = runner.run_study(toy_study.STUDY, params, tmp_path / "ref", seed=6, progress=False)
+        assert [(r["scenario"], r["x"]) for r in rows] == [(r["scenario"], r["x"]) for r in ref]
+        assert (out / "rows.csv").read_bytes() == (tmp_path / "ref" / "rows.csv").read_bytes()
+    finally:
+        _umount(disk)
+
+
+def test_an_unwritable_records_file_is_one_line(tmp_path):
+    out = tmp_path / "o"
+    runner.run_study(toy_study.STUDY, {"n": 4}, out, seed=1, progress=False)
+    rec = out / "records.jsonl"
+    rec.write_bytes(b"".join(rec.read_bytes().splitlines(keepends=True)[:2]))  # 2 still to run
+    before = rec.read_bytes()
+    # read-only: a read-only bind mount of the file (chmod does not stop root)
+    if _mount(rec, "--bind", str(rec)):
+        try:
+            if not _mount(rec, "-o", "remount,ro,bind"):
+                pytest.skip("cannot remount read-only here")
+            with pytest.raises(runner.RunnerError, match=r"cannot write .*records\.jsonl.*"
+                                                         r"Read-only file system"):
+                runner.run_study(toy_study.STUDY, {"n": 4}, out, seed=1, resume=True,
+                                 progress=False)
+        finally:
+            _umount(rec)
+        assert rec.read_bytes() == before
+    # a folder where the records file should be
+    rec.unlink()
+    rec.mkdir()
+    for kw in ({"resume": True}, {"overwrite": True}):
+        with pytest.raises(runner.RunnerError, match="records.jsonl") as info:
+            runner.run_study(toy_study.STUDY, {"n": 4}, out, seed=1, progress=False, **kw)
+        assert "\n" not in str(info.value)
+
+
+def test_resume_with_another_seed_is_refused_even_without_run_json(tmp_path):
+    out = tmp_path / "o"
+    runner.run_study(toy_study.STUDY, {"n": 4}, out, seed=3, progress=False)
+    (out / "run.json").unlink()
+    with pytest.raises(runner.RunnerError, match=r"records\.jsonl:1: scenario 0 was recorded "
+                                                 r"with seed \[3, 0\], not \[4, 0\]"):
+        runner.run_study(toy_study.STUDY, {"n": 4}, out, seed=4, resume=True, progress=False)
+    # the same seed, but the study and params can no longer be checked
+    with pytest.raises(runner.RunnerError, match="run.json is missing"):
+        runner.run_study(toy_study.STUDY, {"n": 4}, out, seed=3, resume=True, progress=False)
+    recs = runner.read_records(out / "records.jsonl")[0]
+    assert [r["seed"] for r in recs] == [[3, r["index"]] for r in recs] and len(recs) == 4
+    assert not (out / "run.json").exists()  # refused before writing anything
+
+
+@pytest.mark.parametrize("text", ["[1, 2]\n", "{not json\n", "\"a string\"\n", "\xff\n"])
+def test_a_damaged_run_json_is_one_line_naming_it(tmp_path, text):
+    out = tmp_path / "o"
+    runner.run_study(toy_study.STUDY, {"n": 2}, out, seed=0, progress=False)
+    (out / "run.json").write_bytes(text.encode("latin-1"))
+    with pytest.raises(runner.RunnerError, match=r"run\.json: ") as info:
+        runner.run_study(toy_study.STUDY, {"n": 2}, out, seed=0, resume=True, progress=False)
+    assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("bad", ['{"index": -1, "seed": [0, -1], "rows": []}',
+                                 '{"index": true, "seed": [0, 1], "rows": []}',
+                                 '{"index": 1.0, "seed": [0, 1], "rows": []}',
+                                 '{"index": 1, "seed": [0, 1], "rows": 5}',
+                                 '{"index": 1, "seed": [0, 1], "rows": [5]}',
+                                 '{"index": 1, "seed": [0, 1]}',
+                                 '[1]'])
+def test_records_that_are_not_records_are_rejected_with_file_and_line(tmp_path, bad):
+    out = tmp_path / "o"
+    runner.run_study(toy_study.STUDY, {"n": 3}, out, seed=0, progress=False)
+    rec = out / "records.jsonl"
+    lines = rec.read_text().splitlines(keepends=True)
+    rec.write_text(lines[0] + bad + "\n" + "".join(lines[1:]))
+    with pytest.raises(runner.RunnerError, match=r"records\.jsonl:2: not a runner record"):
+        runner.run_study(toy_study.STUDY, {"n": 3}, out, seed=0, resume=True, progress=False)
+
+
+def test_outputs_replace_planted_links_instead_of_writing_through_them(tmp_path):
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious\n")
+    out = tmp_path / "o"
+    out.mkdir()
+    for name in ("rows.csv", "timings.csv", "run.json"):
+        (out / name).symlink_to(victim)
+    runner.run_study(toy_study.STUDY, {"n": 3, "fail": [1]}, out, seed=0, progress=False)
+    assert victim.read_text() == "precious\n"
+    for name in ("rows.csv", "timings.csv", "run.json", "errors.json"):
+        assert (out / name).is_file() and not (out / name).is_symlink()
+    assert (out / "rows.csv").read_text().startswith("scenario,")
+    # errors.json, a figure, a table: the same writer
+    (out / "errors.json").unlink()
+    (out / "errors.json").symlink_to(victim)
+    (out / "figures").mkdir()
+    (out / "figures" / "f.png").symlink_to(victim)
+    runner.run_study(toy_study.STUDY, {"n": 3, "fail": [1]}, out, seed=0, progress=False,
+                     overwrite=True)
+    import matplotlib.pyplot as plt
+
+    runner.save_figure(plt.figure(), out, "f")
+    assert victim.read_text() == "precious\n"
+    assert (out / "figures" / "f.png").read_bytes()[:4] == b"\x89PNG"
+    # the records file and the lock are never written through a link either
+    for name in ("records.jsonl", runner.LOCK_NAME):
+        o = tmp_path / name
+        o.mkdir()
+        (o / name).symlink_to(victim)
+        with pytest.raises(runner.RunnerError, match=name.replace(".", r"\.")):
+            runner.run_study(toy_study.STUDY, {"n": 2}, o, resume=True, progress=False)
+        assert victim.read_text() == "precious\n"
