@@ -39,11 +39,11 @@ def test_demo_writes_figure_and_prints_map(tmp_path, capsys):
 
 
 def test_partitions_command(tmp_path, capsys):
-    png = tmp_path / "tpcc.png"
-    assert main(["partitions", "--name", "tpcc", "--output", str(png)]) == 0
+    assert main(["partitions", "--name", "tpcc", "--output", str(tmp_path)]) == 0
     out = capsys.readouterr().out
+    png = tmp_path / "figures" / "tpcc.png"
     assert "TPCC: 16 states" in out and png.exists()
-    assert main(["partitions", "--name", "nope", "--output", str(png)]) == 2
+    assert main(["partitions", "--name", "nope", "--output", str(tmp_path)]) == 2
     assert "unknown name 'nope'" in capsys.readouterr().err
 
 
@@ -69,19 +69,22 @@ HERE = Path(__file__).resolve().parent
 MAGIC = {"png": b"\x89PNG", "pdf": b"%PDF", "svg": b"<?xml"}
 
 
-def test_partitions_creates_folders_and_honours_format(tmp_path, capsys, monkeypatch):
-    deep = tmp_path / "new" / "dir" / "x.png"
+def test_partitions_output_is_a_folder_like_every_command(tmp_path, capsys, monkeypatch):
+    deep = tmp_path / "new" / "dir"
     assert main(["partitions", "--output", str(deep)]) == 0
-    assert deep.read_bytes()[:4] == MAGIC["png"]
+    assert (deep / "figures" / "edc.png").read_bytes()[:4] == MAGIC["png"]
     for fmt in ("pdf", "svg"):
         assert main(["partitions", "--name", "lr", "--format", fmt, "--output",
-                     str(tmp_path / "f" / "lr")]) == 0
-        assert (tmp_path / "f" / f"lr.{fmt}").read_bytes()[:len(MAGIC[fmt])] == MAGIC[fmt]
-    assert main(["partitions", "--format", "svg", "--output", str(tmp_path / "y.png")]) == 2
-    assert "--format" in capsys.readouterr().err
+                     str(tmp_path / "f")]) == 0
+        got = tmp_path / "f" / "figures" / f"lr.{fmt}"
+        assert got.read_bytes()[:len(MAGIC[fmt])] == MAGIC[fmt]
+    # the former file-name form is refused with one line saying where the figure goes now
+    assert main(["partitions", "--output", str(tmp_path / "y.png")]) == 2
+    _one_error_line(capsys, "--output", "figures/edc.<format>")
+    assert not (tmp_path / "y.png").exists()
     monkeypatch.chdir(tmp_path)  # the default goes under out/
     assert main(["partitions", "--name", "fdc", "--format", "pdf"]) == 0
-    assert (tmp_path / "out" / "partitions" / "fdc.pdf").read_bytes()[:4] == MAGIC["pdf"]
+    assert (tmp_path / "out" / "partitions" / "figures" / "fdc.pdf").read_bytes()[:4] == MAGIC["pdf"]
 
 
 def _one_error_line(capsys, *words):
@@ -188,3 +191,26 @@ def test_tensors_build_refuses_to_overwrite_without_force(tmp_path, capsys):
     assert main(["tensors", "build", "--partition", "lr", "--output", str(tensors_dir())]) == 2
     line = _one_error_line(capsys, "shipped", "--force")
     assert "lr.npz" in line
+
+
+def test_scheduler_without_dask_is_one_line(tmp_path, capsys, monkeypatch):
+    # dask hidden: importing dask.distributed raises ImportError, as without the extra
+    monkeypatch.setitem(sys.modules, "dask", None)
+    monkeypatch.setitem(sys.modules, "dask.distributed", None)
+    for name in ("composition", "all"):
+        assert main(["experiment", name, "--scheduler", "tcp://127.0.0.1:1", "--no-progress",
+                     "--output", str(tmp_path / "o")]) == 2
+        _one_error_line(capsys, "pip install qfg[dask]")
+    assert not (tmp_path / "o").exists()
+
+
+def test_run_aborted_is_one_line_and_exit_1(tmp_path, capsys, monkeypatch):
+    from qfg.harness import runner
+
+    def stop(*a, **k):
+        raise runner.RunAborted("cannot write x: No space left on device; continue with --resume")
+
+    monkeypatch.setattr(runner, "run_study", stop)
+    assert main(["experiment", "composition", "--no-progress", "--output",
+                 str(tmp_path / "o")]) == 1
+    _one_error_line(capsys, "No space left on device")
