@@ -6,7 +6,11 @@ reference 5). The paper's MATLAB took 0.05 s (fast), 18 s (full) and 26 s (basel
 
 ``python -m benchmarks.bench_solvers --against DIR [--method full]`` times a solver against an
 older tree's ``qfg`` package in DIR (``git archive <commit> qfg | tar -x -C DIR``), interleaved in
-one process: the ratio survives the shared machine's load."""
+one process: the ratio survives the shared machine's load.
+
+``python -m benchmarks.bench_solvers --logsumexp`` times the solvers' ``logsumexp``
+(:mod:`qfg.solvers._likelihood`) against ``scipy.special.logsumexp`` on the shapes the solvers
+use (why the solvers keep their own)."""
 
 import os
 import time
@@ -90,8 +94,8 @@ def compare(src, method="full", T=50, repeats=5, seed=2024, extra=None):
     old = _load_tree(src)
     old_solvers = importlib.import_module(old.__name__ + ".solvers")
     old_sim = importlib.import_module(old.__name__ + ".simulation")
-    old_opts = importlib.import_module(old.__name__ + ".solvers._common").DEFAULTS[method]
-    from qfg.solvers._common import DEFAULTS
+    old_opts = old_solvers.DEFAULTS[method]
+    from qfg.solvers import DEFAULTS
 
     new_opts = {**DEFAULTS[method], **old_opts, **(extra or {})}
     ss = np.random.SeedSequence(seed)
@@ -117,8 +121,44 @@ def compare(src, method="full", T=50, repeats=5, seed=2024, extra=None):
     return out
 
 
+def logsumexp_shapes(repeats=5, number=20):
+    """Milliseconds per call (best of ``repeats``) of the solvers' logsumexp and scipy's on the
+    solvers' shapes: C's ray mixture over views (n, J, k) along axis 0, landmark samples (J, k)
+    along axis 1, the reference solver's mixture (N, 3) along the last axis. Both must agree."""
+    import timeit
+
+    from scipy.special import logsumexp as scipy_lse
+
+    from qfg.solvers._likelihood import logsumexp
+
+    rng = np.random.default_rng(0)
+    rows = []
+    for shape, axis in [((3, 4096, 4), 0), ((10, 1638, 10), 0), ((3000, 4), 1), ((4096, 16), 1),
+                        ((20000, 2), 1), ((200000, 3), -1)]:
+        a = rng.standard_normal(shape) * 5
+        a[rng.random(shape) < 0.1] = -np.inf
+        np.testing.assert_allclose(logsumexp(a, axis=axis), scipy_lse(a, axis=axis))
+        ours = min(timeit.repeat(lambda a=a, axis=axis: logsumexp(a, axis=axis), number=number,
+                                 repeat=repeats)) / number * 1e3
+        theirs = min(timeit.repeat(lambda a=a, axis=axis: scipy_lse(a, axis=axis),
+                                   number=number,
+                                   repeat=repeats)) / number * 1e3
+        rows.append((shape, axis, ours, theirs))
+    return rows
+
+
 if __name__ == "__main__":
     import argparse
+    import sys
+
+    if "--logsumexp" in sys.argv:
+        import scipy
+
+        print(f"scipy {scipy.__version__}, load {os.getloadavg()[0]:.1f}")
+        for shape, axis, ours, theirs in logsumexp_shapes():
+            print(f"{str(shape):15s} axis {axis:2d}: qfg {ours:7.3f} ms, scipy {theirs:7.3f} ms "
+                  f"(x{theirs / ours:.1f})")
+        sys.exit(0)
 
     ap = argparse.ArgumentParser(description="compare a solver's speed with an older tree")
     ap.add_argument("--against", required=True, help="directory holding an older qfg package")

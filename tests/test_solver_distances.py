@@ -9,8 +9,7 @@ import pytest
 
 from qfg import metrics
 from qfg.simulation import TripletHistory, random_triplet_history
-from qfg.solvers import TripletSolver, _sis, solve_triplet, solve_triplets
-from qfg.solvers import _common as C
+from qfg.solvers import TripletSolver, _input, _seeds, _sis, solve_triplet, solve_triplets
 
 SB, SH = np.deg2rad(2), np.deg2rad(5)
 
@@ -85,11 +84,11 @@ def test_incremental_equals_batch_with_distances(method):
     batch = solve_triplets(hs, method=method, seed=5)
     root = np.random.SeedSequence(5)
     for t, h in enumerate(hs):
-        one = solve_triplet(h, method=method, seed=C.child_seed(root, t))
+        one = solve_triplet(h, method=method, seed=_seeds.child_seed(root, t))
         np.testing.assert_array_equal(one.landmark, batch[t].landmark)
         s = TripletSolver(method, sigma_bearing=h.sigma_bearing, sigma_heading=h.sigma_heading,
                           sigma_distance_ratio=h.sigma_distance_ratio,
-                          seed=C.child_seed(root, t))
+                          seed=_seeds.child_seed(root, t))
         s.add_view(h.bearings[0])
         for i in range(1, h.n_views):
             s.add_view(h.bearings[i], h.headings[i - 1],
@@ -122,7 +121,7 @@ def test_mrclam_histories_carry_the_measured_sigma():
     h = MRCLAMHistory(landmarks=(1, 2, 3), bearings=np.zeros((3, 3)) + [0.1, 0.5, 0.3],
                       headings=np.zeros(2), sigma_bearing=0.01, sigma_heading=0.02,
                       distances=np.array([0.3, 0.4]))
-    m = C.measurements(h, None, None, None)
+    m = _input.measurements(h, None, None, None)
     assert m.sigma_distance_ratio == DEFAULT_SIGMA_DISTANCE_RATIO == 0.074
     np.testing.assert_array_equal(m.distances, [0.3, 0.4])
 

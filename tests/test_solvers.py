@@ -8,8 +8,19 @@ from hypothesis import strategies as st
 
 from qfg import geometry, metrics, partitions
 from qfg.simulation import TripletHistory, random_triplet_history
-from qfg.solvers import TripletSolver, add_view, solve_triplet, solve_triplets
-from qfg.solvers import _common as C
+from qfg.solvers import (
+    TripletSolver,
+    _arcs,
+    _estimate,
+    _input,
+    _laplace,
+    _options,
+    _prior,
+    _seeds,
+    add_view,
+    solve_triplet,
+    solve_triplets,
+)
 from qfg.solvers._baseline import resect
 
 METHODS = ("full", "fast", "fast-paper", "baseline")
@@ -95,7 +106,7 @@ def test_batch_equals_single_and_seeds(method):
     batch = solve_triplets(hs, method=method, seed=17)
     root = np.random.SeedSequence(17)
     for t, h in enumerate(hs):
-        single = solve_triplet(h, method=method, seed=C.child_seed(root, t))
+        single = solve_triplet(h, method=method, seed=_seeds.child_seed(root, t))
         np.testing.assert_allclose(batch[t].landmark, single.landmark, rtol=0, atol=1e-12)
         np.testing.assert_allclose(batch[t].cameras, single.cameras, rtol=0, atol=1e-12)
     # arrays in, same numbers out
@@ -312,7 +323,7 @@ def test_ray_jacobian_matches_finite_differences(seed):
     det = abs(np.linalg.det(J))
     if not np.isfinite(det) or det > 1e3:    # near-grazing rays: finite differences unreliable
         return
-    np.testing.assert_allclose(C.log_ray_jacobian(X, O, theta), np.log(det), atol=1e-3)
+    np.testing.assert_allclose(_arcs.log_ray_jacobian(X, O, theta), np.log(det), atol=1e-3)
 
 
 def test_arc_jacobian_matches_finite_differences():
@@ -322,15 +333,15 @@ def test_arc_jacobian_matches_finite_differences():
         w = rng.uniform(0.05, 0.95)
 
         def point(g, ww):
-            a, _ = C.arc_parameter(g, ww)
+            a, _ = _arcs.arc_parameter(g, ww)
             return geometry.locus_point(g, a)
 
         h = 1e-6
         J = np.column_stack([(point(gam + h, w) - point(gam - h, w)) / (2 * h),
                              (point(gam, w + h) - point(gam, w - h)) / (2 * h)])
         X = point(gam, w)
-        _, ld = C.arc_parameter(gam, w)
-        np.testing.assert_allclose(C.log_arc_jacobian(X, gam, ld),
+        _, ld = _arcs.arc_parameter(gam, w)
+        np.testing.assert_allclose(_arcs.log_arc_jacobian(X, gam, ld),
                                    np.log(abs(np.linalg.det(J))), atol=1e-4)
 
 
@@ -365,9 +376,10 @@ def test_estimate_exposes_hypotheses():
     # the landmark estimate is the weighted histogram of the hypotheses (eq. slamapprox1),
     # shrunk toward the uniform by mc_shrinkage pseudo-draws against their ESS
     hist = np.bincount(EDC.state_of(hy.landmark_samples), hy.landmark_weights, minlength=20)
-    assert e.ess == pytest.approx(C.ess(hy.landmark_weights))
-    np.testing.assert_allclose(C.shrink_to_uniform(hist, e.ess, C.DEFAULTS["full"]["mc_shrinkage"]),
-                               e.landmark, atol=1e-12)
+    assert e.ess == pytest.approx(_estimate.ess(hy.landmark_weights))
+    alpha = _options.DEFAULTS["full"]["mc_shrinkage"]
+    np.testing.assert_allclose(_estimate.shrink_to_uniform(hist, e.ess, alpha), e.landmark,
+                               atol=1e-12)
     s, p = e.most_likely
     assert p == e.landmark.max() and 0 <= s < 20
 
@@ -400,8 +412,8 @@ def test_solver_quadrature_of_the_world_prior():
     # own 128 points the log density differs by a constant per k plus at most 0.03
     from qfg.priors import WorldBoxPrior
 
-    fine, coarse = WorldBoxPrior(), C.resolve_prior("world")
-    assert isinstance(coarse, WorldBoxPrior) and coarse.n_rho == C.SOLVER_N_RHO
+    fine, coarse = WorldBoxPrior(), _prior.resolve_prior("world")
+    assert isinstance(coarse, WorldBoxPrior) and coarse.n_rho == _prior.SOLVER_N_RHO
     rng = np.random.default_rng(0)
     for n_cameras in (1, 3):
         x = fine.sample(rng, n_cameras, 1500)
@@ -414,7 +426,7 @@ def test_lsq_triangulation_matches_geometry():
     rng = np.random.default_rng(1)
     X, th = rng.normal(size=(200, 3, 2)), rng.uniform(-np.pi, np.pi, (200, 3))
     L, ok = geometry.triangulate_lsq(X, th)
-    L2, ok2 = C._laplace(X, th)[:2]
+    L2, ok2 = _laplace.triangulate(X, th)[:2]
     np.testing.assert_allclose(L2[ok2], L[ok2], atol=1e-9)
     assert np.array_equal(ok, ok2)
 
@@ -428,9 +440,9 @@ def test_move_target_is_zero_residual_at_the_true_poses():
     from qfg.solvers import _sis
 
     h = random_triplet_history(np.random.default_rng(21), 3, 0.0, 0.0)
-    opts = C.resolve_options("full", {})
+    opts = _options.resolve_options("full", {})
     st = _sis.start(h.bearings[:1], np.array([0.02]), np.array([0.05]),
-                    (np.random.SeedSequence(0),), opts, C.get_partition("edc"), "full")
+                    (np.random.SeedSequence(0),), opts, _input.get_partition("edc"), "full")
     st = _replace(st, bearings=h.bearings[None], headings=np.asarray(h.headings)[None],
                   same_pose=np.zeros((1, 3), dtype=bool))
     true = np.asarray(h.truth.poses_ab, dtype=float)[None]
@@ -467,7 +479,7 @@ def test_mc_shrinkage_is_the_dirichlet_mean_of_the_raw_estimate(method):
     # the default answer is the raw Monte Carlo estimate (mc_shrinkage=0, same seed and draws)
     # shrunk toward the uniform by alpha pseudo-draws against the final sample's ESS
     h = random_triplet_history(np.random.default_rng(21), 4, np.deg2rad(2), np.deg2rad(5))
-    alpha = C.DEFAULTS[method]["mc_shrinkage"]
+    alpha = _options.DEFAULTS[method]["mc_shrinkage"]
     assert alpha > 0
     raw = solve_triplet(h, method=method, seed=3, mc_shrinkage=0)
     est = solve_triplet(h, method=method, seed=3)
@@ -482,3 +494,21 @@ def test_mc_shrinkage_is_the_dirichlet_mean_of_the_raw_estimate(method):
     assert est.landmark.max() <= 1 - alpha * (m - 1) / m / (raw.ess + alpha) * (1 - 1e-12)
     with pytest.raises(ValueError, match="mc_shrinkage"):
         solve_triplet(h, method=method, mc_shrinkage=-1)
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(st.integers(1, 6), st.integers(1, 7), st.integers(0, 2), st.floats(0.0, 0.9))
+def test_logsumexp_matches_scipy(n, k, axis, p_inf):
+    """The solvers' logsumexp (kept for speed: benchmarks/bench_solvers.py --logsumexp) gives
+    scipy.special.logsumexp's values on any axis, all -inf rows included (no warning)."""
+    from scipy.special import logsumexp as scipy_lse
+
+    from qfg.solvers._likelihood import logsumexp
+
+    rng = np.random.default_rng(n * 100 + k * 10 + axis)
+    a = rng.standard_normal((n, 5, k)) * 30
+    a[rng.random(a.shape) < p_inf] = -np.inf
+    with np.errstate(all="raise"):
+        ours = logsumexp(a, axis=axis)
+    with np.errstate(divide="ignore"):
+        np.testing.assert_allclose(ours, scipy_lse(a, axis=axis), rtol=1e-12, atol=1e-12)

@@ -36,9 +36,9 @@ from typing import Sequence
 
 import numpy as np
 
-from . import _baseline, _fast, _sis
-from . import _common as C
-from ._common import DEFAULTS, METHODS, Hypotheses, TripletEstimate
+from . import _baseline, _estimate, _fast, _input, _options, _seeds, _sis
+from ._estimate import Hypotheses, TripletEstimate
+from ._options import DEFAULTS, METHODS
 
 __all__ = ["solve_triplet", "solve_triplets", "TripletSolver", "TripletEstimate", "Hypotheses",
            "add_view", "DEFAULTS", "METHODS"]
@@ -54,7 +54,7 @@ def _model(method, meas):
     return method
 
 
-def _options(method, model, options):
+def _model_options(method, model, options):
     opts = _resolve(method, options)   # validates against the requested method
     if model == method:
         return opts
@@ -63,12 +63,12 @@ def _options(method, model, options):
 
 
 def _resolve(method, options):
-    """:func:`._common.resolve_options`, with the reference solver's own defaults."""
+    """:func:`._options.resolve_options`, with the reference solver's own defaults."""
     if method == "reference":
         from ._reference import REFERENCE_DEFAULTS
 
-        return C.resolve_options(method, options, dict(REFERENCE_DEFAULTS, prior="world"))
-    return C.resolve_options(method, options)
+        return _options.resolve_options(method, options, dict(REFERENCE_DEFAULTS, prior="world"))
+    return _options.resolve_options(method, options)
 
 
 def solve_triplet(bearings, headings=None, *, method: str = "full", partition="edc",
@@ -110,12 +110,12 @@ def solve_triplet(bearings, headings=None, *, method: str = "full", partition="e
     >>> est.cameras.shape, est.method
     ((1, 20), 'fast')
     """
-    meas = C.measurements(bearings, headings, sigma_bearing, sigma_heading, distances,
+    meas = _input.measurements(bearings, headings, sigma_bearing, sigma_heading, distances,
                           sigma_distance_ratio)
-    part = C.get_partition(partition)
+    part = _input.get_partition(partition)
     model = _model(method, meas)
-    opts = _options(method, model, options)
-    root = C.root_seed(seed)
+    opts = _model_options(method, model, options)
+    root = _seeds.root_seed(seed)
     if model == "fast-paper":
         return _solve_fast_batch([meas], part, opts)[0]
     if model in _SIS:
@@ -166,8 +166,8 @@ def _reference_estimate(meas, part, opts, root) -> TripletEstimate:
         cameras=np.asarray(out["cameras"], dtype=float), n_hypotheses=int(out["n_samples"]),
         degenerate=bool(out["degenerate"]), reason="; ".join(reasons), method="reference",
         partition=part.name, n_views=meas.n_views, ess=float(out["ess"]),
-        mc_error=float(np.max(out["mc_error"])), prior=C.prior_name(opts),
-        options=C.public_options(opts))
+        mc_error=float(np.max(out["mc_error"])), prior=_estimate.prior_name(opts),
+        options=_estimate.public_options(opts))
 
 
 def _solve_sis_batch(model, metas, roots, part, opts):
@@ -209,8 +209,8 @@ def solve_triplets(histories, headings=None, *, method: str = "full", partition=
     """
     metas = _batch_measurements(histories, headings, sigma_bearing, sigma_heading, distances,
                                 sigma_distance_ratio)
-    part = C.get_partition(partition)
-    root = C.root_seed(seed)
+    part = _input.get_partition(partition)
+    root = _seeds.root_seed(seed)
     out: list = [None] * len(metas)
     groups: dict = {}
     for t, meas in enumerate(metas):
@@ -218,15 +218,15 @@ def solve_triplets(histories, headings=None, *, method: str = "full", partition=
         if model in ("fast-paper",) + _SIS:
             groups.setdefault((model, meas.n_views), []).append(t)
         else:
-            out[t] = _solve(model, meas, part, _options(method, model, options),
-                            C.child_seed(root, t))[0]
+            out[t] = _solve(model, meas, part, _model_options(method, model, options),
+                            _seeds.child_seed(root, t))[0]
     for (model, _), idx in groups.items():
-        opts = _options(method, model, options)
+        opts = _model_options(method, model, options)
         ms = [metas[t] for t in idx]
         if model == "fast-paper":
             ests = _solve_fast_batch(ms, part, opts)
         else:
-            ests = _solve_sis_batch(model, ms, [C.child_seed(root, t) for t in idx], part, opts)
+            ests = _solve_sis_batch(model, ms, [_seeds.child_seed(root, t) for t in idx], part, opts)
         for t, est in zip(idx, ests, strict=True):
             out[t] = est
     return out
@@ -261,7 +261,7 @@ def _batch_measurements(histories, headings, sigma_bearing, sigma_heading, dista
             raise ValueError("distances: pass either TripletHistory objects (with their "
                              "distances) or bearings and distances, not both")
         sds = _per_triplet_sigma("sigma_distance_ratio", sigma_distance_ratio, len(histories))
-        return [C.measurements(h, None, sigma_bearing, sigma_heading, None, sd)
+        return [_input.measurements(h, None, sigma_bearing, sigma_heading, None, sd)
                 for h, sd in zip(histories, sds, strict=True)]
     b = np.asarray(histories, dtype=float) if not isinstance(histories, Sequence) or histories \
         else np.zeros((0, 1, 3))
@@ -287,7 +287,7 @@ def _batch_measurements(histories, headings, sigma_bearing, sigma_heading, dista
                                     dtype=float), (T,))
     ds = per_step("distances", distances)
     sds = _per_triplet_sigma("sigma_distance_ratio", sigma_distance_ratio, T)
-    return [C.measurements(b[t], hs[t], None if np.isnan(sb[t]) else sb[t],
+    return [_input.measurements(b[t], hs[t], None if np.isnan(sb[t]) else sb[t],
                            None if np.isnan(sh[t]) else sh[t], ds[t], sds[t]) for t in range(T)]
 
 
@@ -301,7 +301,7 @@ def add_view(solver, bearings, heading=None) -> TripletEstimate:
     1
     """
     if not isinstance(solver, TripletSolver):
-        raise ValueError(C.ADD_VIEW_MOVED)
+        raise ValueError(_estimate.ADD_VIEW_MOVED)
     return solver.add_view(bearings, heading).estimate()
 
 
@@ -337,12 +337,12 @@ class TripletSolver:
                  sigma_heading=0.0, seed=None, sigma_distance_ratio=None, **options):
         if method not in METHODS:
             raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
-        part = C.get_partition(partition)
+        part = _input.get_partition(partition)
         opts = _resolve(method, options)
-        self._init(method, part, opts, C.root_seed(seed),
-                   C.check_sigma("sigma_bearing", sigma_bearing),
-                   C.check_sigma("sigma_heading", sigma_heading),
-                   C.check_distance_sigma(sigma_distance_ratio, None))
+        self._init(method, part, opts, _seeds.root_seed(seed),
+                   _input.check_sigma("sigma_bearing", sigma_bearing),
+                   _input.check_sigma("sigma_heading", sigma_heading),
+                   _input.check_distance_sigma(sigma_distance_ratio, None))
 
     @classmethod
     def solve(cls, bearings, headings=None, *, method: str = "full", partition="edc",
@@ -351,12 +351,12 @@ class TripletSolver:
         """A solver with every view of a history added; the arguments and the model chosen are
         those of :func:`solve_triplet` (``.estimate()`` equals its result). Use it when the
         hypotheses are wanted too (``.hypotheses()``)."""
-        meas = C.measurements(bearings, headings, sigma_bearing, sigma_heading, distances,
+        meas = _input.measurements(bearings, headings, sigma_bearing, sigma_heading, distances,
                               sigma_distance_ratio)
-        part = C.get_partition(partition)
+        part = _input.get_partition(partition)
         model = _model(method, meas)
-        solver = cls._from_parts(model, part, _options(method, model, options),
-                                 C.root_seed(seed), meas.sigma_bearing, meas.sigma_heading,
+        solver = cls._from_parts(model, part, _model_options(method, model, options),
+                                 _seeds.root_seed(seed), meas.sigma_bearing, meas.sigma_heading,
                                  meas.sigma_distance_ratio)
         for i in range(meas.n_views):
             first = i == 0 or meas.headings is None
@@ -391,16 +391,16 @@ class TripletSolver:
         the baseline, which ignores it) and optionally ``distance``, travelled from the
         previous view by odometry (>= 0; 0 or None: unknown; needs ``sigma_distance_ratio``;
         used by ``full`` and ``fast`` only). Returns the solver (for chaining)."""
-        phi = C.check_bearings(bearings)
+        phi = _input.check_bearings(bearings)
         if phi.shape[0] != 1:
             raise ValueError(f"bearings: expected one view (3,), got shape {phi.shape}")
         phi = phi[0]
         first = self._state is None
         if heading is not None:
             # checked for every method, the baseline included (which then ignores it)
-            heading = C.check_heading(heading)
+            heading = _input.check_heading(heading)
         if distance is not None:
-            distance = C.check_distance(distance)
+            distance = _input.check_distance(distance)
             if first:
                 raise ValueError("distance: the first view has no previous view (pass None)")
             if self._sd is None:
@@ -418,7 +418,7 @@ class TripletSolver:
             b = phi[None, :] if first else np.vstack([self._state.bearings, phi])
             h = None if first or heading is None else np.append(
                 self._state.headings if self._state.headings is not None else [], heading)
-            self._state = C.Measurements(b, h, self._sb, self._sh)
+            self._state = _input.Measurements(b, h, self._sb, self._sh)
         elif self.method in _SIS:
             if first:
                 self._state = _sis.start(phi[None, :], np.array([self._sb]), np.array([self._sh]),
@@ -435,7 +435,7 @@ class TripletSolver:
                 self._state = _fast.step(self._state, phi[None, :], np.array([heading]))
         else:
             if first:
-                meas = C.Measurements(phi[None, :], None, self._sb, self._sh)
+                meas = _input.Measurements(phi[None, :], None, self._sb, self._sh)
                 self._state = _baseline.start(meas, self._root, opts, part)
             else:
                 self._state = _baseline.step(self._state, phi)
@@ -461,7 +461,7 @@ class TripletSolver:
         """The :class:`TripletEstimate` of the views so far."""
         return self._finish()[0]
 
-    def hypotheses(self) -> C.Hypotheses:
+    def hypotheses(self) -> _estimate.Hypotheses:
         """The weighted hypotheses behind :meth:`estimate` (:class:`Hypotheses`); ValueError for
         ``method="reference"``, which keeps none."""
         hyp = self._finish()[1]
@@ -471,4 +471,4 @@ class TripletSolver:
 
     def __repr__(self) -> str:
         return (f"TripletSolver(method={self.method!r}, partition={self.partition.name!r}, "
-                f"n_views={self.n_views}, prior={C.prior_name(self.options)!r})")
+                f"n_views={self.n_views}, prior={_estimate.prior_name(self.options)!r})")

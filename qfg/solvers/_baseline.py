@@ -33,7 +33,7 @@ import numpy as np
 
 from .. import priors as _priors
 from ..geometry import LOCUS_EPS, wrap_angle
-from . import _common as C
+from . import _degenerate, _estimate, _histograms, _input, _likelihood, _prior, _seeds
 
 _PRODUCT = _priors.ProductPrior()
 
@@ -43,7 +43,7 @@ _RESECTION_TOL = 1e-6
 
 @dataclass(frozen=True, eq=False)
 class BaselineState:
-    meas: C.Measurements
+    meas: _input.Measurements
     root: np.random.SeedSequence
     opts: dict
     part: object
@@ -68,7 +68,7 @@ def _candidates(rng, n, prior):
         ang = 2 * np.pi * (iy.ravel() + u[:, 1]) / gy
         r = _PRODUCT.scale * np.sqrt(U / (1.0 - U))
         pts = _PRODUCT.CENTRE + np.stack([r * np.cos(ang), r * np.sin(ang)], axis=-1)
-        return pts, C.point_log_prior(_PRODUCT, pts)
+        return pts, _prior.point_log_prior(_PRODUCT, pts)
     xmin, xmax, ymin, ymax = prior.window
     w, h = xmax - xmin, ymax - ymin
     gx = max(1, int(round(np.sqrt(n * w / h))))
@@ -123,13 +123,13 @@ def resect(L, phi):
     return np.concatenate([X, alpha[..., None]], axis=-1), logdet, ok
 
 
-def start(meas: C.Measurements, root, opts, part) -> BaselineState:
-    rng = C.stream(root, 0, C.STREAM_LANDMARKS)
+def start(meas: _input.Measurements, root, opts, part) -> BaselineState:
+    rng = _seeds.stream(root, 0, _seeds.STREAM_LANDMARKS)
     cand, lq = _candidates(rng, opts["n_landmark_samples"], opts["prior"])
-    st = BaselineState(meas=C.Measurements(meas.bearings[:0], None, meas.sigma_bearing,
+    st = BaselineState(meas=_input.Measurements(meas.bearings[:0], None, meas.sigma_bearing,
                                            meas.sigma_heading),
                        root=root, opts=opts, part=part, candidates=cand,
-                       lw=C.point_log_prior(opts["prior"], cand) - lq, shares=(), cameras=(),
+                       lw=_prior.point_log_prior(opts["prior"], cand) - lq, shares=(), cameras=(),
                        reasons=())
     return step(st, meas.bearings[0])
 
@@ -141,11 +141,11 @@ def step(state: BaselineState, phi) -> BaselineState:
     meas = replace(state.meas, bearings=np.vstack([state.meas.bearings, phi[None, :]]))
     sv = float(meas.sigma_bearing)
     k = 1 if sv == 0 else opts["noise_samples"]
-    rng = C.stream(state.root, i, C.STREAM_CAMERAS)
+    rng = _seeds.stream(state.root, i, _seeds.STREAM_CAMERAS)
     draws = phi[None, :] + sv * rng.standard_normal((k, 3))
     L = state.candidates
     poses, logdet, ok = resect(L, draws)
-    lc = C.point_log_prior(opts["prior"], poses[..., :2]) - logdet
+    lc = _prior.point_log_prior(opts["prior"], poses[..., :2]) - logdet
     lc = np.where(ok, lc, -np.inf)
     fin = np.isfinite(lc)
     if not np.any(fin):
@@ -156,7 +156,7 @@ def step(state: BaselineState, phi) -> BaselineState:
     # cap the integrable 1/|det J| singularity relative to the typical candidate
     cap = np.median(lc[fin]) + np.log(opts["jacobian_cap"])
     lc = np.minimum(lc, cap)
-    ld = C.logsumexp(lc, axis=1) - np.log(k)
+    ld = _likelihood.logsumexp(lc, axis=1) - np.log(k)
     shares = np.full((L.shape[0], part.n_states), 1.0 / part.n_states)
     good = np.isfinite(ld)
     if np.any(good):
@@ -174,10 +174,10 @@ def finish(state: BaselineState):
     opts, part, meas = state.opts, state.part, state.meas
     n, m = meas.n_views, part.n_states
     reasons = list(state.reasons)
-    reasons[:0] = C.geometry_reasons(meas.bearings, meas.sigma_bearing, meas.headings,
+    reasons[:0] = _degenerate.geometry_reasons(meas.bearings, meas.sigma_bearing, meas.headings,
                                      meas.sigma_heading)
-    w = C.normalize_log(state.lw)
-    landmark, ok = C.state_histogram(part, state.candidates, w)
+    w = _likelihood.normalize_log(state.lw)
+    landmark, ok = _histograms.state_histogram(part, state.candidates, w)
     N = state.candidates.shape[0]
     K = max(c[0].shape[1] for c in state.cameras)
     cam_samples = np.zeros((n, N * K, 3))
@@ -193,12 +193,12 @@ def finish(state: BaselineState):
             if state.shares[t] is None:
                 continue
             # P(X = X*_{L,j} | Z) = P(L | Z) c_{L,j} / sum_j c_{L,j}
-            cw = C.normalize_log(lc) * w[:, None]
+            cw = _likelihood.normalize_log(lc) * w[:, None]
             cam_samples[t, :N * k] = poses.reshape(-1, 3)
             cam_w[t, :N * k] = cw.ravel()
         s = cam_w.sum(axis=1, keepdims=True)
         cam_w = np.where(s > 0, cam_w / np.where(s > 0, s, 1.0), 0.0)
-    hyp = C.Hypotheses(landmark_samples=state.candidates, landmark_weights=w,
+    hyp = _estimate.Hypotheses(landmark_samples=state.candidates, landmark_weights=w,
                        camera_samples=cam_samples, camera_weights=cam_w, joint=False)
-    return C.make_estimate("baseline", part, n, landmark, cams, hypotheses=hyp, reasons=reasons,
+    return _estimate.make_estimate("baseline", part, n, landmark, cams, hypotheses=hyp, reasons=reasons,
                            opts=opts)

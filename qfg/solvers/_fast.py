@@ -8,7 +8,7 @@ triangulated from the lines of sight. The noise enters only through the weights,
 deterministic geometry: ``prior(X_1 .. X_n, L) x prod_t N(phi_C,t - f(L, X_t); sigma)`` (sigma =
 ``max(sigma_v, bearing_floor)``, or combined with sigma_w: option ``kernel``) and, with
 ``jacobian=True``, the change of variables of each motion step, ``t / |grad Gamma . u|``
-(:func:`._common.log_ray_jacobian`: the density of positions reached along the rays, the noiseless
+(:func:`._arcs.log_ray_jacobian`: the density of positions reached along the rays, the noiseless
 limit of the full solver's weights). The first camera's arc parameter is integrated adaptively:
 after the coarse grid, the cells of the heaviest hypotheses are split and solved again
 (``refine_*`` options). One view: C at deterministic quantiles along each camera's line of sight.
@@ -32,11 +32,11 @@ from ..geometry import (
     triangulate_pairwise_centroid,
     wrap_angle,
 )
-from . import _common as C
+from . import _arcs, _degenerate, _estimate, _laplace, _likelihood, _options, _prior
 
 
 @dataclass(frozen=True, eq=False)
-class FastState(C.TripletBatchSizes):
+class FastState(_estimate.TripletBatchSizes):
     """Hypotheses of T triplets after the views so far (flat, sorted by triplet)."""
 
     bearings: np.ndarray       # (T, i, 3)
@@ -55,7 +55,7 @@ class FastState(C.TripletBatchSizes):
         """(T,) width of the C-bearing likelihood: ``max(sigma_v, floor)``, combined in quadrature
         with sigma_w when ``kernel="combined"`` (the headings taken as exact move the cameras, and
         so the predicted C bearings, by about that much)."""
-        sv = C.effective_sigma(self.sigma_bearing, self.opts["bearing_floor"])
+        sv = _options.effective_sigma(self.sigma_bearing, self.opts["bearing_floor"])
         if self.opts["kernel"] == "combined":
             sv = np.hypot(sv, self.sigma_heading)
         return sv
@@ -90,16 +90,16 @@ def _resection(tid, poses, phi_c, sigma_v, opts):
     d = L[:, None, :] - poses[..., :2]
     res = wrap_angle(np.arctan2(d[..., 1], d[..., 0]) - theta)
     sv = sigma_v[tid]
-    lw = C.log_gauss(res, sv[:, None]).sum(axis=-1)
+    lw = _likelihood.log_gauss(res, sv[:, None]).sum(axis=-1)
     if opts["landmark_volume"] and poses.shape[1] >= 2:
-        lw = lw + C.log_landmark_volume(poses[..., :2], L, sv)
-    lw = lw + C.point_log_prior(opts["prior"], L)
+        lw = lw + _laplace.log_landmark_volume(poses[..., :2], L, sv)
+    lw = lw + _prior.point_log_prior(opts["prior"], L)
     return L, np.where(ok, lw, -np.inf)
 
 
 def _first(b0, tid, w, lwidth, opts):
     """First-view hypotheses at arc parameters ``w`` (N,) of triplets ``tid``; alive ones only."""
-    poses, lp = C.arc_poses(b0[tid, 0], b0[tid, 1], w[:, None], opts["prior"])
+    poses, lp = _arcs.arc_poses(b0[tid, 0], b0[tid, 1], w[:, None], opts["prior"])
     lw = lp[:, 0] + lwidth
     keep = np.isfinite(lw)
     return tid[keep], poses[keep], lw[keep], w[keep], lwidth[keep]
@@ -118,9 +118,9 @@ def _extend(hyp, bearings, headings, sv, opts):
     j, b = np.nonzero(valid)                      # parent, branch; parents stay in order
     X = pts[j, b]
     alpha = heading_on_locus(X, phi[tid[j], 0])
-    lw_new = lw[j] + C.point_log_prior(opts["prior"], X)
+    lw_new = lw[j] + _prior.point_log_prior(opts["prior"], X)
     if opts["jacobian"]:
-        lw_new = lw_new + C.log_ray_jacobian(X, prev[j, :2], th[j])
+        lw_new = lw_new + _arcs.log_ray_jacobian(X, prev[j, :2], th[j])
     keep = np.isfinite(lw_new)
     j, X, alpha, lw_new = j[keep], X[keep], alpha[keep], lw_new[keep]
     poses = np.concatenate([poses[j], np.concatenate([X, alpha[:, None]], axis=-1)[:, None, :]],
@@ -230,13 +230,13 @@ def finish(state: FastState, hypotheses: bool = False):
         ang = cam[:, 2] + state.bearings[tid, 0, 2]
         q = (np.arange(k) + 0.5) / k
         # deterministic quantiles of the ray proposal; weight = prior(L) t dt / q(t)
-        pts, lq = C._ray_points(cam[:, :2], ang, np.zeros((ang.size, k)),
+        pts, lq = _arcs.ray_points(cam[:, :2], ang, np.zeros((ang.size, k)),
                                 np.broadcast_to(q, (ang.size, k)), 1.0)
-        lq = lq - C.log_gauss(0.0, 1.0) + 0.5 * np.log(2 * np.pi)
+        lq = lq - _likelihood.log_gauss(0.0, 1.0) + 0.5 * np.log(2 * np.pi)
         r = np.linalg.norm(pts - cam[:, None, :2], axis=-1)
-        lw_q = C.point_log_prior(opts["prior"], pts) - lq - np.log(np.maximum(r, 1e-300))
+        lw_q = _prior.point_log_prior(opts["prior"], pts) - lq - np.log(np.maximum(r, 1e-300))
         lw_l = (lw[:, None] + lw_q - np.log(k)).ravel()
-        lw_cam = lw + C.logsumexp(lw_q, axis=-1) - np.log(k)
+        lw_cam = lw + _likelihood.logsumexp(lw_q, axis=-1) - np.log(k)
         l_samples, l_tid = pts.reshape(-1, 2), np.repeat(tid, k)
     else:
         tid, poses, lw_cam, l_samples = _refine(state, sv)
@@ -253,23 +253,23 @@ def finish(state: FastState, hypotheses: bool = False):
     cb = np.searchsorted(tid, np.arange(T + 1))
     out = []
     for t in range(T):
-        reasons = C.geometry_reasons(state.bearings[t], state.sigma_bearing[t],
+        reasons = _degenerate.geometry_reasons(state.bearings[t], state.sigma_bearing[t],
                                      state.headings[t], state.sigma_heading[t])
         cw = c_w[cb[t]:cb[t + 1]]
         alive = cw > 0
         if not np.any(alive):
             reasons.append("no hypothesis survived (rays miss the locus arcs or C cannot be "
                            "triangulated)")
-            out.append(C.uniform_estimate("fast-paper", part, n, "; ".join(reasons), opts))
+            out.append(_estimate.uniform_estimate("fast-paper", part, n, "; ".join(reasons), opts))
             continue
         lw_t = l_w[lb[t]:lb[t + 1]]
         keep_l = lw_t > 0
         na = int(alive.sum())
-        hyp = C.Hypotheses(
+        hyp = _estimate.Hypotheses(
             landmark_samples=l_samples[lb[t]:lb[t + 1]][keep_l], landmark_weights=lw_t[keep_l],
             camera_samples=np.transpose(poses[cb[t]:cb[t + 1]][alive], (1, 0, 2)),
             camera_weights=np.broadcast_to(cw[alive], (n, na)).copy(), joint=n > 1)
-        est, hyp = C.make_estimate("fast-paper", part, n, lm[t] / lm[t].sum(),
+        est, hyp = _estimate.make_estimate("fast-paper", part, n, lm[t] / lm[t].sum(),
                                    cm[t] / cm[t].sum(axis=1, keepdims=True), hypotheses=hyp,
                                    reasons=reasons, opts=opts)
         out.append((est, hyp if hypotheses else None))

@@ -13,7 +13,7 @@ Sampling variables ``u`` (a bijection with theta wherever the target is positive
   normal: this absorbs their likelihood exactly) and, between views, the true heading
   ``psi~ = psi + sigma_w eps``;
 * view 1 (every view without an incoming heading): the angle at A along the locus arc of
-  ``gamma = phi~_B - phi~_A``, through the arc parameter w in (0, 1) (``_common.arc_parameter``);
+  ``gamma = phi~_B - phi~_A``, through the arc parameter w in (0, 1) (``_arcs.arc_parameter``);
   ``dX dalpha = |x| / sin^2(gamma) dphi~_A dphi~_B da``;
 * later views: the point where the motion ray from X_{j-1} at ``alpha_{j-1} + psi~`` meets the
   locus arc, root r_j among the valid intersections; ``dX = t / |grad Gamma . u| dpsi~ dgamma``;
@@ -52,7 +52,9 @@ from ..geometry import (
     triangulate_lsq,
     wrap_angle,
 )
-from ._common import arc_parameter, check_bearings, check_headings, log_ray_jacobian, logsumexp
+from ._arcs import arc_parameter, log_ray_jacobian
+from ._input import check_bearings, check_headings
+from ._likelihood import logsumexp
 
 __all__ = ["solve_reference", "REFERENCE_DEFAULTS"]
 
@@ -616,7 +618,7 @@ def _summaries(part, X, c, lw):
 
 
 def solve_reference(bearings, headings, sigma_bearing, sigma_heading, partition="edc",
-                    prior="world", rng=None, **options) -> dict:
+                    prior="world", seed=None, **options) -> dict:
     """Exact posterior of the states of C and of the cameras, up to a reported Monte Carlo error.
 
     Args:
@@ -627,7 +629,7 @@ def solve_reference(bearings, headings, sigma_bearing, sigma_heading, partition=
             ``max(sigma, floor)`` (``bearing_floor``, ``heading_floor``) so that 0 works.
         partition: partition name or object.
         prior: a :class:`qfg.priors.Prior` or a name for :func:`qfg.priors.get`.
-        rng: numpy Generator, int seed or None.
+        seed: an int, a SeedSequence, a numpy Generator, or None.
         **options: see :data:`REFERENCE_DEFAULTS`.
 
     Returns a dict: ``landmark`` (m,), ``cameras`` (n, m), ``mc_error`` (m,) and
@@ -640,7 +642,7 @@ def solve_reference(bearings, headings, sigma_bearing, sigma_heading, partition=
     >>> from qfg.simulation import random_triplet_history
     >>> h = random_triplet_history(np.random.default_rng(1), 3, np.deg2rad(2), np.deg2rad(5))
     >>> out = solve_reference(h.bearings, h.headings, h.sigma_bearing, h.sigma_heading,
-    ...                       rng=np.random.default_rng(0), n_samples=4000)
+    ...                       seed=0, n_samples=4000)
     >>> bool(np.isclose(out["landmark"].sum(), 1.0)), out["landmark"].shape, out["ess"] > 30
     (True, (20,), True)
     """
@@ -673,7 +675,7 @@ def solve_reference(bearings, headings, sigma_bearing, sigma_heading, partition=
         raise ValueError("heading_floor: must be > 0 when sigma_heading is 0")
     part = _partitions.get(partition)
     pr = _priors.get(prior)
-    rng = as_rng(rng)
+    rng = as_rng(seed)
     L = _Layout(b, h if (h is not None and h.size) else None, sv, sw)
     out = _solve(L, pr, part, rng, opts, N, rounds, lam, lam_ray)
     if out["log_evidence"] is None and isinstance(pr, _priors.WorldBoxPrior) and pr.d_min > 0:

@@ -6,26 +6,26 @@ Per view i of every triplet (AB frame, A = (0, 0), B = (0, 1)):
 
 * sampling step (view 1): ``n_samples`` camera poses near the locus arc of (phi_A, phi_B): the
   bearings to A and B drawn from N(measured, sigma_v^2), a position on the drawn arc at a
-  stratified arc parameter (:func:`._common.arc_parameter`), the heading from phi_A. The
+  stratified arc parameter (:func:`._arcs.arc_parameter`), the heading from phi_A. The
   importance weight is the arc's change of variables times the per-point prior.
 * motion step (views 2..n): for each hypothesis, ``motion_samples`` draws of the heading noise and
   of the view's A/B bearing noise; the ray from X_{i-1} along ``alpha_{i-1} + psi + eps`` meets
   the drawn locus arc at 0, 1 or 2 points, each a new hypothesis. The drawn noise carries the
   heading and A/B likelihoods exactly; the weight is the change of variables
-  ``t / |grad Gamma . u|`` (:func:`._common.log_ray_jacobian`) times the per-point prior.
+  ``t / |grad Gamma . u|`` (:func:`._arcs.log_ray_jacobian`) times the per-point prior.
 * odometry distances (optional, views 3..n): the weight also carries
   :func:`log_distance_factor` of the step-length ratio; such triplets draw half their children
   at the step length the distance ratio predicts instead of along the heading (a circle about
   X_{i-1} meets the arc), weighted by the balance heuristic (:func:`_mixture_weight`).
 * C (views 2..n): its integral ``∫ p1(L) prod_t N(phi_C,t - f(L, X_t); sigma_v) dL`` is
   estimated with ``landmark_samples`` draws from a defensive mixture (Laplace Gaussian about the
-  triangulation, and draws along the lines of sight: :func:`._common.sample_landmarks`), which
+  triangulation, and draws along the lines of sight: :func:`._landmarks.sample_landmarks`), which
   stays right when the lines of sight coincide.
 * pruning and resampling per triplet: hypotheses below ``prune_ratio`` x the heaviest are
   dropped; above ``max_hypotheses`` the set is resampled (systematic), the C weight divided out as
   in sequential importance resampling.
 
-These intermediate weights use a per-point prior ``p1`` (:func:`._common.point_log_prior`).
+These intermediate weights use a per-point prior ``p1`` (:func:`._prior.point_log_prior`).
 The answer does not: :func:`finish` resamples ``posterior_samples`` trajectories per triplet,
 draws C for each, and weights every (trajectory, C) sample by the prior's ``log_density`` of the
 whole configuration [C, X_1..X_n] over the intermediate target, so the estimate targets the
@@ -46,11 +46,23 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..geometry import heading_on_locus, locus_circle, locus_point, ray_circle_intersection, wrap_angle
-from . import _common as C
+from . import (
+    _arcs,
+    _degenerate,
+    _estimate,
+    _histograms,
+    _input,
+    _landmarks,
+    _laplace,
+    _likelihood,
+    _options,
+    _prior,
+    _seeds,
+)
 
 
 @dataclass(frozen=True, eq=False)
-class SISState(C.TripletBatchSizes):
+class SISState(_estimate.TripletBatchSizes):
     """Hypotheses of T triplets after the views so far (flat arrays sorted by triplet)."""
 
     bearings: np.ndarray       # (T, i, 3)
@@ -73,7 +85,7 @@ class SISState(C.TripletBatchSizes):
 
     def sigma_v(self) -> np.ndarray:
         """(T,) C-bearing likelihood width ``max(sigma_v, floor)``."""
-        return C.effective_sigma(self.sigma_bearing, self.opts["bearing_floor"])
+        return _options.effective_sigma(self.sigma_bearing, self.opts["bearing_floor"])
 
     def noiseless(self) -> np.ndarray:
         return (self.sigma_bearing == 0) & (self.sigma_heading == 0)
@@ -107,7 +119,7 @@ def log_distance_factor(step, prev_step, distance, prev_distance, sigma):
 def _gens(roots, view, purpose):
     """One generator per triplet for (view, purpose); every draw of that stage comes from it, in
     a fixed order, so a triplet's numbers do not depend on the batch."""
-    return [C.stream(r, view, purpose) for r in roots]
+    return [_seeds.stream(r, view, purpose) for r in roots]
 
 
 def _per_triplet(gens, counts, draw):
@@ -134,7 +146,7 @@ def _c_weight(state_like, tid, poses, bearings_c, gens, k, laplace=None):
     """(L, log q, log lik, spread) for hypotheses (N, i, 3) of triplets ``tid``."""
     n = poses.shape[1]
     draws = _landmark_draws(gens, tid, n, k, state_like.opts["ray_fraction"])
-    return C.sample_landmarks(None, poses, bearings_c[tid], state_like.sigma_v()[tid], k,
+    return _landmarks.sample_landmarks(None, poses, bearings_c[tid], state_like.sigma_v()[tid], k,
                               state_like.opts["ray_fraction"], draws=draws, laplace=laplace)
 
 
@@ -145,7 +157,7 @@ _LAPLACE_SPREAD = 0.25
 
 def _log_intermediate_c(state_like, tid, poses, bearings_c, gens):
     """log of C's integral with the per-point prior, for the intermediate weights: Laplace about
-    the triangulation where C's depth is resolved, a :func:`._common.sample_landmarks` estimate
+    the triangulation where C's depth is resolved, a :func:`._landmarks.sample_landmarks` estimate
     elsewhere. ``poses``: (N, n, 3), or a function of a row selection returning those rows (the
     motion step's children are then never gathered all at once)."""
     get = poses if callable(poses) else poses.__getitem__
@@ -153,11 +165,11 @@ def _log_intermediate_c(state_like, tid, poses, bearings_c, gens):
     sig = state_like.sigma_v()[tid]
     N = tid.size
     out, hard, lap = np.empty(N), [], []
-    for lo in range(0, N, C.CHUNK_ROWS):
-        sl = slice(lo, lo + C.CHUNK_ROWS)
-        lz, Ls, spread, parts = C.laplace_landmark(get(sl), bearings_c[tid[sl]], sig[sl],
+    for lo in range(0, N, _laplace.CHUNK_ROWS):
+        sl = slice(lo, lo + _laplace.CHUNK_ROWS)
+        lz, Ls, spread, parts = _laplace.laplace_landmark(get(sl), bearings_c[tid[sl]], sig[sl],
                                                    parts=True)
-        out[sl] = lz + C.point_log_prior(prior, Ls)
+        out[sl] = lz + _prior.point_log_prior(prior, Ls)
         h = np.flatnonzero(~(spread < _LAPLACE_SPREAD))
         hard.append(lo + h)
         lap.append(tuple(v[h] for v in parts))
@@ -167,9 +179,9 @@ def _log_intermediate_c(state_like, tid, poses, bearings_c, gens):
         lap = tuple(np.concatenate(v) for v in zip(*lap, strict=True))
         L, log_q, log_lik, _ = _c_weight(state_like, tid[hard], get(hard), bearings_c, gens, k,
                                          laplace=lap)
-        lw = C.point_log_prior(prior, L) + log_lik - log_q
+        lw = _prior.point_log_prior(prior, L) + log_lik - log_q
         lw = np.where(np.isnan(lw), -np.inf, lw)
-        out[hard] = C.logsumexp(lw, axis=1) - np.log(k)
+        out[hard] = _likelihood.logsumexp(lw, axis=1) - np.log(k)
     return np.where(np.isnan(out), -np.inf, out)
 
 
@@ -282,7 +294,7 @@ def _log_pose_target(st: SISState, tid, poses):
     ra, rb = wrap_angle(b[..., 0] - fa), wrap_angle(b[..., 1] - fb)
     d = X[:, 1:] - X[:, :-1]
     rh = wrap_angle(st.headings[tid] - (np.arctan2(d[..., 1], d[..., 0]) - al[:, :-1]))
-    lp = np.sum(C.point_log_prior(st.opts["prior"], X), axis=1)
+    lp = np.sum(_prior.point_log_prior(st.opts["prior"], X), axis=1)
     out = lp - 0.5 * (np.sum(ra * ra + rb * rb, axis=1) / sv[:, 0] ** 2
                       + np.sum(rh * rh, axis=1) / sw[:, 0] ** 2)
     dist = st.distances[tid]
@@ -331,7 +343,7 @@ def _move(st: SISState, which, mean_log) -> SISState:
         cov = np.cov(P.reshape(P.shape[0], D), rowvar=False)
         cov = cov + (1e-12 + 1e-9 * np.trace(cov) / D) * np.eye(D)
         chol[t] = np.linalg.cholesky(cov) * (_MOVE_SCALE / np.sqrt(D))
-    gens = _gens(st.roots, n - 1, C.STREAM_MOVE)
+    gens = _gens(st.roots, n - 1, _seeds.STREAM_MOVE)
     counts = np.bincount(tid, minlength=T)
     bc = st.bearings[..., 2]
     for _ in range(st.opts["move_steps"]):
@@ -371,28 +383,28 @@ def start(bearings0, sigma_bearing, sigma_heading, roots, opts, part, method,
     sh = np.asarray(sigma_heading, dtype=float).reshape(T)
     sd = np.zeros(T) if sigma_distance_ratio is None else \
         np.asarray(sigma_distance_ratio, dtype=float).reshape(T)
-    sd = C.effective_sigma(np.nan_to_num(sd), C.DISTANCE_RATIO_FLOOR)
+    sd = _options.effective_sigma(np.nan_to_num(sd), _input.DISTANCE_RATIO_FLOOR)
     quiet = (sb == 0) & (sh == 0)
     M = np.where(quiet, opts["n_samples"] * opts["motion_samples"], opts["n_samples"])
 
     def draw(rng, m):
         return rng.standard_normal((m, 2)), (rng.permutation(m) + rng.random(m)) / m
 
-    gens = _gens(roots, 0, C.STREAM_CAMERAS)
+    gens = _gens(roots, 0, _seeds.STREAM_CAMERAS)
     z, u = _per_triplet(gens, M, draw)
     tid = np.repeat(np.arange(T), M)
     pa = b0[tid, 0] + sb[tid] * z[:, 0]
     pb = b0[tid, 1] + sb[tid] * z[:, 1]
     gamma = wrap_angle(pb - pa)
-    a, log_dadw = C.arc_parameter(gamma, u)
+    a, log_dadw = _arcs.arc_parameter(gamma, u)
     X = locus_point(gamma, a)
     alpha = heading_on_locus(X, pa)
-    lw = C.log_camera_prior(X, gamma, log_dadw, opts["prior"])
+    lw = _arcs.log_camera_prior(X, gamma, log_dadw, opts["prior"])
     poses = np.concatenate([X, alpha[:, None]], axis=-1)[:, None, :]
     st = SISState(bearings=b0[:, None, :], headings=np.zeros((T, 0)), sigma_bearing=sb,
                   sigma_heading=sh, distances=np.zeros((T, 0)), sigma_distance=sd,
                   roots=tuple(roots), opts=opts, part=part, method=method,
-                  tid=tid, poses=poses, lw_base=lw, lp_x=C.point_log_prior(opts["prior"], X),
+                  tid=tid, poses=poses, lw_base=lw, lp_x=_prior.point_log_prior(opts["prior"], X),
                   lw_c=np.zeros(tid.size), same_pose=np.zeros((T, 1), dtype=bool),
                   lost=np.zeros(T, dtype=int))
     st = _prune(st, gens)
@@ -412,12 +424,12 @@ def step(state: SISState, phi, psi, distance=None) -> SISState:
     dist = np.zeros(T) if distance is None else np.asarray(distance, dtype=float).reshape(T)
     # the new distance goes in first: the motion step reads it as distances[:, -1]
     state = replace(state, distances=np.concatenate([state.distances, dist[:, None]], axis=1))
-    st = _extend(state, phi, psi, state.opts["motion_spread"], C.STREAM_CAMERAS)
+    st = _extend(state, phi, psi, state.opts["motion_spread"], _seeds.STREAM_CAMERAS)
     alive = np.bincount(st.tid, minlength=T) > 0
     retry = ~alive & (state.lost == 0)
     if np.any(retry):
         sub = _extend(_subset(state, retry), phi[retry], psi[retry], RETRY_SPREAD,
-                      C.STREAM_RETRY)
+                      _seeds.STREAM_RETRY)
         st = _merge(st, sub, np.flatnonzero(retry))
         alive = np.bincount(st.tid, minlength=T) > 0
     return replace(st, lost=np.where((state.lost == 0) & ~alive, i + 1, state.lost))
@@ -462,7 +474,7 @@ def _extend(state: SISState, phi, psi, spread: float, purpose: int) -> SISState:
     opts, T, i = state.opts, state.n_triplets, state.n_views
     bearings = np.concatenate([state.bearings, phi[:, None, :]], axis=1)
     headings = np.concatenate([state.headings, psi[:, None]], axis=1)
-    same = np.all(np.abs(wrap_angle(phi - state.bearings[:, -1])) <= C.SAME_POSE_TOL, axis=1)
+    same = np.all(np.abs(wrap_angle(phi - state.bearings[:, -1])) <= _degenerate.SAME_POSE_TOL, axis=1)
     quiet = state.noiseless()
     r = np.where(same | quiet, 1, opts["motion_samples"])
     tid, prev = state.tid, state.poses[:, -1, :]
@@ -476,9 +488,9 @@ def _extend(state: SISState, phi, psi, spread: float, purpose: int) -> SISState:
     par = np.repeat(np.arange(tid.size), r[tid])
     ct = tid[par]
     # children in blocks whose temporaries stay in cache; every child is independent of the others
-    blocks = [_children(state, prev, phi, psi, r, spread, par[lo:lo + C.CHUNK_ROWS],
-                        z[lo:lo + C.CHUNK_ROWS], lo)
-              for lo in range(0, par.size, C.CHUNK_ROWS)]
+    blocks = [_children(state, prev, phi, psi, r, spread, par[lo:lo + _laplace.CHUNK_ROWS],
+                        z[lo:lo + _laplace.CHUNK_ROWS], lo)
+              for lo in range(0, par.size, _laplace.CHUNK_ROWS)]
     if blocks:
         j, new_pose, lw, lpx = (np.concatenate(v) for v in zip(*blocks, strict=True))
     else:
@@ -547,8 +559,8 @@ def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
             prev[p, :2], t, circ.center[rows], circ.radius[rows], circ.side[rows])
     j, b = np.nonzero(valid)
     X = pts[j, b]
-    lpx = C.point_log_prior(state.opts["prior"], X)
-    lw = state.lw_base[par[j]] + C.log_ray_jacobian(X, prev[par[j], :2], th[j]) + lpx \
+    lpx = _prior.point_log_prior(state.opts["prior"], X)
+    lw = state.lw_base[par[j]] + _arcs.log_ray_jacobian(X, prev[par[j], :2], th[j]) + lpx \
         + lcorr[j] - np.log(r[ct[j]])
     i = state.n_views
     if i >= 2 and np.any(state.distances[ct[j], -1] > 0):
@@ -638,14 +650,14 @@ def _mixture_weight(state: SISState, X, prev, psi, r, par):
     th = np.arctan2(dy, dx)
     sh, sd = state.sigma_heading[ct], state.sigma_distance[ct]
     half_log_2pi = 0.5 * np.log(2.0 * np.pi)
-    log_n_th = C.log_gauss(wrap_angle(th - prev[par, 2] - psi[ct]), sh) - half_log_2pi
+    log_n_th = _likelihood.log_gauss(wrap_angle(th - prev[par, 2] - psi[ct]), sh) - half_log_2pi
     sp = _prev_step(state, par)
     log_f = log_distance_factor(t, sp, state.distances[ct, -1], state.distances[ct, -2], sd)
-    lj_ray = C.log_ray_jacobian(X, O, th)   # log t - log |grad Gamma . u|
+    lj_ray = _arcs.log_ray_jacobian(X, O, th)   # log t - log |grad Gamma . u|
     # log t - log |grad Gamma . u_perp|: the ray Jacobian along u_perp from one unit back
     perp = np.stack([-np.sin(th), np.cos(th)], axis=1)
     with np.errstate(divide="ignore"):
-        lj_circ = np.log(t) + C.log_ray_jacobian(X, X - perp, th + 0.5 * np.pi)
+        lj_circ = np.log(t) + _arcs.log_ray_jacobian(X, X - perp, th + 0.5 * np.pi)
     log_q_ray = log_n_th - lj_ray
     log_q_circ = np.where(sp > 0, log_f - lj_circ, -np.inf)
     rr = r[ct].astype(float)
@@ -671,7 +683,7 @@ def finish(state: SISState, hypotheses: bool = False):
     total = state.lw_base + state.lw_c
     M = opts["posterior_samples"]
     alive = np.bincount(state.tid, weights=np.isfinite(total), minlength=T) > 0
-    gens = _gens(state.roots, n, C.STREAM_POSTERIOR)
+    gens = _gens(state.roots, n, _seeds.STREAM_POSTERIOR)
     off = _offsets(gens)
     idx = _systematic(state.tid, total, T, np.where(alive, M, 0), off)
     tid, poses = state.tid[idx], state.poses[idx]
@@ -686,7 +698,7 @@ def finish(state: SISState, hypotheses: bool = False):
         for g in range(pat.shape[0]):
             rows = np.flatnonzero(inv.reshape(-1) == g)
             X = poses[rows][:, :, :2][:, pat[g]]
-            lp[rows] = C.log_joint_prior(opts["prior"], L[rows],
+            lp[rows] = _prior.log_joint_prior(opts["prior"], L[rows],
                                          np.broadcast_to(X[:, None], (rows.size, k) + X.shape[1:]))
         with np.errstate(invalid="ignore"):
             lw = lp + log_lik - log_q - (state.lw_c[idx] + state.lp_x[idx])[:, None]
@@ -708,12 +720,12 @@ def finish(state: SISState, hypotheses: bool = False):
     cs = part.state_of(poses[..., :2]) if poses.size else np.zeros((0, n), dtype=int)
     cidx = (tid[:, None] * n + np.arange(n)) * m + cs
     cm = np.bincount(cidx.ravel(), weights=np.repeat(cw, n), minlength=T * n * m).reshape(T, n, m)
-    unresolved = np.bincount(tid, weights=cw * (spread > C.DEPTH_SPREAD), minlength=T)
+    unresolved = np.bincount(tid, weights=cw * (spread > _degenerate.DEPTH_SPREAD), minlength=T)
     lb = np.searchsorted(flat_tid, np.arange(T + 1))
     cb = np.searchsorted(tid, np.arange(T + 1))
     out = []
     for t in range(T):
-        reasons = C.geometry_reasons(state.bearings[t], state.sigma_bearing[t],
+        reasons = _degenerate.geometry_reasons(state.bearings[t], state.sigma_bearing[t],
                                      state.headings[t], state.sigma_heading[t])
         sp = np.flatnonzero(state.same_pose[t])
         if sp.size:
@@ -723,20 +735,20 @@ def finish(state: SISState, hypotheses: bool = False):
             v = int(state.lost[t])
             reasons.append(f"view {v}: no hypothesis survived (rays miss the locus arcs)"
                            if v else "every hypothesis has zero weight")
-            out.append(C.uniform_estimate(state.method, part, n, "; ".join(reasons), opts))
+            out.append(_estimate.uniform_estimate(state.method, part, n, "; ".join(reasons), opts))
             continue
         if n >= 2 and unresolved[t] > 0.5 and not any("coincide" in r for r in reasons):
             reasons.append("lines of sight to C (nearly) coincide: its depth along them is set "
                            "by the prior")
         wt = w[lb[t]:lb[t + 1]]
         Lt = Lf[lb[t]:lb[t + 1]]
-        hyp = C.Hypotheses(
+        hyp = _estimate.Hypotheses(
             landmark_samples=Lt, landmark_weights=wt,
             camera_samples=np.transpose(np.repeat(poses[cb[t]:cb[t + 1]], k, axis=0), (1, 0, 2)),
             camera_weights=np.broadcast_to(wt, (n, wt.size)).copy(), joint=True)
-        est, hyp = C.make_estimate(
+        est, hyp = _estimate.make_estimate(
             state.method, part, n, lm[t] / lm[t].sum(), cm[t] / cm[t].sum(axis=1, keepdims=True),
             hypotheses=hyp, reasons=reasons, opts=opts,
-            mc_error=C.weighted_state_error(part, Lt, wt))
+            mc_error=_histograms.weighted_state_error(part, Lt, wt))
         out.append((est, hyp if hypotheses else None))
     return out

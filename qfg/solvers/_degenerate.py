@@ -1,0 +1,43 @@
+"""Degenerate geometry seen in the measurements alone (cameras on line AB, travel along the line
+of sight to C, a camera that has not moved): the flags every solver attaches.
+
+Everything is in the AB frame (A = (0, 0), B = (0, 1)); angles in radians; lengths in |AB|.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry import LOCUS_EPS, wrap_angle
+
+#: Bearings of consecutive views equal within this (radians, all three): the camera is taken as
+#: not having moved.
+SAME_POSE_TOL = 1e-9
+
+
+#: C's depth is called unresolved when its standard deviation along the least constrained
+#: direction exceeds this fraction of its distance from the nearest camera.
+DEPTH_SPREAD = 0.5
+
+
+def geometry_reasons(bearings, sigma_bearing=0.0, headings=None, sigma_heading=0.0
+                     ) -> list[str]:
+    """Flags from the measurements alone: cameras on (or within a tenth of the bearing noise of)
+    line AB; travel along the line of sight to C between every pair of views (``psi_i`` equal to
+    ``phi_C,i`` or opposite, within ``hypot(sigma_v, sigma_w)``): the lines of sight to C may
+    then coincide, leaving C's depth to the prior."""
+    out = []
+    g = wrap_angle(bearings[:, 1] - bearings[:, 0])
+    # within a tenth of the bearing noise: the arc is then not known to be finite
+    tol = max(LOCUS_EPS, float(np.sin(min(0.1 * float(sigma_bearing), np.pi / 2))))
+    bad = [int(i) for i in np.flatnonzero(np.abs(np.sin(g)) < tol)]
+    if bad:
+        out.append("camera on line AB (phi_A = phi_B or opposite, within the bearing noise) in "
+                   "view(s) " + ", ".join(str(b + 1) for b in bad))
+    if headings is not None and len(headings) >= 1:
+        d = wrap_angle(np.asarray(headings) - bearings[:-1, 2])
+        off = np.minimum(np.abs(d), np.pi - np.abs(d))
+        if np.all(off <= max(1e-6, float(np.hypot(sigma_bearing, sigma_heading)))):
+            out.append("lines of sight to C may coincide: the camera travels along its line of "
+                       "sight to C between every pair of views")
+    return out

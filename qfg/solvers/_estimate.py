@@ -1,0 +1,187 @@
+"""The solvers' answer: :class:`TripletEstimate`, the :class:`Hypotheses` behind it, and
+how every solver builds them (shrinkage toward the uniform, the flagged uniform answer).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class TripletEstimate:
+    """Qualitative estimate of one triplet AB:C from its history: the answer only (a few KB).
+
+    Attributes:
+        landmark: (m,) P(S^{AB:C} = s | H), sums to 1.
+        cameras: (n, m) P(S^{AB:X}_i = s | H) for every view i, each row sums to 1.
+        n_hypotheses: number of weighted hypotheses behind the estimate (trajectory hypotheses
+            for ``full``/``fast``, landmark candidates with non-zero weight for ``baseline``).
+        ess: effective sample size of the landmark weights, ``1 / sum w^2`` (normalized w).
+        mc_error: Monte Carlo standard error of ``landmark`` where the method estimates it
+            (largest over states), else NaN.
+        degenerate: True when the input was degenerate or nothing survived; the distributions are
+            then as spread as the geometry allows, uniform wherever nothing is known (never NaN).
+        reason: why ``degenerate`` is set ("" otherwise).
+        method: the model actually solved (``"full"``, ``"fast"``, ``"baseline"``, ...).
+        partition: partition name the states refer to.
+        n_views: number of views n.
+        prior: name of the prior over AB-frame configurations.
+        options: the solver options used (defaults filled in; the prior by name).
+
+    The weighted hypotheses behind an estimate (for figures) are kept by the solver object,
+    :meth:`qfg.solvers.TripletSolver.hypotheses`, not here.
+
+    >>> import numpy as np
+    >>> from qfg.simulation import random_triplet_history
+    >>> from qfg.solvers import solve_triplet
+    >>> h = random_triplet_history(np.random.default_rng(0), n_views=3)
+    >>> est = solve_triplet(h, method="fast")
+    >>> est.landmark.shape, est.cameras.shape, bool(np.isclose(est.landmark.sum(), 1.0))
+    ((20,), (3, 20), True)
+    """
+
+    landmark: np.ndarray
+    cameras: np.ndarray
+    n_hypotheses: int
+    degenerate: bool
+    reason: str
+    method: str
+    partition: str
+    n_views: int
+    ess: float = float("nan")
+    mc_error: float = float("nan")
+    prior: str = ""
+    options: dict = field(default_factory=dict)
+
+    @property
+    def most_likely(self) -> tuple[int, float]:
+        """(0-based state, probability) of the most probable landmark state."""
+        s = int(np.argmax(self.landmark))
+        return s, float(self.landmark[s])
+
+    def __repr__(self) -> str:
+        s, p = self.most_likely
+        flag = f", degenerate: {self.reason}" if self.degenerate else ""
+        return (f"TripletEstimate(method={self.method!r}, partition={self.partition!r}, "
+                f"n_views={self.n_views}, prior={self.prior!r}, most_likely=({s}, {p:.3f}), "
+                f"n_hypotheses={self.n_hypotheses}, ess={self.ess:.1f}{flag})")
+
+    def add_view(self, bearings, heading=None):
+        """Not here: an estimate holds only the answer. Raises ValueError naming the
+        replacement, :class:`qfg.solvers.TripletSolver`."""
+        raise ValueError(ADD_VIEW_MOVED)
+
+
+#: Message of the former estimate-based incremental API.
+ADD_VIEW_MOVED = ("estimate: a TripletEstimate holds only the answer and cannot be updated; solve "
+                  "incrementally with qfg.solvers.TripletSolver(method=..., sigma_bearing=..., "
+                  "sigma_heading=..., seed=...).add_view(bearings, heading) and .estimate()")
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class Hypotheses:
+    """The weighted hypotheses behind an estimate (for figures and diagnostics).
+
+    Attributes:
+        landmark_samples: (J, 2) AB-frame positions of C behind ``landmark``.
+        landmark_weights: (J,) normalized weights (sum 1, or all 0 when J = 0).
+        camera_samples: (n, K, 3) AB-frame camera poses (x, y, alpha).
+        camera_weights: (n, K) their normalized weights per view.
+        joint: True when hypothesis j is the trajectory ``camera_samples[:, j]`` with landmark
+            ``landmark_samples[j]``.
+    """
+
+    landmark_samples: np.ndarray
+    landmark_weights: np.ndarray
+    camera_samples: np.ndarray
+    camera_weights: np.ndarray
+    joint: bool
+
+    def __repr__(self) -> str:
+        return (f"Hypotheses(landmark_samples={self.landmark_samples.shape}, "
+                f"camera_samples={self.camera_samples.shape}, joint={self.joint})")
+
+
+class TripletBatchSizes:
+    """Sizes of a solver state holding ``bearings`` (T, i, 3): T triplets after i views."""
+
+    @property
+    def n_triplets(self) -> int:
+        return self.bearings.shape[0]
+
+    @property
+    def n_views(self) -> int:
+        return self.bearings.shape[1]
+
+
+def ess(weights) -> float:
+    """Effective sample size ``1 / sum w^2`` of normalized weights (0 when all are 0)."""
+    w = np.asarray(weights, dtype=float)
+    s2 = float(np.sum(w * w))
+    return 1.0 / s2 if s2 > 0 else 0.0
+
+
+def prior_name(opts) -> str:
+    p = opts.get("prior", "")
+    return p if isinstance(p, str) else getattr(p, "name", type(p).__name__)
+
+
+def public_options(opts) -> dict:
+    """Options as an estimate reports them: plain values, the prior by name."""
+    out = dict(opts)
+    if "prior" in out:
+        out["prior"] = prior_name(opts)
+    return out
+
+
+def shrink_to_uniform(p, n_eff, alpha):
+    """State probabilities estimated from ``n_eff`` effective posterior draws, shrunk toward the
+    uniform distribution by ``alpha`` pseudo-draws: ``(n_eff p + alpha / m) / (n_eff + alpha)``.
+
+    This is the posterior mean of a state distribution under a symmetric Dirichlet(alpha / m)
+    prior after observing ``n_eff p`` draws in each state: a Monte Carlo estimate from a handful
+    of effective draws cannot support probabilities near 0 or 1, and the shrinkage keeps it from
+    claiming them (``p`` (..., m); the rows still sum to 1). ``alpha = 0`` returns ``p``.
+
+    >>> shrink_to_uniform(np.array([1.0, 0.0, 0.0, 0.0]), 3.0, 1.0).round(4).tolist()
+    [0.8125, 0.0625, 0.0625, 0.0625]
+    """
+    p = np.asarray(p, dtype=float)
+    if alpha <= 0 or not np.isfinite(n_eff):
+        return p
+    m = p.shape[-1]
+    return (n_eff * p + alpha / m) / (n_eff + alpha)
+
+
+def make_estimate(method, part, n_views, landmark, cameras, *, hypotheses: Hypotheses,
+                  reasons=(), mc_error=float("nan"), opts) -> tuple[TripletEstimate, Hypotheses]:
+    """The (answer, hypotheses) pair every solver's ``finish`` returns. With the option
+    ``mc_shrinkage`` = alpha > 0 the landmark and camera distributions are shrunk toward the
+    uniform by alpha pseudo-draws against the final sample's ESS (:func:`shrink_to_uniform`)."""
+    lw = hypotheses.landmark_weights
+    e = ess(lw)
+    a = float(opts.get("mc_shrinkage", 0.0) or 0.0)
+    landmark = shrink_to_uniform(landmark, e, a)
+    cameras = shrink_to_uniform(cameras, e, a)
+    est = TripletEstimate(
+        landmark=np.asarray(landmark, dtype=float), cameras=np.asarray(cameras, dtype=float),
+        n_hypotheses=int(np.count_nonzero(lw > 0)), degenerate=bool(reasons),
+        reason="; ".join(reasons), method=method, partition=part.name, n_views=int(n_views),
+        ess=e, mc_error=float(mc_error), prior=prior_name(opts),
+        options=public_options(opts))
+    return est, hypotheses
+
+
+def empty_hypotheses(n_views) -> Hypotheses:
+    return Hypotheses(landmark_samples=np.zeros((0, 2)), landmark_weights=np.zeros(0),
+                      camera_samples=np.zeros((n_views, 0, 3)),
+                      camera_weights=np.zeros((n_views, 0)), joint=False)
+
+
+def uniform_estimate(method, part, n_views, reason, opts) -> tuple[TripletEstimate, Hypotheses]:
+    m = part.n_states
+    return make_estimate(method, part, n_views, np.full(m, 1.0 / m),
+                         np.full((n_views, m), 1.0 / m), hypotheses=empty_hypotheses(n_views),
+                         reasons=(reason,), opts=opts)

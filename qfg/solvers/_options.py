@@ -1,0 +1,141 @@
+"""Methods, their documented default options (chosen by measurement: docs/solvers.md) and the
+checks of user options.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import priors as _priors
+from .._validate import non_negative, positive_int
+from ._prior import resolve_prior
+
+#: Methods :func:`qfg.solvers.solve_triplet` knows.
+METHODS = ("full", "fast", "fast-paper", "baseline", "reference")
+
+
+#: Prior names the solvers accept (besides any :class:`qfg.priors.Prior` object): see
+#: :func:`qfg.priors.get`. ``"world"`` (default) is the exact prior of the simulator's world.
+PRIORS = _priors.NAMES
+
+
+#: Triangulation used in the resection step.
+RESECTIONS = ("centroid", "lsq")
+
+
+#: Documented defaults (chosen by measurement: docs/solvers.md). Angles in radians.
+DEFAULTS = {
+    "full": {
+        "n_samples": 600,            # first-view camera samples per triplet (x motion_samples
+                                     # when both sigmas are 0)
+        "motion_samples": 8,         # noise draws per hypothesis and view (motion step)
+        "motion_spread": 1.0,        # noise drawn this many times wider (weights corrected)
+        "max_hypotheses": 3000,      # cap after pruning (systematic resampling down to it)
+        "prune_ratio": 1e-6,         # drop hypotheses lighter than this x the heaviest
+        "landmark_samples": 4,       # C samples per trajectory (intermediate and final weights)
+        "ray_fraction": 0.25,        # share of C samples drawn along a line of sight
+        "posterior_samples": 512,    # trajectories resampled for the exact-prior final weights
+        "one_view_samples": 16,      # C samples per trajectory with a single view
+        "bearing_floor": np.deg2rad(0.05),
+        "move_steps": 0,             # Metropolis-Hastings moves per hypothesis after resampling
+                                     # (resample-move; measured not to help: docs/solvers.md)
+        "mc_shrinkage": 1.0,         # pseudo-draws of the uniform added to the ESS draws
+                                     # (shrink_to_uniform)
+        "prior": "world",
+    },
+    "fast": {
+        "n_samples": 64,
+        "motion_samples": 4,
+        "motion_spread": 1.0,
+        "max_hypotheses": 256,
+        "prune_ratio": 1e-6,
+        "landmark_samples": 2,
+        "ray_fraction": 0.5,
+        "posterior_samples": 32,
+        "one_view_samples": 8,
+        "bearing_floor": np.deg2rad(0.5),   # wider than full's: with its small budget the
+                                            # noiseless posterior's narrow peaks are missed
+        "move_steps": 0,
+        "mc_shrinkage": 1.0,
+        "prior": "world",
+    },
+    "fast-paper": {
+        "n_samples": 128,            # camera positions on the first view's arc (coarse grid)
+        "refine_levels": 1,          # adaptive refinement of the first camera's arc parameter:
+        "refine_cells": 16,          #   the heaviest cells, split into
+        "refine_factor": 8,          #   this many sub-cells, this many times
+        "jacobian": True,            # weight positions by the motion step's change of variables
+        "kernel": "bearing",         # C-bearing likelihood width: "bearing" = sigma_v,
+                                     # "combined" = hypot(sigma_v, sigma_w)
+        "max_hypotheses": 8192,
+        "bearing_floor": np.deg2rad(0.05),
+        "one_view_samples": 16,
+        "resection": "lsq",
+        "landmark_volume": False,
+        "prior": "world",
+    },
+    "baseline": {
+        "n_landmark_samples": 4096,  # C candidates drawn from the prior (stratified)
+        "noise_samples": 16,         # measurement-noise draws per view (1 when sigma = 0)
+        "jacobian_cap": 30.0,        # cap on 1/|det J| relative to the median candidate
+        "prior": "world",
+    },
+}
+
+
+def resolve_options(method: str, options: dict, defaults: dict | None = None) -> dict:
+    """Defaults of ``method`` (or ``defaults``, e.g. the reference solver's) updated with
+    ``options``; unknown or bad options raise ValueError."""
+    if method not in METHODS:
+        raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
+    opts = dict(DEFAULTS[method] if defaults is None else defaults)
+    unknown = sorted(set(options) - set(opts))
+    if unknown:
+        raise ValueError(f"{unknown[0]}: not an option of method {method!r}; "
+                         f"known: {', '.join(sorted(opts))}")
+    opts.update(options)
+    if "motion" in opts and opts["motion"] not in ("sample", "match"):
+        raise ValueError(f"motion: expected 'sample' or 'match', got {opts['motion']!r}")
+    for k in ("n_samples", "max_hypotheses", "one_view_samples", "n_landmark_samples",
+              "motion_samples", "noise_samples", "refine_cells", "refine_factor",
+              "posterior_samples", "landmark_samples"):
+        if k in opts:
+            opts[k] = positive_int(k, opts[k])
+    if "move_steps" in opts:
+        opts["move_steps"] = positive_int("move_steps", opts["move_steps"], minimum=0)
+    if "refine_levels" in opts:
+        opts["refine_levels"] = positive_int("refine_levels", opts["refine_levels"], minimum=0)
+    if "motion_spread" in opts:
+        ms = non_negative("motion_spread", opts["motion_spread"])
+        if ms < 1:
+            raise ValueError(f"motion_spread: expected a number >= 1, got {ms}")
+        opts["motion_spread"] = ms
+    for k in ("bearing_floor", "heading_floor", "match_sigmas", "jacobian_cap", "mc_shrinkage"):
+        if k in opts:
+            opts[k] = non_negative(k, opts[k])
+            if k in ("match_sigmas", "jacobian_cap") and opts[k] == 0:
+                raise ValueError(f"{k}: expected a number > 0, got 0")
+    for k in ("jacobian", "landmark_volume"):
+        if k in opts and not isinstance(opts[k], (bool, np.bool_)):
+            raise ValueError(f"{k}: expected True or False, got {opts[k]!r}")
+    if "prune_ratio" in opts:
+        pr = non_negative("prune_ratio", opts["prune_ratio"])
+        if pr >= 1:
+            raise ValueError(f"prune_ratio: expected a number in [0, 1), got {pr}")
+        opts["prune_ratio"] = pr
+    if opts.get("kernel", "bearing") not in ("bearing", "combined"):
+        raise ValueError(f"kernel: expected 'bearing' or 'combined', got {opts['kernel']!r}")
+    if opts.get("resection", "centroid") not in RESECTIONS:
+        raise ValueError(f"resection: expected one of {RESECTIONS}, got {opts['resection']!r}")
+    opts["prior"] = resolve_prior(opts["prior"])
+    if "ray_fraction" in opts:
+        rf = non_negative("ray_fraction", opts["ray_fraction"])
+        if rf > 1:
+            raise ValueError(f"ray_fraction: expected a number in [0, 1], got {rf}")
+        opts["ray_fraction"] = rf
+    return opts
+
+
+def effective_sigma(sigma, floor):
+    """Likelihood width actually used: ``max(sigma, floor)`` (so that zero noise still works)."""
+    return np.maximum(np.asarray(sigma, dtype=float), floor)
