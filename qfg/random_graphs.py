@@ -76,25 +76,31 @@ def candidate_graph(seed, n_landmarks, n_fc, coverage_rate, table, partition="ed
 @dataclass(frozen=True)
 class PropagationGraph:
     """One drawn graph: ``graph`` (with solver priors), ``landmarks`` (L, 2) world positions,
-    ``connectivity`` (score of the kept candidate), ``kept_candidate`` (its index)."""
+    ``connectivity`` (score of the kept candidate), ``kept_candidate`` (its index),
+    ``hypotheses`` ({seen triplet: the solver's :class:`~qfg.solvers.Hypotheses`} when asked
+    for, else None)."""
 
     graph: QualitativeFactorGraph
     landmarks: np.ndarray
     connectivity: float
     kept_candidate: int
+    hypotheses: dict | None = None
 
 
 def propagation_graph(seed, table, *, n_landmarks: int = 6, n_fc_min: int = 5,
                       n_fc_max: int = 40, n_candidates: int = 10, coverage_rate: float = 0.5,
                       n_views: int = 3, sigma_bearing_deg: float = 2.0,
                       sigma_heading_deg: float = 5.0, solver: str = "fast",
-                      partition: str = "edc", n_bins: int = 10) -> PropagationGraph:
+                      partition: str = "edc", n_bins: int = 10,
+                      hypotheses: bool = False) -> PropagationGraph:
     """Draw one graph as the propagation study does (defaults: its paper preset).
 
     ``table``: the (m, m, m) composition tensor (array or CompositionTensor). The draws, in
     order: per candidate ``n_fc``, the factors and the seen triplets; the kept candidate by
     connectivity score (first of equal ones); landmark and camera positions in one
     :func:`~qfg.simulation.sample_positions` call; bearing and heading noise; the solver seed.
+    ``hypotheses=True`` also keeps each seen triplet's weighted samples (solved one by one with
+    the same per-triplet seeds: the same estimates, without the batching).
     """
     from .composition import as_table
     from .geometry import bearing, motion_heading, wrap_angle
@@ -124,7 +130,21 @@ def propagation_graph(seed, table, *, n_landmarks: int = 6, n_fc_min: int = 5,
     phi = wrap_angle(phi + rng.normal(size=phi.shape) * sb)
     psi = motion_heading(poses[:, :-1], poses[:, 1:, :2])                     # (n_seen, nv - 1)
     psi = wrap_angle(psi + rng.normal(size=psi.shape) * sh)
-    est = solve_triplets(phi, psi, method=solver, partition=partition,
-                         sigma_bearing=sb, sigma_heading=sh, seed=int(rng.integers(2**63)))
+    seed = int(rng.integers(2**63))
+    hyp = None
+    if hypotheses:
+        from .solvers import TripletSolver
+
+        # solve_triplets solves triplet t with the child SeedSequence(seed, spawn_key=(t,))
+        solved = [TripletSolver.solve(phi[t], psi[t], method=solver, partition=partition,
+                                      sigma_bearing=sb, sigma_heading=sh,
+                                      seed=np.random.SeedSequence(seed, spawn_key=(t,)))
+                  for t in range(n_seen)]
+        est = [s.estimate() for s in solved]
+        hyp = {tuple(int(x) for x in ids[t]): s.hypotheses() for t, s in enumerate(solved)}
+    else:
+        est = solve_triplets(phi, psi, method=solver, partition=partition,
+                             sigma_bearing=sb, sigma_heading=sh, seed=seed)
     g = _build(triplets, seen, [e.landmark for e in est], factors, table, partition)
-    return PropagationGraph(graph=g, landmarks=L, connectivity=conn, kept_candidate=kept)
+    return PropagationGraph(graph=g, landmarks=L, connectivity=conn, kept_candidate=kept,
+                            hypotheses=hyp)

@@ -1,0 +1,896 @@
+"""Configuration inference: the marginals of every triplet, seen or not, by sampling whole landmark
+configurations (issue 21).
+
+A qualitative map's triplets are functions of one unknown: the world positions of its landmarks.
+Instead of composing triplet states (the paper's composition factors, which treat states as
+independent and lose what the positions within a state say), sample the configurations:
+
+    pi(X)  ∝  prior(X) prod_{t seen} L_t(X),      X = (x_1..x_n) world positions,
+
+with ``prior`` the world prior the single-triplet solvers used (:class:`qfg.priors.WorldBoxPrior`:
+landmarks i.i.d. uniform in a box, pairwise at least ``d_min`` apart) and, for seen triplet
+``t = AB:C`` with solver posterior ``P_t(s) = P(s | H_t)`` under that prior,
+
+* state likelihood (``likelihood="state"``): ``L_t = (1 - eps) P_t(s_t) / q(s_t) + eps``, where
+  ``s_t`` is C's state in the AB frame of X and ``q`` the state distribution of the same prior
+  (:func:`qfg.combine.prior_state_distribution`): ``P_t / q`` is ``P(H_t | s)`` up to a constant,
+  and its mean under the prior is 1, so the floor ``eps`` is a fraction of the prior: one wrong
+  estimate multiplies the truth's weight by ``eps`` at worst instead of vetoing it;
+* metric likelihood (``likelihood="metric"``): ``L_t = (1 - eps) [(1 - b) r_t(c_t) + b P_t(s_t) /
+  q(s_t)] + eps`` with ``c_t`` C's AB-frame position and ``r_t(c) ≈ p(c | H_t) / prior(c)`` the
+  solver's posterior density of C's position divided by the prior's, from a compact summary of
+  the solver's weighted samples (:class:`PositionSummary`, :func:`summarize_position`: a kernel
+  mixture whose component weights are divided by the prior density at their centres). ``b`` is
+  ``state_mix`` (``low_ess_mix`` for summaries made from a sample with a low effective size).
+
+Then the marginal of any triplet is the distribution of its state over the configurations.
+
+The sampler is tempered sequential Monte Carlo (:func:`infer_configurations`): particles from the
+prior, the likelihood brought in as ``L^beta`` with ``beta`` raised from 0 to 1 in stages chosen
+to keep the effective sample size at ``target_ess`` of the particles, after each stage a
+resampling and Metropolis moves: one landmark at a time (only the triplets containing it are
+recomputed) and moves of the whole configuration by a random similarity transform, which leave
+every AB-frame position (hence every likelihood) unchanged and are accepted on the prior alone
+(the box and the Jacobian ``s^(2n)`` of a scale change). The particles are split into
+``n_groups`` populations resampled separately; the spread of their estimates is the Monte Carlo
+error reported. Adding evidence later (:meth:`ConfigurationPosterior.update`) tempers only the new
+likelihoods in from the current particles.
+
+>>> import numpy as np
+>>> post = infer_configurations({(0, 1, 2): np.eye(20)[1] * 0.9 + 0.005}, n_particles=400,
+...                             seed=0)
+>>> res = post.marginals([(0, 1, 2), (1, 0, 2)])
+>>> int(np.argmax(res[(0, 1, 2)])), res.probabilities.shape
+(1, (2, 20))
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import partitions as _partitions
+from . import priors as _priors
+from ._validate import as_float_array, as_rng, non_negative, positive_int
+
+__all__ = ["PositionSummary", "summarize_position", "ConfigurationPosterior",
+           "infer_configurations", "configuration_marginals", "prior_states", "LIKELIHOODS",
+           "DEFAULTS"]
+
+#: Likelihood kinds of :func:`infer_configurations`.
+LIKELIHOODS = ("state", "metric")
+
+#: Defaults of :func:`infer_configurations` (chosen on development seeds: docs/configurations.md).
+DEFAULTS = {
+    "n_particles": 2000, "n_groups": 4, "target_ess": 0.5, "n_sweeps": 2, "floor": 1e-2,
+    "state_mix": 0.1, "low_ess_mix": 0.5, "pseudo_count": 2.0,
+}
+
+#: Samples behind the prior's state distribution (:func:`prior_states`).
+PRIOR_STATE_SAMPLES = 200_000
+
+#: A position summary made from fewer effective samples than this is flagged ``low_ess``.
+LOW_ESS = 30.0
+
+#: Elements (particles x triplets) per block when the states of many triplets are looked up.
+_CHUNK = 1 << 21
+
+
+# --------------------------------------------------------------------------- prior
+def _world_prior(prior) -> _priors.WorldBoxPrior:
+    try:
+        pr = _priors.get(prior)
+    except ValueError as exc:
+        raise ValueError(f"prior: {exc}") from None
+    if not isinstance(pr, _priors.WorldBoxPrior):
+        raise ValueError(f"prior: configuration inference samples world configurations and needs "
+                         f"a world prior (qfg.priors.WorldBoxPrior or 'world'), got {pr!r}")
+    return pr
+
+
+@functools.lru_cache(maxsize=16)
+def _prior_states_cached(key, partition_name):
+    pr, _ = key
+    from .combine import prior_state_distribution
+
+    q = prior_state_distribution(pr, partition_name, samples=PRIOR_STATE_SAMPLES, seed=0)
+    q.setflags(write=False)
+    return q
+
+
+def prior_states(prior="world", partition="edc") -> np.ndarray:
+    """(m,) state distribution of C under ``prior`` (the one a solver's posterior divides by):
+    :func:`qfg.combine.prior_state_distribution` with :data:`PRIOR_STATE_SAMPLES` draws, seed 0,
+    cached per (prior, partition).
+
+    >>> prior_states("world", "lr").round(2).tolist()
+    [0.5, 0.5]
+    """
+    pr = _world_prior(prior)
+    part = _partitions.get(partition)
+    return _prior_states_cached((pr, repr(pr)), part.name)
+
+
+# --------------------------------------------------------------------------- metric evidence
+@dataclass(frozen=True, eq=False)
+class PositionSummary:
+    """Compact, serialisable summary of one triplet's solver posterior over C's AB-frame position.
+
+    The likelihood ratio ``r(c) = p(c | H) / prior(c)`` is represented by a kernel mixture
+
+        r(c) = sum_j exp(log_weights[j]) N(c; centres[j], bandwidth),
+
+    ``log_weights[j] = log(1 / K) - log prior(centres[j])``: equal-weight centres drawn from the
+    solver's weighted sample, each divided by the prior density at its centre (the prior varies
+    little over one kernel). Its mean under the prior is about 1.
+
+    Attributes:
+        states: (m,) the solver's state distribution P(s | H) (the estimate's ``landmark``).
+        centres: (K, 2) AB-frame positions (|AB| = 1); K = 0 when the solver kept no sample.
+        log_weights: (K,) natural-log weights, as above.
+        bandwidth: (2, 2) covariance of every kernel.
+        ess: effective sample size of the solver's weights.
+        low_ess: True when ``ess`` < :data:`LOW_ESS` (the summary's tails are unreliable: the
+            likelihood mixes in more of the state likelihood) or K = 0.
+        partition, prior: names the states and the prior refer to.
+
+    >>> s = PositionSummary.from_dict(PositionSummary(np.full(2, 0.5), np.zeros((1, 2)), [0.0],
+    ...                                               np.eye(2), 100.0, False, "lr", "world"
+    ...                                               ).to_dict())
+    >>> s.centres.shape, s.low_ess
+    ((1, 2), False)
+    """
+
+    states: np.ndarray
+    centres: np.ndarray
+    log_weights: np.ndarray
+    bandwidth: np.ndarray
+    ess: float
+    low_ess: bool
+    partition: str
+    prior: str
+
+    def __post_init__(self):
+        st = as_float_array("states", self.states, ndim=1)
+        c = as_float_array("centres", self.centres).reshape(-1, 2)
+        lw = as_float_array("log_weights", self.log_weights).reshape(-1)
+        bw = as_float_array("bandwidth", self.bandwidth)
+        if lw.shape[0] != c.shape[0]:
+            raise ValueError(f"log_weights: {lw.shape[0]} weights for {c.shape[0]} centres")
+        if bw.shape != (2, 2) or not np.all(np.linalg.eigvalsh(0.5 * (bw + bw.T)) > 0):
+            raise ValueError(f"bandwidth: expected a (2, 2) positive-definite covariance, got {bw}")
+        if np.any(st < 0) or abs(st.sum() - 1) > 1e-6:
+            raise ValueError("states: expected a probability vector (non-negative, sum 1)")
+        for name, v in (("states", st), ("centres", c), ("log_weights", lw), ("bandwidth", bw)):
+            v = np.array(v)
+            v.setflags(write=False)
+            object.__setattr__(self, name, v)
+        object.__setattr__(self, "ess", float(self.ess))
+        object.__setattr__(self, "low_ess", bool(self.low_ess))
+
+    def ratio(self, points) -> np.ndarray:
+        """``r(c)`` at AB-frame points (..., 2) -> (...)."""
+        p = as_float_array("points", points, last_dim=2)
+        if self.centres.shape[0] == 0:
+            return np.ones(p.shape[:-1])
+        lin, lnorm = _chol_inverse(self.bandwidth[None])
+        out = _log_mixture(p.reshape(-1, 1, 2), self.centres[None], self.log_weights[None],
+                           lin, lnorm)
+        return np.exp(out).reshape(p.shape[:-1])
+
+    def to_dict(self) -> dict:
+        """Plain lists and numbers (JSON-serialisable); :meth:`from_dict` inverts it."""
+        return {"states": self.states.tolist(), "centres": self.centres.tolist(),
+                "log_weights": self.log_weights.tolist(), "bandwidth": self.bandwidth.tolist(),
+                "ess": self.ess, "low_ess": self.low_ess, "partition": self.partition,
+                "prior": self.prior}
+
+    @classmethod
+    def from_dict(cls, d: Mapping) -> "PositionSummary":
+        try:
+            return cls(**{k: d[k] for k in ("states", "centres", "log_weights", "bandwidth",
+                                            "ess", "low_ess", "partition", "prior")})
+        except KeyError as exc:
+            raise ValueError(f"d: missing key {exc.args[0]!r} of a PositionSummary") from None
+
+
+def _chol_inverse(cov):
+    """(T, 2, 2) covariances -> (T, 2, 2) inverse Cholesky factors and (T,) log normalizers."""
+    L = np.linalg.cholesky(cov)
+    Li = np.linalg.inv(L)
+    lnorm = -np.log(2 * np.pi) - np.log(L[:, 0, 0] * L[:, 1, 1])
+    return Li, lnorm
+
+
+def _log_mixture(c, centres, log_w, lin, lnorm):
+    """log sum_j w_j N(c; mu_j, H) for points c (P, T, 2), per-term centres (T, K, 2), log
+    weights (T, K), inverse Cholesky (T, 2, 2) and log normalizers (T,) -> (P, T)."""
+    d = c[:, :, None, :] - centres[None]                                   # (P, T, K, 2)
+    z0 = lin[None, :, None, 0, 0] * d[..., 0]
+    z1 = lin[None, :, None, 1, 0] * d[..., 0] + lin[None, :, None, 1, 1] * d[..., 1]
+    e = -0.5 * (z0 * z0 + z1 * z1) + log_w[None]
+    mx = np.max(e, axis=-1, keepdims=True)
+    s = np.log(np.sum(np.exp(e - mx), axis=-1)) + mx[..., 0]
+    return s + lnorm[None]
+
+
+def summarize_position(hypotheses, states=None, prior="world", *, partition="edc",
+                       n_components: int = 32, bandwidth_scale: float = 1.0,
+                       seed=0) -> PositionSummary:
+    """A :class:`PositionSummary` from a solver's weighted samples of C.
+
+    ``hypotheses``: a :class:`qfg.solvers.Hypotheses` (``TripletSolver.hypotheses()``) or a pair
+    ``(samples (J, 2), weights (J,))`` of AB-frame positions and non-negative weights;
+    ``states``: (m,) the estimate's state distribution (default: the weighted states of the
+    samples). ``n_components`` centres are drawn by systematic resampling (``seed``); the kernel
+    covariance is ``(bandwidth_scale h)^2 Σ`` with Σ the weighted covariance of the sample and
+    ``h = min(ess, K)^(-1/6)`` (Scott's factor in 2-D: fewer effective samples, wider kernels).
+
+    >>> rng = np.random.default_rng(0)
+    >>> xy = rng.normal([0.5, 2.0], 0.1, size=(500, 2))
+    >>> s = summarize_position((xy, np.full(500, 1 / 500)), prior="world")
+    >>> s.centres.shape, s.low_ess, int(np.argmax(s.states))
+    ((32, 2), False, 1)
+    """
+    pr = _world_prior(prior)
+    part = _partitions.get(partition)
+    if hasattr(hypotheses, "landmark_samples"):
+        xy, w = hypotheses.landmark_samples, hypotheses.landmark_weights
+    else:
+        try:
+            xy, w = hypotheses
+        except (TypeError, ValueError):
+            raise ValueError("hypotheses: expected a qfg.solvers.Hypotheses or a pair (samples "
+                             "(J, 2), weights (J,))") from None
+    xy = as_float_array("hypotheses", xy).reshape(-1, 2)
+    w = as_float_array("weights", w).reshape(-1)
+    if w.shape[0] != xy.shape[0] or np.any(w < 0):
+        raise ValueError(f"weights: expected {xy.shape[0]} non-negative weights, got {w.shape}")
+    K = positive_int("n_components", n_components)
+    bscale = non_negative("bandwidth_scale", bandwidth_scale)
+    if bscale == 0:
+        raise ValueError("bandwidth_scale: expected a number > 0, got 0")
+    m = part.n_states
+    tot = w.sum()
+    if states is None:
+        if not tot > 0:
+            raise ValueError("states: required when the samples carry no weight")
+        states = np.bincount(part.state_of(xy), weights=w, minlength=m)[:m] / tot
+    st = as_float_array("states", states, ndim=1)
+    if st.shape != (m,):
+        raise ValueError(f"states: expected shape ({m},) for partition {part.name!r}, "
+                         f"got {st.shape}")
+    if not tot > 0:
+        return PositionSummary(st, np.zeros((0, 2)), np.zeros(0), np.eye(2), 0.0, True,
+                               part.name, pr.name)
+    w = w / tot
+    ess = 1.0 / float(np.sum(w * w))
+    rng = as_rng(seed)
+    cdf = np.cumsum(w)
+    cdf[-1] = 1.0
+    idx = np.searchsorted(cdf, (rng.random() + np.arange(K)) / K, side="left")
+    centres = xy[np.minimum(idx, xy.shape[0] - 1)]
+    mu = w @ xy
+    d = xy - mu
+    cov = (d * w[:, None]).T @ d
+    # a floor on the covariance: a sample of one point (or on a line) still gets a kernel
+    scale2 = max(float(np.trace(cov)), float(np.sum(mu * mu)) * 1e-6, 1e-8)
+    cov = cov + 1e-4 * scale2 * np.eye(2)
+    h = min(ess, float(K)) ** (-1.0 / 6.0) * bscale
+    logp = pr.log_density(centres[:, None, :])
+    # a centre the prior rules out (it cannot be: the solver's weights include the prior) gets no
+    # weight rather than an infinite one
+    logw = np.where(np.isfinite(logp), -np.log(K) - np.where(np.isfinite(logp), logp, 0.0),
+                    -np.inf)
+    keep = np.isfinite(logw)
+    return PositionSummary(st, centres[keep], logw[keep], h * h * cov, ess,
+                           ess < LOW_ESS or not keep.any(), part.name, pr.name)
+
+
+# --------------------------------------------------------------------------- evidence
+def _as_triplet(t, name="triplet"):
+    try:
+        tt = tuple(int(x) for x in t)
+        ok = len(tt) == 3 and all(float(a) == float(b) for a, b in zip(tt, t, strict=True))
+    except (TypeError, ValueError):
+        ok = False
+    if not ok or len(set(tt)) != 3 or min(tt) < 0:
+        raise ValueError(f"{name}: expected three distinct non-negative landmark ids, got {t!r}")
+    return tt
+
+
+def _evidence_items(evidence, part, pr, likelihood):
+    """{triplet: (states (m,), PositionSummary or None)} from a graph or a mapping, checked."""
+    if hasattr(evidence, "triplets") and hasattr(evidence, "priors"):
+        gpart = getattr(evidence, "partition", None)
+        if gpart is not None and gpart != part.name:
+            raise ValueError(f"evidence: a {gpart!r} graph, but partition is {part.name!r}")
+        items = {t: p for t, p in zip(evidence.triplets, evidence.priors, strict=True)
+                 if p is not None}
+    elif isinstance(evidence, Mapping):
+        items = dict(evidence)
+    else:
+        raise ValueError("evidence: expected a QualitativeFactorGraph or a mapping {triplet: "
+                         f"estimate}}, got {type(evidence).__name__}")
+    m = part.n_states
+    out = {}
+    for t, e in items.items():
+        tt = _as_triplet(t, "evidence")
+        summ = None
+        if isinstance(e, PositionSummary):
+            summ, vec = e, e.states
+            if e.partition != part.name or e.prior != pr.name:
+                raise ValueError(f"evidence: triplet {tt}: a summary for partition "
+                                 f"{e.partition!r} and prior {e.prior!r}, expected "
+                                 f"{part.name!r} and {pr.name!r}")
+        elif hasattr(e, "landmark") and not isinstance(e, np.ndarray):
+            ep, epr = getattr(e, "partition", part.name), getattr(e, "prior", "") or pr.name
+            if ep != part.name or epr != pr.name:
+                raise ValueError(f"evidence: triplet {tt}: an estimate for partition {ep!r} and "
+                                 f"prior {epr!r}, expected {part.name!r} and {pr.name!r} (the "
+                                 "likelihood divides by the prior the solver used)")
+            vec = e.landmark
+        else:
+            vec = e
+        try:
+            v = np.asarray(vec, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"evidence: triplet {tt}: expected an ({m},) probability vector, a "
+                             f"TripletEstimate or a PositionSummary, got {type(e).__name__}"
+                             ) from None
+        if v.shape != (m,):
+            raise ValueError(f"evidence: triplet {tt}: expected {m} state probabilities "
+                             f"(partition {part.name!r}), got shape {v.shape}")
+        if not np.all(np.isfinite(v)) or np.any(v < 0) or not v.sum() > 0:
+            raise ValueError(f"evidence: triplet {tt}: expected non-negative finite "
+                             "probabilities, not all zero")
+        if likelihood == "metric" and summ is None:
+            raise ValueError(f"evidence: triplet {tt}: likelihood='metric' needs a "
+                             "PositionSummary (summarize_position) for every seen triplet")
+        out[tt] = (v / v.sum(), summ if likelihood == "metric" else None)
+    return out
+
+
+@dataclass
+class _Terms:
+    """The likelihood terms, one row per (triplet, evidence); kind 0 fixed, 1 incoming (tempered
+    in, coefficient beta), 2 outgoing (replaced, coefficient 1 - beta)."""
+
+    ijk: np.ndarray            # (T, 3) landmark indices
+    logtab: np.ndarray         # (T, m) log state likelihood (floored)
+    ratiotab: np.ndarray       # (T, m) P_t / q
+    metric: np.ndarray         # (T,) bool
+    mix: np.ndarray            # (T,) b: weight of the state likelihood inside the metric one
+    centres: np.ndarray        # (T, K, 2)
+    logw: np.ndarray           # (T, K)
+    lin: np.ndarray            # (T, 2, 2)
+    lnorm: np.ndarray          # (T,)
+    kind: np.ndarray           # (T,)
+    triplets: list = field(default_factory=list)
+    evidence: list = field(default_factory=list)
+
+    def subset(self, keep):
+        keep = np.asarray(keep)
+        return _Terms(self.ijk[keep], self.logtab[keep], self.ratiotab[keep], self.metric[keep],
+                      self.mix[keep], self.centres[keep], self.logw[keep], self.lin[keep],
+                      self.lnorm[keep], self.kind[keep],
+                      [t for t, k in zip(self.triplets, keep, strict=True) if k] if keep.dtype
+                      == bool else [self.triplets[i] for i in keep],
+                      [e for e, k in zip(self.evidence, keep, strict=True) if k] if keep.dtype
+                      == bool else [self.evidence[i] for i in keep])
+
+
+def _make_terms(items, index, q, floor, state_mix, low_ess_mix, kind):
+    m = q.shape[0]
+    T = len(items)
+    K = max([s.centres.shape[0] for _, s in items.values() if s is not None], default=1)
+    K = max(K, 1)
+    ijk = np.zeros((T, 3), dtype=np.intp)
+    ratio = np.ones((T, m))
+    metric = np.zeros(T, dtype=bool)
+    mix = np.ones(T)
+    centres = np.zeros((T, K, 2))
+    logw = np.full((T, K), -np.inf)
+    logw[:, 0] = 0.0
+    lin = np.tile(np.eye(2), (T, 1, 1))
+    lnorm = np.zeros(T)
+    trips, evs = [], []
+    for r, (t, (v, s)) in enumerate(items.items()):
+        ijk[r] = [index[x] for x in t]
+        ratio[r] = v / q
+        if s is not None and s.centres.shape[0] > 0:
+            k = s.centres.shape[0]
+            metric[r] = True
+            mix[r] = low_ess_mix if s.low_ess else state_mix
+            centres[r, :k] = s.centres
+            logw[r, :k] = s.log_weights
+            logw[r, k:] = -np.inf
+            li, ln = _chol_inverse(s.bandwidth[None])
+            lin[r], lnorm[r] = li[0], ln[0]
+        trips.append(t)
+        evs.append(v if s is None else s)
+    logtab = np.log((1.0 - floor) * ratio + floor)
+    return _Terms(ijk, logtab, ratio, metric, mix, centres, logw, lin, lnorm,
+                  np.full(T, kind, dtype=np.int8), trips, evs)
+
+
+def _concat_terms(a: _Terms, b: _Terms) -> _Terms:
+    K = max(a.centres.shape[1], b.centres.shape[1])
+
+    def pad(x, fill):
+        if x.shape[1] == K:
+            return x
+        shape = (x.shape[0], K - x.shape[1]) + x.shape[2:]
+        return np.concatenate([x, np.full(shape, fill)], axis=1)
+
+    return _Terms(np.concatenate([a.ijk, b.ijk]), np.concatenate([a.logtab, b.logtab]),
+                  np.concatenate([a.ratiotab, b.ratiotab]), np.concatenate([a.metric, b.metric]),
+                  np.concatenate([a.mix, b.mix]),
+                  np.concatenate([pad(a.centres, 0.0), pad(b.centres, 0.0)]),
+                  np.concatenate([pad(a.logw, -np.inf), pad(b.logw, -np.inf)]),
+                  np.concatenate([a.lin, b.lin]), np.concatenate([a.lnorm, b.lnorm]),
+                  np.concatenate([a.kind, b.kind]), a.triplets + b.triplets,
+                  a.evidence + b.evidence)
+
+
+# --------------------------------------------------------------------------- the sampler
+class _Sampler:
+    """Tempered SMC over world configurations X (P, n, 2); particles p belong to group p // Pg."""
+
+    def __init__(self, X, terms, part, pr, floor, rng, n_groups):
+        self.X, self.terms, self.part, self.pr = X, terms, part, pr
+        self.floor, self.rng, self.G = floor, rng, n_groups
+        self.P, self.n = X.shape[:2]
+        self.Pg = self.P // n_groups
+        self.box = np.array([pr.width, pr.height])
+        self.of_landmark = [np.flatnonzero(np.any(terms.ijk == l, axis=1)) for l in range(self.n)]
+        self.ll = self._loglik(X, np.arange(len(terms.ijk)))
+        self.step = np.full(self.n, 0.5)
+        self.sim_step = 0.5
+        self.acc_land, self.acc_sim = [], []
+
+    # -- likelihood
+    def _loglik(self, X, idx, l=None, prop=None):
+        """(P, len(idx)) log-likelihood of terms idx; with l, prop: landmark l moved to prop."""
+        t = self.terms
+        ijk = t.ijk[idx]
+        pts = [X[:, ijk[:, a]] for a in range(3)]                       # (P, T, 2) each
+        if l is not None:
+            for a in range(3):
+                hit = ijk[:, a] == l
+                if hit.any():
+                    pts[a] = pts[a].copy()
+                    pts[a][:, hit] = prop[:, None, :]
+        from .geometry import to_frame
+
+        c = to_frame(pts[2], pts[0], pts[1])
+        s = self.part.state_of(c)
+        out = t.logtab[idx[None, :], s]
+        met = t.metric[idx]
+        if met.any():
+            mi = idx[met]
+            sm = s[:, met]
+            r = np.exp(_log_mixture(c[:, met], t.centres[mi], t.logw[mi], t.lin[mi],
+                                    t.lnorm[mi]))
+            st = t.ratiotab[mi[None, :], sm]
+            b = t.mix[mi][None, :]
+            out[:, met] = np.log((1.0 - self.floor) * ((1.0 - b) * r + b * st) + self.floor)
+        return out
+
+    def coef(self, beta):
+        k = self.terms.kind
+        return np.where(k == 0, 1.0, np.where(k == 1, beta, 1.0 - beta))
+
+    def tempered(self):
+        """(P,) d log target / d beta."""
+        k = self.terms.kind
+        return self.ll[:, k == 1].sum(axis=1) - self.ll[:, k == 2].sum(axis=1)
+
+    # -- prior
+    def _inside(self, pts):
+        return np.all((pts >= 0.0) & (pts <= self.box), axis=-1)
+
+    def _min_dist(self, X, l, prop):
+        """(P,) least distance from prop (P, 2) to the other landmarks of X."""
+        d = X - prop[:, None, :]
+        d2 = np.sum(d * d, axis=-1)
+        d2[:, l] = np.inf
+        return np.sqrt(np.min(d2, axis=1)) if self.n > 1 else np.full(self.P, np.inf)
+
+    def _min_pair(self, X):
+        """(P,) least pairwise distance within each configuration (blocks of particles)."""
+        if self.n < 2:
+            return np.full(X.shape[0], np.inf)
+        iu = np.triu_indices(self.n, k=1)
+        out = np.empty(X.shape[0])
+        step = max(1, _CHUNK // (4 * len(iu[0])))
+        for a in range(0, X.shape[0], step):
+            d = X[a:a + step, iu[0]] - X[a:a + step, iu[1]]
+            out[a:a + step] = np.sqrt(np.min(np.sum(d * d, axis=-1), axis=1))
+        return out
+
+    # -- moves
+    def _spread(self):
+        """(n,) per landmark, the mean within-group standard deviation of its position."""
+        Xg = self.X.reshape(self.G, self.Pg, self.n, 2)
+        return np.sqrt(np.mean(np.var(Xg, axis=1), axis=(0, 2)))
+
+    def move_landmarks(self, beta):
+        coef = self.coef(beta)
+        spread = self._spread()
+        rng = self.rng
+        acc = np.zeros(self.n)
+        for l in rng.permutation(self.n):
+            sd = max(self.step[l] * spread[l], 1e-6)
+            prop = self.X[:, l] + sd * rng.standard_normal((self.P, 2))
+            ok = self._inside(prop)
+            if self.pr.d_min > 0:
+                ok &= self._min_dist(self.X, l, prop) >= self.pr.d_min
+            idx = self.of_landmark[l]
+            logu = np.log(rng.random(self.P))
+            if idx.size:
+                new = self._loglik(self.X, idx, l, prop)
+                dlog = (new - self.ll[:, idx]) @ coef[idx]
+            else:
+                new, dlog = None, np.zeros(self.P)
+            a = ok & (logu < dlog)
+            self.X[a, l] = prop[a]
+            if new is not None and a.any():
+                rows = np.flatnonzero(a)
+                self.ll[rows[:, None], idx[None, :]] = new[rows]
+            acc[l] = a.mean()
+            # adapt the step toward an acceptance of about 0.3 (between stages it is fixed)
+        self.acc_land.append(float(acc.mean()))
+        return acc
+
+    def move_similarity(self):
+        rng, P, n = self.rng, self.P, self.n
+        c = self.X.mean(axis=1, keepdims=True)
+        th = self.sim_step * 0.3 * rng.standard_normal(P)
+        ls = self.sim_step * 0.5 / max(n, 1) * rng.standard_normal(P)
+        tr = self.sim_step * 0.3 * rng.standard_normal((P, 1, 2))
+        s = np.exp(ls)
+        cs, sn = np.cos(th) * s, np.sin(th) * s
+        d = self.X - c
+        Y = np.stack([cs[:, None] * d[..., 0] - sn[:, None] * d[..., 1],
+                      sn[:, None] * d[..., 0] + cs[:, None] * d[..., 1]], axis=-1) + c + tr
+        ok = np.all(self._inside(Y), axis=1)
+        shrink = ok & (s < 1)
+        if self.pr.d_min > 0 and shrink.any():
+            ok[shrink] = self._min_pair(Y[shrink]) >= self.pr.d_min
+        # likelihoods are invariant; the box prior is flat: the Jacobian s^(2n) decides
+        a = ok & (np.log(rng.random(P)) < 2 * n * ls)
+        self.X[a] = Y[a]
+        self.acc_sim.append(float(a.mean()))
+        return float(a.mean())
+
+    def sweep(self, beta, n_sweeps):
+        accs, sims = [], []
+        for _ in range(n_sweeps):
+            accs.append(self.move_landmarks(beta))
+            sims.append(self.move_similarity())
+        acc = np.mean(accs, axis=0)
+        self.step *= np.exp(np.clip(acc - 0.3, -0.3, 0.3) * 2)
+        self.step = np.clip(self.step, 1e-4, 3.0)
+        self.sim_step = float(np.clip(self.sim_step * np.exp(2 * (np.mean(sims) - 0.3)),
+                                      1e-3, 3.0))
+
+    # -- resampling
+    def resample(self, logw):
+        """Systematic resampling within each group; returns the per-group log mean weight."""
+        G, Pg = self.G, self.Pg
+        lw = logw.reshape(G, Pg)
+        mx = lw.max(axis=1, keepdims=True)
+        w = np.exp(lw - mx)
+        tot = w.sum(axis=1, keepdims=True)
+        logz = (np.log(tot[:, 0] / Pg) + mx[:, 0])
+        cdf = np.cumsum(w / tot, axis=1)
+        cdf[:, -1] = 1.0
+        u = (self.rng.random((G, 1)) + np.arange(Pg)[None, :]) / Pg
+        idx = np.stack([np.searchsorted(cdf[g], u[g]) for g in range(G)])
+        idx = np.minimum(idx, Pg - 1) + (np.arange(G) * Pg)[:, None]
+        idx = idx.reshape(-1)
+        self.X = self.X[idx]
+        self.ll = self.ll[idx]
+        return logz
+
+    def ess_fraction(self, logw):
+        lw = logw.reshape(self.G, self.Pg)
+        w = np.exp(lw - lw.max(axis=1, keepdims=True))
+        w /= w.sum(axis=1, keepdims=True)
+        return float(np.mean(1.0 / np.sum(w * w, axis=1)) / self.Pg)
+
+    def run(self, target_ess, n_sweeps, max_stages=1000):
+        betas, esss, logz = [0.0], [], np.zeros(self.G)
+        beta = 0.0
+        D = self.tempered()
+        if not np.any(self.terms.kind != 0):
+            return betas, esss, logz
+        while beta < 1.0 and len(betas) <= max_stages:
+            D = self.tempered()
+            if self.ess_fraction((1.0 - beta) * D) >= target_ess:
+                nb = 1.0
+            else:
+                lo, hi = beta, 1.0
+                for _ in range(50):
+                    mid = 0.5 * (lo + hi)
+                    if self.ess_fraction((mid - beta) * D) >= target_ess:
+                        lo = mid
+                    else:
+                        hi = mid
+                nb = max(lo, beta + 1e-6)
+            esss.append(self.ess_fraction((nb - beta) * D))
+            logz += self.resample((nb - beta) * D)
+            beta = nb
+            betas.append(beta)
+            self.sweep(beta, n_sweeps)
+        return betas, esss, logz
+
+
+# --------------------------------------------------------------------------- results
+class ConfigurationPosterior:
+    """Weighted samples of the landmarks' world positions given the seen triplets' evidence.
+
+    Attributes:
+        landmarks: tuple of landmark ids (column order of ``positions``).
+        positions: (P, n, 2) world positions (the prior's box units), read-only.
+        weights: (P,) normalized weights (equal after the final resampling).
+        groups: (P,) int, the independent population of each particle.
+        partition, prior: the partition and :class:`qfg.priors.WorldBoxPrior` used.
+        likelihood: ``"state"`` or ``"metric"``.
+        evidence: {triplet: (m,) vector or PositionSummary}, the seen triplets' evidence.
+        diagnostics: dict -- ``n_stages``, ``betas``, ``ess`` (fraction of each stage's
+            particles, before resampling), ``acceptance_landmark`` / ``acceptance_similarity``
+            (mean acceptance of the moves), ``log_evidence`` (per group, the SMC estimate of
+            log E_prior[prod L]), ``options``.
+
+    :meth:`marginals` gives any triplets' state distributions, :meth:`update` adds evidence.
+    """
+
+    def __init__(self, landmarks, X, groups, part, pr, likelihood, terms, options, diag, q):
+        self.landmarks = tuple(landmarks)
+        self._index = {l: i for i, l in enumerate(self.landmarks)}
+        X = np.array(X)
+        X.setflags(write=False)
+        self.positions = X
+        self.weights = np.full(X.shape[0], 1.0 / X.shape[0])
+        self.weights.setflags(write=False)
+        self.groups = np.asarray(groups)
+        self.partition, self.prior, self.likelihood = part, pr, likelihood
+        self._terms, self.options, self.diagnostics, self._q = terms, options, diag, q
+
+    @property
+    def evidence(self) -> dict:
+        return dict(zip(self._terms.triplets, self._terms.evidence, strict=True))
+
+    def __repr__(self):
+        return (f"ConfigurationPosterior(landmarks={len(self.landmarks)}, "
+                f"particles={self.positions.shape[0]}, seen={len(self._terms.triplets)}, "
+                f"likelihood={self.likelihood!r}, stages={self.diagnostics.get('n_stages')})")
+
+    def _indices(self, triplets):
+        out = np.zeros((len(triplets), 3), dtype=np.intp)
+        for r, t in enumerate(triplets):
+            for a, x in enumerate(t):
+                try:
+                    out[r, a] = self._index[x]
+                except KeyError:
+                    raise KeyError(f"triplet: {t} uses landmark {x}, which is not in this "
+                                   f"configuration (landmarks {self.landmarks[:10]}"
+                                   f"{'...' if len(self.landmarks) > 10 else ''})") from None
+        return out
+
+    def states(self, triplets) -> np.ndarray:
+        """(P, len(triplets)) int states of the triplets in every sampled configuration."""
+        ts = [_as_triplet(t) for t in triplets]
+        return self._states(self._indices(ts))
+
+    def _states(self, ijk):
+        from .geometry import to_frame
+
+        X = self.positions
+        return self.partition.state_of(to_frame(X[:, ijk[:, 2]], X[:, ijk[:, 0]],
+                                                X[:, ijk[:, 1]]))
+
+    def all_triplets(self) -> list:
+        """Every ordered triplet of this configuration's landmarks (n (n-1) (n-2))."""
+        L = self.landmarks
+        return [(a, b, c) for a in L for b in L for c in L if a != b and b != c and a != c]
+
+    def marginals(self, triplets=None, *, pseudo_count=None):
+        """:class:`qfg.inference.Marginals` of ``triplets`` (default: every ordered triplet of
+        the landmarks), seen and unseen alike.
+
+        Each row is the particles' state histogram shrunk toward the prior's state distribution
+        by ``pseudo_count`` pseudo-draws, ``(P f + a q) / (P + a)`` (no state the particles missed
+        is given probability 0). ``info``: ``mc_error`` (n, m) the standard error from the
+        spread of the ``n_groups`` populations' estimates, ``mc_error_max``, ``seen`` (n,) bool,
+        the sampler's diagnostics and ``configurations`` (this object).
+        """
+        from .inference.results import Marginals
+
+        if triplets is None:
+            triplets = self.all_triplets()
+        ts = [_as_triplet(t) for t in triplets]
+        ijk = self._indices(ts)
+        a = float(self.options["pseudo_count"] if pseudo_count is None else
+                  non_negative("pseudo_count", pseudo_count))
+        m, P = self.partition.n_states, self.positions.shape[0]
+        G = int(self.groups.max()) + 1
+        R = len(ts)
+        counts = np.zeros((G, R, m))
+        step = max(1, _CHUNK // P)
+        for r0 in range(0, R, step):
+            s = self._states(ijk[r0:r0 + step])                           # (P, r)
+            r = s.shape[1]
+            flat = (self.groups[:, None] * r + np.arange(r)[None, :]) * m + s
+            counts[:, r0:r0 + r] = np.bincount(flat.ravel(), minlength=G * r * m
+                                               ).reshape(G, r, m)
+        Pg = P // G
+        fg = (counts + (a / G) * self._q) / (Pg + a / G)                  # per group, shrunk
+        f = (counts.sum(axis=0) + a * self._q) / (P + a)
+        se = np.std(fg, axis=0, ddof=1) / np.sqrt(G) if G > 1 else np.full((R, m), np.nan)
+        seen = set(self._terms.triplets)
+        info = dict(self.diagnostics)
+        info.update(mc_error=se, mc_error_max=float(np.max(se)) if se.size else 0.0,
+                    seen=np.array([t in seen for t in ts], dtype=bool),
+                    configurations=self)
+        return Marginals(tuple(ts), self.partition.name, f, f"configurations-{self.likelihood}",
+                         info)
+
+    def update(self, evidence, *, seed=None, landmarks=()) -> "ConfigurationPosterior":
+        """A new posterior with more evidence, tempered in from these particles (cheaper than a
+        restart when the new evidence is a small part of the whole).
+
+        ``evidence``: {triplet: estimate} as in :func:`infer_configurations`; a triplet already
+        seen has its old evidence replaced (the old likelihood tempered out while the new one
+        comes in). Landmarks new to the map get positions drawn from the prior given the others.
+        """
+        o = self.options
+        rng = as_rng(seed)
+        items = _evidence_items(evidence, self.partition, self.prior, self.likelihood)
+        new_ids = [x for x in dict.fromkeys([*landmarks, *(x for t in items for x in t)])
+                   if x not in self._index]
+        ids = self.landmarks + tuple(new_ids)
+        index = {l: i for i, l in enumerate(ids)}
+        X = np.array(self.positions)
+        if new_ids:
+            X = np.concatenate([X, _prior_extension(self.prior, X, len(new_ids), rng)], axis=1)
+        old = _Terms(**{k: getattr(self._terms, k) for k in (
+            "ijk", "logtab", "ratiotab", "metric", "mix", "centres", "logw", "lin", "lnorm",
+            "kind")}, triplets=list(self._terms.triplets), evidence=list(self._terms.evidence))
+        old.kind = np.where(np.isin(np.arange(len(old.triplets)),
+                                    [i for i, t in enumerate(old.triplets) if t in items]),
+                            2, 0).astype(np.int8)
+        new = _make_terms(items, index, self._q, o["floor"], o["state_mix"], o["low_ess_mix"], 1)
+        terms = _concat_terms(old, new) if len(old.triplets) else new
+        return _run(ids, X, terms, self.partition, self.prior, self.likelihood, o, self._q, rng,
+                    self.groups)
+
+
+def _prior_extension(pr, X, k, rng):
+    """(P, k, 2) positions of k new landmarks from the box prior given the configurations X."""
+    P = X.shape[0]
+    out = rng.uniform((0.0, 0.0), (pr.width, pr.height), size=(P, k, 2))
+    if pr.d_min <= 0:
+        return out
+    for j in range(k):
+        for _ in range(1000):
+            others = np.concatenate([X, out[:, :j]], axis=1)
+            d = np.sqrt(np.min(np.sum((others - out[:, j:j + 1]) ** 2, axis=-1), axis=1))
+            bad = d < pr.d_min
+            if not bad.any():
+                break
+            out[bad, j] = rng.uniform((0.0, 0.0), (pr.width, pr.height), size=(int(bad.sum()), 2))
+    return out
+
+
+def _run(ids, X, terms, part, pr, likelihood, options, q, rng, groups):
+    G = options["n_groups"]
+    s = _Sampler(np.array(X, dtype=float), terms, part, pr, options["floor"], rng, G)
+    betas, esss, logz = s.run(options["target_ess"], options["n_sweeps"])
+    if len(betas) > 1:
+        # after the last stage the particles have moved once; one more sweep decorrelates the
+        # duplicates resampling made
+        s.sweep(1.0, options["n_sweeps"])
+    keep = terms.kind != 2
+    terms = terms.subset(keep)
+    terms.kind = np.zeros(len(terms.triplets), dtype=np.int8)
+    diag = {"n_stages": len(betas) - 1, "betas": np.array(betas), "ess": np.array(esss),
+            "acceptance_landmark": float(np.mean(s.acc_land)) if s.acc_land else float("nan"),
+            "acceptance_similarity": float(np.mean(s.acc_sim)) if s.acc_sim else float("nan"),
+            "log_evidence": logz, "options": dict(options), "likelihood": likelihood,
+            "n_seen": len(terms.triplets), "n_metric": int(terms.metric.sum())}
+    return ConfigurationPosterior(ids, s.X, groups, part, pr, likelihood, terms, options, diag, q)
+
+
+def infer_configurations(evidence, prior="world", *, partition="edc", likelihood="state",
+                         landmarks=(), seed=None, **options) -> ConfigurationPosterior:
+    """Sample landmark configurations given seen triplets' evidence (module docstring).
+
+    Args:
+        evidence: a :class:`qfg.graph.QualitativeFactorGraph` (its seen triplets' priors are the
+            solvers' estimates) or a mapping {triplet: estimate}, estimate an (m,) probability
+            vector, a :class:`qfg.solvers.TripletEstimate` or a :class:`PositionSummary`
+            (needed for every seen triplet with ``likelihood="metric"``).
+        prior: the world prior the solvers used (``"world"`` or a
+            :class:`qfg.priors.WorldBoxPrior`); its state distribution
+            (:func:`prior_states`) is what each estimate is divided by.
+        partition: partition name (must match the estimates').
+        likelihood: ``"state"`` or ``"metric"``.
+        landmarks: extra landmark ids to include (e.g. landmarks no seen triplet contains).
+        seed: int, SeedSequence or Generator. Same seed, same samples.
+        **options: :data:`DEFAULTS` -- ``n_particles`` (P, a multiple of ``n_groups``),
+            ``n_groups`` (independent populations, >= 2 for an error estimate), ``target_ess``
+            (fraction kept per tempering stage), ``n_sweeps`` (Metropolis sweeps per stage),
+            ``floor`` (eps), ``state_mix``, ``low_ess_mix`` (b), ``pseudo_count`` (the
+            marginals' shrinkage toward the prior's state distribution).
+
+    Returns:
+        :class:`ConfigurationPosterior`; ``.marginals(triplets)`` for the answers.
+    """
+    unknown = set(options) - set(DEFAULTS)
+    if unknown:
+        raise ValueError(f"options: unknown {sorted(unknown)}; known: {sorted(DEFAULTS)}")
+    o = {**DEFAULTS, **options}
+    G = positive_int("n_groups", o["n_groups"])
+    P = positive_int("n_particles", o["n_particles"], minimum=G)
+    if P % G:
+        raise ValueError(f"n_particles: expected a multiple of n_groups = {G}, got {P}")
+    if not 0 < float(o["target_ess"]) < 1:
+        raise ValueError(f"target_ess: expected a fraction in (0, 1), got {o['target_ess']!r}")
+    positive_int("n_sweeps", o["n_sweeps"])
+    for k in ("floor", "state_mix", "low_ess_mix"):
+        v = non_negative(k, o[k])
+        if v > 1:
+            raise ValueError(f"{k}: expected a number in [0, 1], got {v}")
+    if not o["floor"] > 0:
+        raise ValueError("floor: expected a number > 0 (a zero floor lets one estimate veto)")
+    non_negative("pseudo_count", o["pseudo_count"])
+    o = {**o, "n_groups": G, "n_particles": P, "floor": float(o["floor"])}
+    if likelihood not in LIKELIHOODS:
+        raise ValueError(f"likelihood: expected one of {LIKELIHOODS}, got {likelihood!r}")
+    pr = _world_prior(prior)
+    part = _partitions.get(partition)
+    items = _evidence_items(evidence, part, pr, likelihood)
+    extra = [_as_triplet(t) for t in getattr(evidence, "triplets", ())]
+    ids = list(dict.fromkeys([*(int(x) for x in landmarks), *(x for t in items for x in t),
+                              *(x for t in extra for x in t)]))
+    if len(ids) < 3:
+        raise ValueError("evidence: no triplet (and fewer than three landmarks): nothing to infer")
+    q = prior_states(pr, part)
+    rng = as_rng(seed)
+    index = {l: i for i, l in enumerate(ids)}
+    X = pr.sample_world(rng, len(ids), P)
+    terms = _make_terms(items, index, q, o["floor"], o["state_mix"], o["low_ess_mix"], 1)
+    groups = np.repeat(np.arange(G), P // G)
+    return _run(ids, X, terms, part, pr, likelihood, o, q, rng, groups)
+
+
+def configuration_marginals(evidence, prior="world", *, triplets=None, partition=None,
+                            likelihood="state", seed=None, **options):
+    """Marginals of ``triplets`` (default: a graph's triplets, else every ordered triplet of the
+    landmarks) by configuration inference: :func:`infer_configurations` then
+    :meth:`ConfigurationPosterior.marginals`. The result's ``info["configurations"]`` holds the
+    samples. ``partition`` defaults to the graph's (else ``"edc"``).
+
+    >>> import numpy as np
+    >>> from qfg.graph import QualitativeFactorGraph
+    >>> g = QualitativeFactorGraph("edc")
+    >>> _ = g.add_triplet((0, 1, 2), np.eye(20)[1] * 0.9 + 0.005)
+    >>> _ = g.add_triplet((1, 2, 0))
+    >>> r = configuration_marginals(g, n_particles=400, seed=1)
+    >>> r.info["seen"].tolist(), r.method
+    ([True, False], 'configurations-state')
+    """
+    if partition is None:
+        partition = getattr(evidence, "partition", None) or "edc"
+    post = infer_configurations(evidence, prior, partition=partition, likelihood=likelihood,
+                                landmarks=sorted({x for t in (triplets or ()) for x in
+                                                  _as_triplet(t)}), seed=seed, **options)
+    if triplets is None and hasattr(evidence, "triplets"):
+        triplets = evidence.triplets
+    return post.marginals(triplets)
