@@ -111,7 +111,7 @@ def solve_triplet(bearings, headings=None, *, method: str = "full", partition="e
     ((1, 20), 'fast')
     """
     meas = _input.measurements(bearings, headings, sigma_bearing, sigma_heading, distances,
-                          sigma_distance_ratio)
+                               sigma_distance_ratio)
     part = _input.get_partition(partition)
     model = _model(method, meas)
     opts = _model_options(method, model, options)
@@ -288,7 +288,7 @@ def _batch_measurements(histories, headings, sigma_bearing, sigma_heading, dista
     ds = per_step("distances", distances)
     sds = _per_triplet_sigma("sigma_distance_ratio", sigma_distance_ratio, T)
     return [_input.measurements(b[t], hs[t], None if np.isnan(sb[t]) else sb[t],
-                           None if np.isnan(sh[t]) else sh[t], ds[t], sds[t]) for t in range(T)]
+                                None if np.isnan(sh[t]) else sh[t], ds[t], sds[t]) for t in range(T)]
 
 
 def add_view(solver, bearings, heading=None) -> TripletEstimate:
@@ -352,7 +352,7 @@ class TripletSolver:
         those of :func:`solve_triplet` (``.estimate()`` equals its result). Use it when the
         hypotheses are wanted too (``.hypotheses()``)."""
         meas = _input.measurements(bearings, headings, sigma_bearing, sigma_heading, distances,
-                              sigma_distance_ratio)
+                                   sigma_distance_ratio)
         part = _input.get_partition(partition)
         model = _model(method, meas)
         solver = cls._from_parts(model, part, _model_options(method, model, options),

@@ -127,7 +127,7 @@ def start(meas: _input.Measurements, root, opts, part) -> BaselineState:
     rng = _seeds.stream(root, 0, _seeds.STREAM_LANDMARKS)
     cand, lq = _candidates(rng, opts["n_landmark_samples"], opts["prior"])
     st = BaselineState(meas=_input.Measurements(meas.bearings[:0], None, meas.sigma_bearing,
-                                           meas.sigma_heading),
+                                                meas.sigma_heading),
                        root=root, opts=opts, part=part, candidates=cand,
                        lw=_prior.point_log_prior(opts["prior"], cand) - lq, shares=(), cameras=(),
                        reasons=())
@@ -175,7 +175,7 @@ def finish(state: BaselineState):
     n, m = meas.n_views, part.n_states
     reasons = list(state.reasons)
     reasons[:0] = _degenerate.geometry_reasons(meas.bearings, meas.sigma_bearing, meas.headings,
-                                     meas.sigma_heading)
+                                               meas.sigma_heading)
     w = _likelihood.normalize_log(state.lw)
     landmark, ok = _histograms.state_histogram(part, state.candidates, w)
     N = state.candidates.shape[0]
@@ -199,6 +199,6 @@ def finish(state: BaselineState):
         s = cam_w.sum(axis=1, keepdims=True)
         cam_w = np.where(s > 0, cam_w / np.where(s > 0, s, 1.0), 0.0)
     hyp = _estimate.Hypotheses(landmark_samples=state.candidates, landmark_weights=w,
-                       camera_samples=cam_samples, camera_weights=cam_w, joint=False)
+                               camera_samples=cam_samples, camera_weights=cam_w, joint=False)
     return _estimate.make_estimate("baseline", part, n, landmark, cams, hypotheses=hyp, reasons=reasons,
-                           opts=opts)
+                                   opts=opts)

@@ -231,7 +231,7 @@ def finish(state: FastState, hypotheses: bool = False):
         q = (np.arange(k) + 0.5) / k
         # deterministic quantiles of the ray proposal; weight = prior(L) t dt / q(t)
         pts, lq = _arcs.ray_points(cam[:, :2], ang, np.zeros((ang.size, k)),
-                                np.broadcast_to(q, (ang.size, k)), 1.0)
+                                   np.broadcast_to(q, (ang.size, k)), 1.0)
         lq = lq - _likelihood.log_gauss(0.0, 1.0) + 0.5 * np.log(2 * np.pi)
         r = np.linalg.norm(pts - cam[:, None, :2], axis=-1)
         lw_q = _prior.point_log_prior(opts["prior"], pts) - lq - np.log(np.maximum(r, 1e-300))
@@ -254,7 +254,7 @@ def finish(state: FastState, hypotheses: bool = False):
     out = []
     for t in range(T):
         reasons = _degenerate.geometry_reasons(state.bearings[t], state.sigma_bearing[t],
-                                     state.headings[t], state.sigma_heading[t])
+                                               state.headings[t], state.sigma_heading[t])
         cw = c_w[cb[t]:cb[t + 1]]
         alive = cw > 0
         if not np.any(alive):
@@ -270,7 +270,7 @@ def finish(state: FastState, hypotheses: bool = False):
             camera_samples=np.transpose(poses[cb[t]:cb[t + 1]][alive], (1, 0, 2)),
             camera_weights=np.broadcast_to(cw[alive], (n, na)).copy(), joint=n > 1)
         est, hyp = _estimate.make_estimate("fast-paper", part, n, lm[t] / lm[t].sum(),
-                                   cm[t] / cm[t].sum(axis=1, keepdims=True), hypotheses=hyp,
-                                   reasons=reasons, opts=opts)
+                                           cm[t] / cm[t].sum(axis=1, keepdims=True),
+                                           hypotheses=hyp, reasons=reasons, opts=opts)
         out.append((est, hyp if hypotheses else None))
     return out

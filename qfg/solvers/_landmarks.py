@@ -79,7 +79,7 @@ def _sample_landmarks_rows(poses, phi_c, sig, kg, kr, draws, laplace=None):
         eps = sig[:, None] * draws["eps"]
         v = (np.arange(kr) + draws["u"]) / kr
         Lr, _ = ray_points(X[jj, t], theta[jj, t], eps[..., None], v[..., None],
-                            sig[:, None, None])
+                           sig[:, None, None])
         L[:, kg:] = Lr[..., 0, :]
     # per view: distance and angular residual of every sample, views along the first axis
     # (n, J, k) so that the sums over views are adds of contiguous blocks

@@ -147,7 +147,7 @@ def _c_weight(state_like, tid, poses, bearings_c, gens, k, laplace=None):
     n = poses.shape[1]
     draws = _landmark_draws(gens, tid, n, k, state_like.opts["ray_fraction"])
     return _landmarks.sample_landmarks(None, poses, bearings_c[tid], state_like.sigma_v()[tid], k,
-                              state_like.opts["ray_fraction"], draws=draws, laplace=laplace)
+                                       state_like.opts["ray_fraction"], draws=draws, laplace=laplace)
 
 
 #: Depth spread below which the intermediate C weight uses the Laplace approximation; above it
@@ -168,7 +168,7 @@ def _log_intermediate_c(state_like, tid, poses, bearings_c, gens):
     for lo in range(0, N, _laplace.CHUNK_ROWS):
         sl = slice(lo, lo + _laplace.CHUNK_ROWS)
         lz, Ls, spread, parts = _laplace.laplace_landmark(get(sl), bearings_c[tid[sl]], sig[sl],
-                                                   parts=True)
+                                                          parts=True)
         out[sl] = lz + _prior.point_log_prior(prior, Ls)
         h = np.flatnonzero(~(spread < _LAPLACE_SPREAD))
         hard.append(lo + h)
@@ -699,7 +699,7 @@ def finish(state: SISState, hypotheses: bool = False):
             rows = np.flatnonzero(inv.reshape(-1) == g)
             X = poses[rows][:, :, :2][:, pat[g]]
             lp[rows] = _prior.log_joint_prior(opts["prior"], L[rows],
-                                         np.broadcast_to(X[:, None], (rows.size, k) + X.shape[1:]))
+                                              np.broadcast_to(X[:, None], (rows.size, k) + X.shape[1:]))
         with np.errstate(invalid="ignore"):
             lw = lp + log_lik - log_q - (state.lw_c[idx] + state.lp_x[idx])[:, None]
         lw = np.where(np.isnan(lw), -np.inf, lw)
@@ -726,7 +726,7 @@ def finish(state: SISState, hypotheses: bool = False):
     out = []
     for t in range(T):
         reasons = _degenerate.geometry_reasons(state.bearings[t], state.sigma_bearing[t],
-                                     state.headings[t], state.sigma_heading[t])
+                                               state.headings[t], state.sigma_heading[t])
         sp = np.flatnonzero(state.same_pose[t])
         if sp.size:
             reasons.append("view(s) " + ", ".join(str(v + 1) for v in sp)
