@@ -4,9 +4,10 @@ A reference implementation of Mor and Indelman, "Probabilistic Qualitative Local
 Mapping": qualitative space partitions, a scenario simulator, single-triplet solvers, composition
 tensors and the qualitative factor graph on GTSAM.
 
-Modules, in the order data flows through them:
+Library modules, in the order data flows through them:
 ``partitions``, ``geometry`` -> ``simulation``, ``datasets`` -> ``solvers`` -> ``composition`` ->
-``graph`` -> ``propagation`` -> ``metrics`` -> ``plotting``.
+``graph`` -> ``inference`` -> ``propagation`` -> ``metrics``. Figures, studies, the experiment
+runner and the ``qfg`` command are the harness above it, ``qfg.harness`` (docs/modules.md).
 
 The main entry points are importable from the top level; modules load on first use, so
 ``import qfg`` stays fast:
@@ -16,9 +17,9 @@ The main entry points are importable from the top level; modules load on first u
 'qfg.graph'
 """
 
-from __future__ import annotations
-
-import importlib
+# no `from __future__ import annotations`, and importlib under a private name: dir(qfg) lists
+# qfg's own names only (tests/test_surface.py)
+import importlib as _importlib
 
 from ._version import __version__
 
@@ -66,9 +67,9 @@ __all__ = ["__version__", *_MODULES, *_NAMES]
 
 def __getattr__(name):
     if name in _MODULES:
-        return importlib.import_module(f".{name}", __name__)
+        return _importlib.import_module(f".{name}", __name__)
     if name in _NAMES:
-        mod = importlib.import_module(f".{_NAMES[name]}", __name__)
+        mod = _importlib.import_module(f".{_NAMES[name]}", __name__)
         return getattr(mod, name)
     if name in _MOVED:
         raise AttributeError(f"qfg.{name} moved to qfg.harness.{name} (the experiment harness, "
