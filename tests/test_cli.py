@@ -214,3 +214,12 @@ def test_run_aborted_is_one_line_and_exit_1(tmp_path, capsys, monkeypatch):
     assert main(["experiment", "composition", "--no-progress", "--output",
                  str(tmp_path / "o")]) == 1
     _one_error_line(capsys, "No space left on device")
+
+
+def test_an_unknown_preset_names_a_file_that_exists(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # wherever the user is, e.g. a pip install without a checkout
+    assert main(["experiment", "single-triplet", "--preset", "nope", "--output",
+                 str(tmp_path / "o")]) == 2
+    line = _one_error_line(capsys, "--preset", "'nope'", "quick")
+    named = line.split("(", 1)[1].split(" has ")[0]
+    assert Path(named).is_absolute() and Path(named).is_file(), line

@@ -1,4 +1,4 @@
-"""The composition study (qfg.studies.composition) on a small LR tensor built here."""
+"""The composition study (qfg.harness.studies.composition) on a small LR tensor built here."""
 
 import numpy as np
 import pytest

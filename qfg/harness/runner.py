@@ -92,6 +92,7 @@ __all__ = [
     "OutputLock",
     "check_output",
     "load_presets",
+    "preset_path",
     "presets_dir",
     "RunnerError",
     "OutputInUse",
@@ -1139,9 +1140,15 @@ def presets_dir():
 experiments_dir = presets_dir
 
 
+def preset_path(name: str) -> Path:
+    """The preset file of study ``name``: ``<presets_dir>/<name>.toml`` (``-`` read as ``_``); an
+    absolute path, so that messages name a file a pip user has."""
+    return (presets_dir() / f"{name.replace('-', '_')}.toml").absolute()
+
+
 def load_presets(name: str) -> dict[str, dict]:
-    """Presets of a study from ``experiments/<name>.toml`` (``-`` in the name read as ``_``)."""
-    path = presets_dir() / f"{name.replace('-', '_')}.toml"
+    """Presets of a study from its preset file (:func:`preset_path`)."""
+    path = preset_path(name)
     if not path.exists():
         raise RunnerError(f"study {name!r}: no preset file {path}")
     try:

@@ -71,8 +71,8 @@ def _main(args):
     study = get_study(args.name)
     presets = runner.load_presets(study.name)
     if args.preset not in presets:
-        raise ValueError(f"--preset: {args.preset!r} not in experiments/"
-                         f"{study.name.replace('-', '_')}.toml (has {', '.join(presets)})")
+        raise ValueError(f"--preset: {args.preset!r} is not a preset of {study.name} "
+                         f"({runner.preset_path(study.name)} has {', '.join(presets)})")
     params = {**presets[args.preset], **parse_overrides(args.set)}
     output = args.output or f"out/{study.name}-{args.preset}"
     executor = runner.make_executor(args.workers, args.scheduler) if args.scheduler else None

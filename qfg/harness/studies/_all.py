@@ -43,8 +43,8 @@ def run_all(preset: str = "quick", *, root="out", seed: int = 0, workers: int = 
         try:
             presets = runner.load_presets(name)
             if preset not in presets:
-                raise runner.RunnerError(f"no [{preset}] preset in experiments/"
-                                         f"{name.replace('-', '_')}.toml")
+                raise runner.RunnerError(f"no [{preset}] preset in "
+                                         f"{runner.preset_path(name)}")
             rows = runner.run_study(study, presets[preset], output, seed=seed, workers=workers,
                                     resume=resume, overwrite=overwrite, executor=executor,
                                     progress=progress, command=command,
