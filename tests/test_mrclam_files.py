@@ -10,6 +10,7 @@ from __future__ import annotations
 import gzip
 import itertools
 import os
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -509,3 +510,128 @@ def test_damaged_file_loads_or_names_the_file(tmp_path_factory, which, gz, flips
         assert err.path in str(err)
     else:
         assert ds.report.robot(1).views == ds.robot(1).n_views
+
+
+# ----------------------------------------------------------------------------------------------
+# files a user may be handed: streamed, bounded, named (issue 18 item 9)
+
+def _fifo(p):
+    if not hasattr(os, "mkfifo"):
+        pytest.skip("no FIFOs here")
+    os.mkfifo(p)
+
+
+@pytest.mark.parametrize("make, fragment", [
+    (lambda p: p.mkdir(), "a directory"),
+    (_fifo, "FIFO"),
+    (lambda p: os.symlink(p.name, p), "symbolic link loop"),
+    (lambda p: os.symlink("nowhere.dat", p), "could not read"),
+])
+@pytest.mark.parametrize("name", ["Robot2_Measurement.dat", "Robot1_Odometry.dat.gz",
+                                  "Barcodes.dat"])
+def test_a_data_file_name_on_something_else_is_named(tmp_path, make, fragment, name):
+    d = small_dataset(tmp_path / "D", split_images(), odometry=[(999.0, 0.1, 0.0), (1005.0, 0.1, 0.0)])
+    if name == "Barcodes.dat":
+        (d / name).unlink()
+    elif name.endswith(".gz"):
+        (d / name[:-3]).unlink()
+    p = d / name
+    make(p)
+    # a FIFO is never opened (that would wait for a writer): the test would hang, not fail
+    _raises(d, p, None, fragment)
+
+
+def test_zero_padded_robot_number_is_named(tmp_path):
+    d = small_dataset(tmp_path / "D", split_images())
+    (d / "Robot1_Measurement.dat").rename(d / "Robot01_Measurement.dat")
+    _raises(d, d / "Robot01_Measurement.dat", None, "Robot1_Measurement.dat")
+
+
+def test_rows_keep_their_line_numbers_across_blocks_comments_and_blank_lines(tmp_path):
+    # > 64 KiB, so the file is read in several blocks; comments and blank lines in between
+    rows = [(t, b, r, phi % 1.0) for t, b, r, phi in split_images(n=2000)]
+    lines = ["%.3f \t %d \t %.3f \t %.3f" % r for r in rows]
+    for k in (5, 3000, 9000):
+        lines.insert(k, "# a comment" if k != 3000 else "   ")
+    bad = 11000
+    lines[bad] = lines[bad].rsplit("\t", 2)[0] + "\t -1.000 \t 0.100"   # a negative range
+    d = small_dataset(tmp_path / "D", [])
+    _write(d / "Robot1_Measurement.dat", lines)
+    assert (d / "Robot1_Measurement.dat").stat().st_size > 3 * 2**16
+    _raises(d, d / "Robot1_Measurement.dat", HEADER.count("\n") + bad + 1, "range")
+    for gz in (False, True):
+        lines[bad] = lines[bad - 1]
+        if gz:
+            (d / "Robot1_Measurement.dat").unlink()
+        _write(d / "Robot1_Measurement.dat", lines, gz=gz)
+        tab = mrclam._io.read_table(mrclam._io.find_file(d, "Robot1_Measurement"),
+                                    mrclam._load._MEAS_COLS)
+        text = (gzip.decompress if gz else bytes)(mrclam._io.find_file(
+            d, "Robot1_Measurement").read_bytes()).decode().split("\n")
+        want = [i + 1 for i, t in enumerate(text) if t.split("#")[0].strip()]
+        assert tab.lines.tolist() == want and len(want) == tab.data.shape[0] == len(rows)
+
+
+def test_too_many_lines_and_too_long_a_line_are_named(tmp_path, monkeypatch):
+    from qfg.datasets.mrclam import _constants
+
+    d = small_dataset(tmp_path / "D", split_images(n=10))
+    p = d / "Robot1_Measurement.dat"
+    monkeypatch.setattr(_constants, "MAX_LINES", 30)
+    _raises(d, p, 31, "more than 30 lines")
+    monkeypatch.undo()
+    p.write_bytes(HEADER.encode() + b"1000.0 \t 9 \t 2.0 " + b"7" * (3 * 2**20))   # no newline
+    _raises(d, p, HEADER.count("\n") + 1, "line longer than")
+
+
+def _bomb(path: Path, inflated: int):
+    """A .gz file of valid measurement lines inflating to ``inflated`` bytes, written in a
+    moment: one 1 MiB member repeated (gzip allows members one after another)."""
+    block = b"1000.000 \t 9 \t 2.000 \t 0.100\n" * (2**20 // 30)
+    member = gzip.compress(block, compresslevel=9)
+    with open(path, "wb") as fh:
+        fh.write(gzip.compress(HEADER.encode()))
+        for _ in range(inflated // len(block)):
+            fh.write(member)
+
+
+_MEMORY_CHILD = """
+import resource, sys, time
+resource.setrlimit(resource.RLIMIT_AS, (CAP, CAP))
+from qfg.datasets import mrclam
+t = time.perf_counter()
+try:
+    mrclam.load(sys.argv[1])
+    print("loaded")
+except mrclam.DataFormatError as exc:
+    print("error", exc)
+except MemoryError:
+    print("MemoryError")
+print(time.perf_counter() - t)
+print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+"""
+
+
+@pytest.mark.skipif(not hasattr(os, "fork") or sys.platform != "linux",
+                    reason="RLIMIT_AS and ru_maxrss in kilobytes: Linux")
+@pytest.mark.parametrize("kind", ["sparse 2 GB file", "gzip bomb 1.5 GB"])
+def test_oversize_file_and_gzip_bomb_are_refused_in_bounded_memory(tmp_path, kind):
+    import subprocess
+
+    d = small_dataset(tmp_path / "D", split_images())
+    if kind.startswith("sparse"):
+        p = d / "Robot1_Measurement.dat"
+        with open(p, "r+b") as fh:
+            fh.truncate(2 * 2**30)          # a hole: no disk used, 2 GB to read
+    else:
+        (d / "Robot1_Measurement.dat").unlink()
+        p = d / "Robot1_Measurement.dat.gz"
+        _bomb(p, int(1.5 * 2**30))
+        assert p.stat().st_size < 8 * 2**20
+    cap = 1536 * 2**20                      # a regression fails with MemoryError, not the machine
+    proc = subprocess.run([sys.executable, "-c", _MEMORY_CHILD.replace("CAP", str(cap)), str(d)],
+                          capture_output=True, text=True, timeout=120)
+    what, secs, rss_kb = proc.stdout.strip().split("\n")
+    assert what.startswith("error") and str(p) in what, proc.stdout + proc.stderr
+    assert "plausibly" in what
+    assert int(rss_kb) < 400 * 1024, f"{kind}: peak RSS {int(rss_kb) // 1024} MB"

@@ -38,3 +38,15 @@ DEFAULT_MAX_GAP = 10.0
 DEFAULT_MIN_TRAVEL = 0.2
 #: Least time (s) between consecutive kept views of a history for robots without odometry.
 DEFAULT_MIN_INTERVAL = 4.0
+
+# What a file of the format can plausibly hold; beyond it the file is refused (naming it) before
+# it can take the machine's memory. The largest file of datasets 1-6 inflates to 4.1 MB in
+# 123,776 lines of at most 71 bytes (dataset 3, Robot5_Odometry; docs/mrclam.md): the bounds
+# leave 16x that for longer runs, and a file is read in blocks, so memory stays within about
+# MAX_LINES x 5 columns x 8 bytes x 2 (the blocks and their concatenation).
+#: Bytes of one file (compressed on disk, and inflated).
+MAX_FILE_BYTES = 64 * 2**20
+#: Lines of one file.
+MAX_LINES = 2_000_000
+#: Bytes of one line (header comments included).
+MAX_LINE_BYTES = 4096

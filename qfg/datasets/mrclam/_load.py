@@ -30,10 +30,17 @@ _STAMP_TOL = 1e-6
 
 
 def _robot_numbers(directory: Path, kind: str) -> set[int]:
+    """Robot numbers N of the ``RobotN_<kind>.dat(.gz)`` names in ``directory``. A number written
+    with a leading zero (``Robot01_...``) is a DataFormatError naming the file: the loader looks
+    files up as ``Robot1_...``, so it would otherwise go unread or be read twice."""
     out = set()
-    for p in directory.glob(f"Robot*_{kind}.dat*"):
+    for p in sorted(directory.glob(f"Robot*_{kind}.dat*")):
         stem = p.name.split("_", 1)[0][len("Robot"):]
         if stem.isdigit() and p.name.endswith((".dat", ".dat.gz")):
+            if stem != str(int(stem)):
+                raise DataFormatError(p, None, f"robot number written as {stem!r}: MRCLAM names "
+                                               f"robot files Robot1_ ... Robot5_; rename it "
+                                               f"Robot{int(stem)}_{p.name.split('_', 1)[1]}")
             out.add(int(stem))
     return out
 
