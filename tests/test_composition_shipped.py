@@ -108,3 +108,93 @@ def test_small_build_has_the_shipped_support_away_from_rare_entries():
     assert np.all(shipped.T[missed] < 1e-5)
     # the common entries agree roughly already (64 samples: a few percent in L1)
     assert qb.compare(shipped, small)["l1"] < 0.05
+
+
+# ------------------------------------------------------------------ issue 18 item 10
+def _with_extra_member(tmp_path, member: str, n_bytes: int):
+    """The shipped EDC file plus a deflated member ``member`` of ``n_bytes`` zero bytes (a .npy
+    of uint8): a few hundred kB on disk that inflate to ``n_bytes``."""
+    import shutil
+    import zipfile
+
+    path = tmp_path / "edc.npz"
+    shutil.copyfile(qc.tensor_path("edc"), path)
+    with zipfile.ZipFile(path, "a", compression=zipfile.ZIP_DEFLATED) as zf:
+        with zf.open(member, "w", force_zip64=True) as fh:
+            # a version 1.0 .npy header of a 1-d uint8 array: 128 bytes with numpy's padding
+            np.lib.format.write_array_header_1_0(
+                fh, {"descr": "|u1", "fortran_order": False, "shape": (n_bytes - 128,)})
+            chunk = bytes(1 << 20)
+            left = n_bytes - 128
+            while left > 0:
+                fh.write(chunk[:min(left, len(chunk))])
+                left -= len(chunk)
+    return path
+
+
+def test_a_huge_extra_member_is_refused_before_inflating_with_memory_bounded(tmp_path):
+    import subprocess
+    import sys
+
+    n = 192 << 20
+    path = _with_extra_member(tmp_path, "meta_junk.npy", n)
+    assert path.stat().st_size < 2 << 20  # small on disk
+    code = f"""
+import resource, sys
+from qfg.composition import store
+def vm():
+    for line in open("/proc/self/status"):
+        if line.startswith("VmSize:"):
+            return int(line.split()[1]) * 1024
+# the address space may grow by 96 MiB at most: inflating the member needs twice that
+cap = vm() + (96 << 20)
+resource.setrlimit(resource.RLIMIT_AS, (cap, cap))
+before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+try:
+    store.load({str(path)!r}, "edc")
+except store.TensorFileError as exc:
+    grown = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before
+    print("REFUSED", grown, exc)
+    sys.exit(0)
+print("LOADED")
+sys.exit(1)
+"""
+    if not sys.platform.startswith("linux"):
+        pytest.skip("reads /proc/self/status")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, (r.stdout, r.stderr[-2000:])
+    _, grown_kib, msg = r.stdout.split(" ", 2)
+    assert int(grown_kib) < 32 * 1024, f"peak RSS grew by {grown_kib} KiB"
+    assert str(path) in msg and "meta_junk.npy" in msg and str(n) in msg
+
+
+@pytest.mark.parametrize("member", ["junk.npy", "notes.txt", "dir/T.npy"])
+def test_an_unexpected_member_is_named(tmp_path, member):
+    path = _with_extra_member(tmp_path, member, 1024)
+    with pytest.raises(qc.TensorFileError, match=f"unexpected member '{member}'") as info:
+        qc.load(path, "edc")
+    assert str(path) in str(info.value)
+
+
+def test_an_oversize_required_member_is_refused(tmp_path):
+    # a T member of a partition of 20 states that claims more than (20, 20, 20) float64
+    import zipfile
+
+    src = zipfile.ZipFile(qc.tensor_path("edc"))
+    path = tmp_path / "edc.npz"
+    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        for info in src.infolist():
+            if info.filename == "T.npy":
+                zf.writestr("T.npy", _npy_bytes(np.zeros((40, 20, 20))))
+            else:
+                zf.writestr(info.filename, src.read(info.filename))
+    with pytest.raises(qc.TensorFileError, match="member 'T.npy' declares"):
+        qc.load(path, "edc")
+
+
+def _npy_bytes(a):
+    import io
+
+    buf = io.BytesIO()
+    np.save(buf, a)
+    return buf.getvalue()

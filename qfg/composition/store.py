@@ -20,6 +20,7 @@ directory named by the environment variable ``QFG_TENSORS``.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import zipfile
@@ -193,6 +194,67 @@ def save(path, tensor: CompositionTensor) -> Path:
     return path
 
 
+#: Most members a tensor file holds (the required fields and the build's meta_* details).
+_MAX_MEMBERS = 64
+#: Room for a member's .npy header (numpy pads it to a multiple of 64 bytes; a few hundred in
+#: practice) and for a small member (a scalar, a string, the window): 4 KiB.
+_SMALL = 4096
+
+
+def _member_limit(key: str, m: int) -> int:
+    """Most bytes member ``key`` may inflate to for a partition of m states: (m, m, m) float64
+    for T and the meta arrays a build records per (i, j, k), (m, m, m) bool for the support,
+    a few KiB for the rest."""
+    if key == "T" or key.startswith("meta_"):
+        return 8 * m ** 3 + _SMALL
+    if key == "support":
+        return m ** 3 + _SMALL
+    return _SMALL
+
+
+def _read_members(path: Path, name: str, partition) -> dict:
+    """The arrays of the .npz at ``path``, each member's name and declared (inflated) size checked
+    against what a tensor file holds BEFORE anything is inflated: memory stays bounded by the
+    partition's table size whatever the archive claims. zipfile stops inflating a member at its
+    declared size (and fails its CRC), so a member lying about its size cannot grow past it."""
+    with zipfile.ZipFile(path) as zf:
+        infos = zf.infolist()
+        if len(infos) > _MAX_MEMBERS:
+            raise _fail(path, name, f"{len(infos)} members, more than the {_MAX_MEMBERS} a tensor "
+                                    "file holds")
+        keys = {}
+        for info in infos:
+            key = info.filename[:-4] if info.filename.endswith(".npy") else None
+            if key is None or not (key in _REQUIRED or (key.startswith("meta_")
+                                                        and key[5:].isidentifier())):
+                raise _fail(path, name, f"unexpected member {info.filename!r} (a tensor file "
+                                        f"holds {', '.join(_REQUIRED)} and meta_* details)")
+            keys[key] = info
+        # the partition, and so the table size, before the big members: from the caller, else
+        # from the file's own (small) partition member
+        m = None
+        if partition is not None:
+            m = _partitions.get(partition).n_states
+        elif "partition" in keys and keys["partition"].file_size <= _SMALL:
+            with zf.open(keys["partition"]) as fh:
+                with contextlib.suppress(ValueError):
+                    m = _partitions.get(str(np.lib.format.read_array(fh, allow_pickle=False)))\
+                        .n_states
+        if m is None:  # unknown partition: the largest shipped one bounds the sizes
+            m = max(_partitions.get(n).n_states for n in _partitions.available())
+        for key, info in keys.items():
+            limit = _member_limit(key, m)
+            if info.file_size > limit:
+                raise _fail(path, name, f"member {info.filename!r} declares {info.file_size} bytes "
+                                        f"inflated, more than the {limit} a tensor of {m} states "
+                                        "needs (not inflated)")
+        data = {}
+        for key, info in keys.items():
+            with zf.open(info) as fh:
+                data[key] = np.lib.format.read_array(fh, allow_pickle=False)
+    return data
+
+
 def load(path, partition=None) -> CompositionTensor:
     """Load and check a tensor file.
 
@@ -218,9 +280,10 @@ def load(path, partition=None) -> CompositionTensor:
         what = "an empty file" if not head else f"it starts with {head!r}, not a zip header"
         raise _fail(path, name, f"not an npz archive ({what})")
     try:
-        with np.load(path, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
+        data = _read_members(path, name, partition)
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as exc:
+        if isinstance(exc, TensorFileError):
+            raise
         raise _fail(path, name, f"cannot be read ({type(exc).__name__}: {exc})") from None
     missing = [k for k in _REQUIRED if k not in data]
     if missing:
