@@ -193,3 +193,45 @@ def test_bad_input():
         priors.WindowPrior((1.0, 0.0, 0.0, 1.0))
     with pytest.raises(ValueError, match="n_cameras"):
         p.sample(np.random.default_rng(0), -1, 3)
+
+
+# ------------------------------------------------------------------ issue 18 item 11
+@pytest.mark.parametrize("make, name", [
+    (lambda: priors.ProductPrior(scale=1e200), r"scale: expected a length in \[1e-100, 1e\+100\]"),
+    (lambda: priors.ProductPrior(scale=1e-200), r"scale: expected a length in \[1e-100"),
+    (lambda: priors.ProductPrior(scale=0.0), "scale"),
+    (lambda: priors.WorldBoxPrior(width=1e308, height=1e308), r"width: expected a length in"),
+    (lambda: priors.WorldBoxPrior(width=6.0, height=1e308), r"height: expected a length in"),
+    (lambda: priors.WorldBoxPrior(width=1e-6, height=1.0, d_min=0.0), r"width: .*\[0.001"),
+    (lambda: priors.WorldBoxPrior(d_min=6.5), r"d_min: expected a number in \[0, 6\)"),
+    (lambda: priors.WorldBoxPrior(n_rho=10**6), r"n_rho: expected an even integer in \[4, 4096\]"),
+    (lambda: priors.WindowPrior((-1e308, 1e308, -1e308, 1e308)), r"window: .*±1e\+100"),
+    (lambda: priors.WindowPrior((0.0, 1e-200, 0.0, 1e-200)), r"window: expected sides >= 1e-100"),
+    (lambda: priors.WindowPrior((0.0, 1e4, 0.0, 1.0)), r"window: expected an aspect ratio"),
+])
+def test_extreme_prior_parameters_are_refused_at_construction(make, name):
+    with pytest.raises(ValueError, match=name):
+        make()
+
+
+def test_priors_at_the_edges_of_their_ranges_stay_finite():
+    # the accepted ranges are where the math holds: at their edges, log densities of the prior's
+    # own draws are finite (no overflow, no NaN) and a solver runs
+    from qfg.simulation import random_triplet_history
+    from qfg.solvers import solve_triplet
+
+    edge = [priors.ProductPrior(1e100), priors.ProductPrior(1e-100),
+            priors.WorldBoxPrior(width=1e100, height=1e100), priors.WorldBoxPrior(1e-3, 1e-3, 0.0),
+            priors.WorldBoxPrior(n_rho=4096),
+            priors.WindowPrior((-1e100, 1e100, -1e100, 1e100)),
+            priors.WindowPrior((0.0, 1e-100, 0.0, 1e-100)), priors.WindowPrior((0.0, 1e3, 0.0, 1.0))]
+    rng = np.random.default_rng(0)
+    for p in edge:
+        x = p.sample(rng, n_cameras=2, size=4)
+        assert np.all(np.isfinite(x)), p
+        assert np.all(np.isfinite(p.log_density(x))), p
+    h = random_triplet_history(np.random.default_rng(1), 2, np.deg2rad(2), np.deg2rad(5))
+    for p in (priors.ProductPrior(1e100), priors.WindowPrior((-1e100, 1e100, -1e100, 1e100))):
+        for method in ("fast", "baseline"):
+            est = solve_triplet(h, method=method, prior=p, seed=0)
+            assert np.all(np.isfinite(est.landmark)) and abs(est.landmark.sum() - 1) < 1e-9
