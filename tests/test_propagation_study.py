@@ -15,7 +15,7 @@ from qfg.harness import runner
 from qfg.harness.studies import propagation as P
 from qfg.propagation import topology_scores
 
-PARAMS = PROPAGATION_SMALL
+PARAMS = {**PROPAGATION_SMALL, "config_particles": 200}
 
 
 def _table():
@@ -241,3 +241,30 @@ def test_experiment_all_writes_no_tracked_file_without_update_docs(tmp_path, mon
     monkeypatch.chdir(tmp_path)
     assert cli.main(["experiment", "all", "--no-progress"]) == 0
     assert not (tmp_path / "docs").exists()
+
+
+def test_map_methods_scored_on_seen_and_unseen_triplets(full_run):
+    out, rows = full_run
+    for r in rows:
+        for m in ("prior", "alg2", "pooled", "cfg_state", "cfg_metric"):
+            assert r[f"{m}_ls"] <= 0 and 0 <= r[f"{m}_pit"] <= 1 and 0 <= r[f"{m}_brier"] <= 2
+        assert (r["solver_ls"] is None) == (not r["seen"])
+    s = json.loads((out / "summary.json").read_text())
+    got = {(t["triplets"], t["method"]) for t in s["scores"]}
+    assert ("seen", "solver") in got and ("unseen", "cfg_metric") in got
+    assert ("unseen", "solver") not in got
+    assert (out / "scores.md").exists()
+
+
+def test_randomized_pit_is_uniform_for_calibrated_forecasts():
+    from qfg.harness.studies._map_methods import randomized_pit
+
+    rng = np.random.default_rng(0)
+    P = rng.dirichlet(np.full(5, 0.5), size=20_000)
+    truth = (rng.random(20_000)[:, None] > np.cumsum(P, axis=1)).sum(axis=1)   # drawn from P
+    pit = randomized_pit(P, truth, rng.random(20_000))
+    hist = np.histogram(pit, bins=10, range=(0, 1))[0] / 20_000
+    assert np.all(np.abs(hist - 0.1) < 0.01)
+    # over-confident forecasts (the same ones sharpened) pile up in the top decile
+    sharp = P ** 3 / (P ** 3).sum(axis=1, keepdims=True)
+    assert np.mean(randomized_pit(sharp, truth, rng.random(20_000)) >= 0.9) > 0.15

@@ -13,9 +13,20 @@ triplets seen with fast-solver priors). For every graph:
 * Algorithm 2 in both readings of closing (:func:`qfg.propagation.propagate`, ``alg2``:
   membership, ``alg2c``: ``close_used=True``);
 * loopy BP without and with damping (``bp``: damping 0, ``bpd``: ``bp_damping``);
+* the pooled rule (``pooled``: :func:`qfg.propagation.propagate` with ``rule="mean"``);
+* configuration inference (issue 21, :mod:`qfg.configurations`): ``cfg_state`` (each seen
+  triplet's likelihood from its state estimate) and ``cfg_metric`` (from a summary of the
+  solver's weighted samples of C), ``config_particles`` particles (``map_methods=false`` skips
+  them);
 * the topology score (Algorithm 3, seen triplets at their prior's ISC: ``tsc``; at 1: ``tsc1``).
 
-Rows: one per non-seen triplet, with per method ``<method>_tv`` and ``<method>_kl`` (KL(exact ||
+Every triplet is scored, seen and unseen (``seen`` column), by every method plus ``prior`` (the
+prior's state distribution alone) and, for seen triplets, ``solver`` (the estimate itself):
+``<method>_ls`` (log score clipped at 1e-4), ``_brier``, ``_under1``, ``_pit`` (randomized PIT),
+``_top``/``_tophit`` (:mod:`qfg.harness.studies._map_methods`); ``scores.md`` / ``scores.csv``
+summarize them. The comparison with exact inference below is over the unseen triplets.
+
+Rows: one per triplet, with per method ``<method>_tv`` and ``<method>_kl`` (KL(exact ||
 method), natural log) to exact, ``<method>_logscore`` (log of the probability given to the true
 state), ``<method>_dmse`` (to the true state), ``<method>_isc``; graph columns (``n_v``, ``n_fc``,
 ``n_seen``, ``width`` (largest clique of the junction tree, triplets), ``has_loop``, BP
@@ -34,6 +45,7 @@ import numpy as np
 
 from qfg.graph import truth_states
 from qfg.harness.runner import Study, param_spec, print_table, save_figure, write_table
+from qfg.harness.studies import _map_methods as mm
 from qfg.harness.studies.propagation import GRAPH_KEYS as _GRAPH_KEYS
 from qfg.inference import ZeroMassError, exact_marginals
 from qfg.metrics import dmse, information_score
@@ -42,8 +54,13 @@ from qfg.random_graphs import propagation_graph
 
 #: approximate methods: name -> label
 APPROX = {"alg2": "Algorithm 2 (membership closing)", "alg2c": "Algorithm 2 (close used)",
-          "bp": "loopy BP", "bpd": "loopy BP, damped"}
+          "pooled": "pooled composition (rule='mean')",
+          "bp": "loopy BP", "bpd": "loopy BP, damped",
+          "cfg_state": "configuration inference, state likelihoods",
+          "cfg_metric": "configuration inference, metric evidence"}
 METHODS = ("exact", *APPROX)
+#: methods scored on every triplet (``solver``: seen triplets only)
+SCORED = ("prior", "solver", *METHODS)
 
 DEFAULTS = {
     # the propagation study's graph parameters (its paper preset)
@@ -52,6 +69,8 @@ DEFAULTS = {
     "sigma_heading_deg": 5.0, "solver": "fast", "partition": "edc", "n_bins": 10,
     # the approximate methods
     "bp_damping": 0.5, "bp_max_iters": 200, "bp_tol": 1e-9,
+    # configuration inference (issue 21)
+    **mm.PARAMS,
     # Tests only: a seeded random tensor (m = 20) instead of tensors/<partition>.npz.
     "random_tensor": False,
 }
@@ -95,8 +114,12 @@ def _timed(fn):
 def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
     from qfg.inference import size_estimate
 
-    drawn = propagation_graph(rng, _tensor(task), **{k: task[k] for k in _GRAPH_KEYS})
+    cfg = bool(task["map_methods"])
+    drawn = propagation_graph(rng, _tensor(task), **{k: task[k] for k in _GRAPH_KEYS},
+                              hypotheses=cfg)
     g, L = drawn.graph, drawn.landmarks
+    # drawn after the graph: the graph is the propagation study's whatever is run on it
+    cfg_seed, u_pit = int(rng.integers(2**63)), rng.random(g.n_triplets)
     truth = truth_states(g.triplets, L, task["partition"])
     est = size_estimate(g)
     zero_mass, zero_local, why = False, 0, ""
@@ -109,16 +132,38 @@ def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
     res, times = {}, {"exact": t_ex}
     res["alg2"], times["alg2"] = _timed(lambda: propagate(g))
     res["alg2c"], times["alg2c"] = _timed(lambda: propagate(g, close_used=True))
+    res["pooled"], times["pooled"] = _timed(lambda: propagate(g, rule="mean"))
     bp_kw = {"max_iters": int(task["bp_max_iters"]), "tol": float(task["bp_tol"])}
     res["bp"], times["bp"] = _timed(lambda: loopy_bp(g, damping=0.0, **bp_kw))
     res["bpd"], times["bpd"] = _timed(lambda: loopy_bp(g, damping=float(task["bp_damping"]),
                                                        **bp_kw))
+    cdiag = {}
+    if cfg:
+        cm, ct, cdiag = mm.config_marginals(drawn, task, cfg_seed)
+        res.update(cm)
+        times.update(ct)
     tsc = topology_scores(g, alpha=float(task["alpha"])).scores
     tsc1 = topology_scores(g, alpha=float(task["alpha"]), seen_score=1.0).scores
-    unseen = np.flatnonzero(~g.seen)
+    # every triplet, seen and unseen (the comparison with exact is read over the unseen ones)
+    unseen = np.arange(g.n_triplets)
     truth_u = truth[unseen]
     cols = {}
     mats = {"exact": E, **{k: np.asarray(r) for k, r in res.items()}}
+    from qfg.configurations import prior_states
+
+    q = prior_states("world", task["partition"])   # the solvers' prior: the state prior alone
+    seen_v = np.flatnonzero(g.seen)
+    for name, M in {"prior": np.tile(q, (g.n_triplets, 1)), **mats}.items():
+        if M is None:
+            continue
+        for k, c in mm.score_columns(name, M, truth, u_pit).items():
+            cols[k] = c
+    for k, c in mm.score_columns("solver", g.prior_matrix()[seen_v], truth[seen_v],
+                                 u_pit[seen_v]).items():
+        full = [None] * g.n_triplets
+        for i, v in enumerate(seen_v):
+            full[v] = c[i]
+        cols[k] = full
     for name, M in mats.items():
         if M is None:
             for c in ("tv", "kl", "logscore", "dmse", "isc"):
@@ -147,13 +192,15 @@ def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
              "bp_converged": bool(res["bp"].converged), "bp_iterations": res["bp"].iterations,
              "bpd_converged": bool(res["bpd"].converged),
              "bpd_iterations": res["bpd"].iterations,
-             **{f"time_{k}": v for k, v in times.items()}}
+             **{f"time_{k}": v for k, v in times.items()},
+             **{f"{k}_{d}": v for k, dd in cdiag.items() for d, v in dd.items()}}
     rows = []
     for r, v in enumerate(unseen):
-        row = {"triplet": "-".join(map(str, g.triplets[v])), "truth": int(truth[v]),
+        row = {"triplet": "-".join(map(str, g.triplets[v])), "seen": int(g.seen[v]),
+               "truth": int(truth[v]),
                "reached": bool(res["alg2"].reached[v]), "tsc": float(tsc[v]),
                "tsc1": float(tsc1[v]), **{k: c[r] for k, c in cols.items()}, **graph}
-        if r == 0 and zero_mass:
+        if v == int(np.flatnonzero(~g.seen)[0]) and zero_mass:
             row["zero_mass_why"] = why
         rows.append(row)
     if not rows:  # every triplet seen: keep the graph's zero-mass / timing record anyway
@@ -183,6 +230,15 @@ def _pearson(x, y):
 def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
     outdir = Path(outdir)
     rows = [r for r in rows if r.get("triplet")]
+    scored = [r for r in rows if not r["zero_mass"]]
+    scores = mm.score_table(scored, [m for m in SCORED if any(f"{m}_ls" in r for r in rows)])
+    write_table(outdir / "scores.csv", scores, None if scores else ["triplets"], digits=None)
+    (outdir / "scores.md").write_text(
+        f"Graphs with exact marginals ({len({r['scenario'] for r in scored})}); every method on "
+        "the same triplets.\n\n" + mm.score_markdown(scores))
+    if scores:
+        print_table(scores, title="proper scores, seen and unseen triplets")
+    rows = [r for r in rows if not int(r.get("seen", 0))]
     graphs = {}
     for r in rows:
         graphs.setdefault(r["scenario"], r)
@@ -259,7 +315,7 @@ def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
         "exact_time_s_percentiles_50_90_99_max": np.nanpercentile(
             col(g_rows, "time_exact"), [50, 90, 99, 100]).tolist() if g_rows else None,
         "zero_mass_examples": [r.get("zero_mass_why", "") for r in zm[:3]],
-        "table": table, "predictors": pred, "params": {**DEFAULTS, **params},
+        "table": table, "scores": scores, "predictors": pred, "params": {**DEFAULTS, **params},
     }
     run = {}
     if (outdir / "run.json").exists():
@@ -285,7 +341,7 @@ def _figures(outdir, ok, col):
         ax.set_ylabel(label)
         ax.set_xlabel("method (whiskers 5-95 %)")
     ax = axes[2]
-    for m, c in zip(METHODS, ("k", "C0", "C1", "C2", "C3"), strict=True):
+    for m, c in zip(METHODS, ("k", "C0", "C1", "C4", "C2", "C3", "C5", "C6"), strict=True):
         x = np.sort(col(ok, f"{m}_dmse"))
         ax.plot(x, np.arange(1, len(x) + 1) / len(x), color=c, label=m)
     ax.set_xlabel("DMSE to the true state")
@@ -327,4 +383,7 @@ STUDY = Study("exact-vs-approx", tasks, run_task, summarize,
                                 sigma_heading_deg={"min": 0.0}, n_bins={"min": 1},
                                 solver={"choices": ("fast", "full", "baseline")},
                                 bp_damping={"min": 0.0, "max": 1.0}, bp_max_iters={"min": 1},
-                                bp_tol={"min": 0.0}))
+                                bp_tol={"min": 0.0}, config_particles={"min": 4},
+                                config_floor={"min": 0.0, "max": 1.0},
+                                config_state_mix={"min": 0.0, "max": 1.0},
+                                config_components={"min": 1}))

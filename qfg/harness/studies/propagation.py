@@ -24,6 +24,14 @@ the exact-vs-approximate study and the inference benchmark draw the same graphs 
    (``tsc``) and at 1 (``tsc1``, the paper's unbiased comparison with composition levels);
    composition levels (``cl``, normalized ``cl_norm`` = eq. cl3).
 
+5. The map methods of issue 21, scored on every triplet (seen and unseen) with proper scores
+   (:mod:`qfg.harness.studies._map_methods`: ``<method>_ls`` log score clipped at 1e-4,
+   ``_brier``, ``_under1``, ``_pit`` randomized PIT, ``_top``/``_tophit``): ``alg2`` (Algorithm
+   2's marginals), ``pooled`` (``propagate(g, rule="mean")``), ``cfg_state`` and ``cfg_metric``
+   (configuration inference, :mod:`qfg.configurations`), ``prior`` (the prior's state
+   distribution alone), ``solver`` (seen triplets: the estimate). ``map_methods=false`` skips the
+   configuration methods; ``scores.md`` summarizes.
+
 Rows: one per triplet (``scenario``, ``triplet``, ``seen``, ``reached``, ``isc``, ``tsc``,
 ``tsc1``, ``cl`` (-1 where unreachable), ``cl_norm``, ground-truth ``dmse``, ``gt_rating``,
 ``gmd`` of the Algorithm 2 marginal (or the prior for seen triplets) and graph-level columns). The
@@ -41,6 +49,7 @@ import numpy as np
 
 from qfg.graph import truth_states
 from qfg.harness.runner import Study, param_spec, print_table, save_figure, validate_params, write_table
+from qfg.harness.studies import _map_methods as mm
 from qfg.metrics import dmse, gmd, gt_rating
 from qfg.propagation import composition_levels, propagate, topology_scores
 from qfg.random_graphs import (  # one generator; the helpers re-exported for tests and tools
@@ -56,6 +65,8 @@ DEFAULTS = {
     "sigma_heading_deg": 5.0, "solver": "fast", "partition": "edc", "n_bins": 10,
     # Tests only: a seeded random tensor instead of tensors/<partition>.npz (needs m = 20: edc).
     "random_tensor": False,
+    # configuration inference (issue 21)
+    **mm.PARAMS,
 }
 
 PARAMS = param_spec(DEFAULTS, n_graphs={"min": 1}, n_landmarks={"min": 4}, n_fc_min={"min": 1},
@@ -63,7 +74,9 @@ PARAMS = param_spec(DEFAULTS, n_graphs={"min": 1}, n_landmarks={"min": 4}, n_fc_
                     coverage_rate={"min": 0.0, "max": 1.0}, alpha={"min": 0.0, "max": 1.0},
                     n_views={"min": 1}, sigma_bearing_deg={"min": 0.0},
                     sigma_heading_deg={"min": 0.0}, solver={"choices": ("fast", "full", "baseline")},
-                    partition={"choices": ("edc", "fdc", "lr", "tpcc")}, n_bins={"min": 1})
+                    partition={"choices": ("edc", "fdc", "lr", "tpcc")}, n_bins={"min": 1},
+                    config_particles={"min": 4}, config_floor={"min": 0.0, "max": 1.0},
+                    config_state_mix={"min": 0.0, "max": 1.0}, config_components={"min": 1})
 
 
 _HEADLINE = ("spearman_tsc_isc", "spearman_cl_isc", "pearson_tsc_isc", "pearson_cl_isc")
@@ -105,8 +118,11 @@ def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
     from qfg.partitions import get
 
     table = as_table(_tensor(task))
-    drawn = propagation_graph(rng, table, **{k: task[k] for k in GRAPH_KEYS})
+    cfg = bool(task["map_methods"])
+    drawn = propagation_graph(rng, table, **{k: task[k] for k in GRAPH_KEYS}, hypotheses=cfg)
     g, L = drawn.graph, drawn.landmarks
+    # drawn after the graph: the same graphs whatever runs on them
+    cfg_seed, u_pit = int(rng.integers(2**63)), rng.random(g.n_triplets)
     n_seen, conn, kept = int(g.seen.sum()), drawn.connectivity, drawn.kept_candidate
 
     prop = propagate(g)
@@ -119,6 +135,24 @@ def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
     d, r, gm = dmse(M, truth), gt_rating(M, truth), gmd(M, truth, part.centroids)
     graph_cols = {"n_v": g.n_triplets, "n_fc": g.n_factors, "n_seen": n_seen,
                   "connectivity": conn, "kept_candidate": kept}
+    from qfg.configurations import prior_states
+
+    mats = {"prior": np.tile(prior_states("world", task["partition"]), (g.n_triplets, 1)),
+            "alg2": np.asarray(M), "pooled": np.asarray(propagate(g, rule="mean"))}
+    if cfg:
+        cm, ct, cdiag = mm.config_marginals(drawn, task, cfg_seed)
+        mats.update(cm)
+        graph_cols.update({f"time_{k}": v for k, v in ct.items()})
+        graph_cols.update({f"{k}_{d}": v for k, dd in cdiag.items() for d, v in dd.items()})
+    score = {}
+    for name, P in mats.items():
+        score.update(mm.score_columns(name, P, truth, u_pit))
+    sv = np.flatnonzero(g.seen)
+    for k, c in mm.score_columns("solver", g.prior_matrix()[sv], truth[sv], u_pit[sv]).items():
+        full = [None] * g.n_triplets
+        for i, v in enumerate(sv):
+            full[v] = c[i]
+        score[k] = full
     rows = []
     for v, t in enumerate(g.triplets):
         row = {"triplet": "-".join(map(str, t)), "seen": int(g.seen[v]),
@@ -126,7 +160,8 @@ def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
                "tsc1": float(tsc1[v]),
                "cl": float(cl.levels[v]) if np.isfinite(cl.levels[v]) else -1.0,
                "cl_norm": float(cl.normalized[v]), "truth": int(truth[v]),
-               "dmse": float(d[v]), "gt_rating": float(r[v]), "gmd": float(gm[v]), **graph_cols}
+               "dmse": float(d[v]), "gt_rating": float(r[v]), "gmd": float(gm[v]), **graph_cols,
+               **{k: c[v] for k, c in score.items()}}
         if v == 0:
             row["factors"] = ";".join("-".join(map(str, f)) for f in g.factors)
         rows.append(row)
@@ -162,6 +197,11 @@ def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
     outdir = Path(outdir)
     p = {**DEFAULTS, **params}
     nb = int(p["n_bins"])
+    methods = [m for m in ("prior", "solver", "alg2", "pooled", *mm.CONFIG)
+               if any(f"{m}_ls" in r for r in rows)]
+    scores = mm.score_table(rows, methods)
+    write_table(outdir / "scores.csv", scores, None if scores else ["triplets"], digits=None)
+    (outdir / "scores.md").write_text(mm.score_markdown(scores))
     cols = {k: np.array([r[k] for r in rows], dtype=float)
             for k in ("isc", "tsc", "tsc1", "cl", "cl_norm", "seen", "reached", "dmse",
                       "gt_rating", "gmd")}
@@ -221,7 +261,7 @@ def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
                                     [0, 25, 50, 75, 100]).tolist()
                    for k in ("n_v", "n_fc", "n_seen", "connectivity", "kept_candidate")},
         "command": run.get("command"), "seed": run.get("seed"), "params": p,
-        "tensor": _tensor_info(p),
+        "tensor": _tensor_info(p), "scores": scores,
     }
     (outdir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     print_table([{"triplets": s, "predictor": name, "spearman": corr[f"{s}/spearman_{k}_isc"],
