@@ -36,7 +36,7 @@ from typing import Sequence
 
 import numpy as np
 
-from . import _baseline, _estimate, _fast, _input, _options, _seeds, _sis
+from . import _baseline, _degenerate, _estimate, _fast, _input, _options, _seeds, _sis
 from ._estimate import Hypotheses, TripletEstimate
 from ._options import DEFAULTS, METHODS
 
@@ -153,19 +153,29 @@ def _solve_fast_batch(metas, part, opts):
 
 def _reference_estimate(meas, part, opts, root) -> TripletEstimate:
     """``method="reference"``: :func:`qfg.solvers._reference.solve_reference` as an estimate
-    (``mc_error`` the largest standard error of the landmark probabilities)."""
+    (``mc_error`` the largest standard error of the landmark probabilities). A view repeating the
+    previous view's bearings is the same camera (not moved, as the other methods take it): the
+    distinct views are solved, the repeated view's camera row is its predecessor's, and the
+    answer is flagged."""
     from ._reference import solve_reference
 
+    rep = _degenerate.repeated_views(meas.bearings)
+    keep = np.flatnonzero(~rep)
+    # the heading into a repeated view is dropped; the one out of it then leaves its
+    # predecessor's pose (the same pose)
+    headings = None if meas.headings is None else meas.headings[keep[1:] - 1]
     o = {k: v for k, v in opts.items() if k != "prior"}
-    out = solve_reference(meas.bearings, meas.headings, meas.sigma_bearing, meas.sigma_heading,
+    out = solve_reference(meas.bearings[keep], headings, meas.sigma_bearing, meas.sigma_heading,
                           part, opts["prior"], np.random.default_rng(root), **o)
     reasons = [out["reason"]] if out["degenerate"] and out["reason"] else (
         ["reference solver flagged the answer"] if out["degenerate"] else [])
+    if rep.any():
+        reasons.append(_degenerate.repeated_reason(rep))
+    cameras = np.asarray(out["cameras"], dtype=float)[np.cumsum(~rep) - 1]
     return TripletEstimate(
-        landmark=np.asarray(out["landmark"], dtype=float),
-        cameras=np.asarray(out["cameras"], dtype=float), n_hypotheses=int(out["n_samples"]),
-        degenerate=bool(out["degenerate"]), reason="; ".join(reasons), method="reference",
-        partition=part.name, n_views=meas.n_views, ess=float(out["ess"]),
+        landmark=np.asarray(out["landmark"], dtype=float), cameras=cameras,
+        n_hypotheses=int(out["n_samples"]), degenerate=bool(reasons), reason="; ".join(reasons),
+        method="reference", partition=part.name, n_views=meas.n_views, ess=float(out["ess"]),
         mc_error=float(np.max(out["mc_error"])), prior=_estimate.prior_name(opts),
         options=_estimate.public_options(opts))
 
@@ -438,7 +448,7 @@ class TripletSolver:
                 meas = _input.Measurements(phi[None, :], None, self._sb, self._sh)
                 self._state = _baseline.start(meas, self._root, opts, part)
             else:
-                self._state = _baseline.step(self._state, phi)
+                self._state = _baseline.step(self._state, phi, heading)
         self._cache = None
         return self
 

@@ -23,6 +23,8 @@ camera are concyclic; a candidate that happens to fall next to that circle is ca
 The camera-state posterior of view i is ``sum_L P(L | Z) R_i(L, s)``, ``R_i(L, s)`` the share of
 density_i(L) whose resected camera is in state s. Headings are never read. A view with a
 degenerate locus (camera on line AB with zero noise) has no resection; it is ignored and flagged.
+A view repeating the previous view's bearings is taken as the same camera (not moved): it adds
+no evidence and is flagged.
 """
 
 from __future__ import annotations
@@ -126,19 +128,30 @@ def resect(L, phi):
 def start(meas: _input.Measurements, root, opts, part) -> BaselineState:
     rng = _seeds.stream(root, 0, _seeds.STREAM_LANDMARKS)
     cand, lq = _candidates(rng, opts["n_landmark_samples"], opts["prior"])
-    st = BaselineState(meas=_input.Measurements(meas.bearings[:0], None, meas.sigma_bearing,
-                                                meas.sigma_heading),
+    st = BaselineState(meas=_input.Measurements(meas.bearings[:0], np.zeros(0),
+                                                meas.sigma_bearing, meas.sigma_heading),
                        root=root, opts=opts, part=part, candidates=cand,
                        lw=_prior.point_log_prior(opts["prior"], cand) - lq, shares=(), cameras=(),
                        reasons=())
     return step(st, meas.bearings[0])
 
 
-def step(state: BaselineState, phi) -> BaselineState:
-    """Add one view's bearings ``phi`` (3,). (No heading: the baseline has no motion model.)"""
+
+def step(state: BaselineState, phi, heading=None) -> BaselineState:
+    """Add one view's bearings ``phi`` (3,). The baseline has no motion model: a ``heading`` is
+    kept only to flag degenerate geometry (travel along the line of sight to C)."""
     opts, part = state.opts, state.part
     i = state.meas.n_views
-    meas = replace(state.meas, bearings=np.vstack([state.meas.bearings, phi[None, :]]))
+    h = state.meas.headings
+    if i:
+        h = np.append(h, np.nan if heading is None else heading)
+    meas = replace(state.meas, bearings=np.vstack([state.meas.bearings, phi[None, :]]),
+                   headings=h)
+    if i and _degenerate.repeated_views(meas.bearings[-2:])[1]:
+        # the same bearings again: the camera taken as not moved, one camera seen twice, so the
+        # view adds no independent evidence (counting it again would square its likelihood)
+        return replace(state, meas=meas, shares=state.shares + (state.shares[-1],),
+                       cameras=state.cameras + (state.cameras[-1],))
     sv = float(meas.sigma_bearing)
     k = 1 if sv == 0 else opts["noise_samples"]
     rng = _seeds.stream(state.root, i, _seeds.STREAM_CAMERAS)
@@ -174,8 +187,12 @@ def finish(state: BaselineState):
     opts, part, meas = state.opts, state.part, state.meas
     n, m = meas.n_views, part.n_states
     reasons = list(state.reasons)
-    reasons[:0] = _degenerate.geometry_reasons(meas.bearings, meas.sigma_bearing, meas.headings,
+    known = meas.headings if n > 1 and not np.any(np.isnan(meas.headings)) else None
+    reasons[:0] = _degenerate.geometry_reasons(meas.bearings, meas.sigma_bearing, known,
                                                meas.sigma_heading)
+    rep = _degenerate.repeated_views(meas.bearings)
+    if np.any(rep):
+        reasons.append(_degenerate.repeated_reason(rep))
     w = _likelihood.normalize_log(state.lw)
     landmark, ok = _histograms.state_histogram(part, state.candidates, w)
     N = state.candidates.shape[0]

@@ -15,6 +15,29 @@ from ..geometry import LOCUS_EPS, wrap_angle
 SAME_POSE_TOL = 1e-9
 
 
+def repeated_views(bearings) -> np.ndarray:
+    """(n,) True where view i repeats view i - 1's bearings within :data:`SAME_POSE_TOL` (all
+    three): the camera is then taken as not having moved (view 1 is never a repeat).
+
+    >>> repeated_views(np.array([[0.1, 0.5, 1.0], [0.1, 0.5, 1.0], [0.2, 0.5, 1.0]])).tolist()
+    [False, True, False]
+    """
+    b = np.asarray(bearings, dtype=float)
+    out = np.zeros(b.shape[0], dtype=bool)
+    if b.shape[0] > 1:
+        out[1:] = np.all(np.abs(wrap_angle(b[1:] - b[:-1])) <= SAME_POSE_TOL, axis=1)
+    return out
+
+
+def repeated_reason(repeated) -> str:
+    """The flag for views taken as not moved ("" when there are none)."""
+    sp = np.flatnonzero(repeated)
+    if not sp.size:
+        return ""
+    return ("view(s) " + ", ".join(str(v + 1) for v in sp)
+            + " repeat the previous view's bearings (camera taken as not moved)")
+
+
 #: C's depth is called unresolved when its standard deviation along the least constrained
 #: direction exceeds this fraction of its distance from the nearest camera.
 DEPTH_SPREAD = 0.5

@@ -80,8 +80,49 @@ def _rank_within(tid, key):
     return rank
 
 
-def _resection(tid, poses, phi_c, sigma_v, opts):
-    """(L (N, 2), log wr + log C prior (N,)) for trajectories (N, i, 3) of triplets ``tid``."""
+#: Quadrature points along the line of sight when the lines of sight coincide (n >= 2): C's
+#: depth then spreads over several states, which a handful of points would not resolve.
+COINCIDE_POINTS = 64
+
+
+def _ray_landmarks(tid, poses, phi_c, sigma_v, opts):
+    """C integrated along the first camera's line of sight by deterministic quadrature, for
+    trajectories (N, i, 3) whose lines of sight to C coincide (C's depth is then left to the
+    prior): ``k = one_view_samples`` points at quantiles of the ray proposal
+    (:func:`._arcs.ray_points`), weighted ``prior(L) t / q(t)`` (the area element ``t dt dtheta``
+    with view 1's angular likelihood integrated out) times the C-bearing likelihood of the other
+    views (``k = COINCIDE_POINTS`` with more than one view). Returns (points (N, k, 2), log
+    weights (N, k))."""
+    k = opts["one_view_samples"] if poses.shape[1] == 1 else max(opts["one_view_samples"],
+                                                                 COINCIDE_POINTS)
+    cam = poses[:, 0, :]
+    ang = cam[:, 2] + phi_c[tid, 0]
+    q = (np.arange(k) + 0.5) / k
+    pts, lq = _arcs.ray_points(cam[:, :2], ang, np.zeros((ang.size, k)),
+                               np.broadcast_to(q, (ang.size, k)), 1.0)
+    # lq is log[N(0; 1) q(t) / t]: without the angular factor it is log q(t) - log t
+    lq = lq - _likelihood.log_gauss(0.0, 1.0) + 0.5 * np.log(2 * np.pi)
+    lw = _prior.point_log_prior(opts["prior"], pts) - lq
+    if poses.shape[1] > 1:
+        d = pts[:, :, None, :] - poses[:, None, 1:, :2]                  # (N, k, i - 1, 2)
+        th = poses[:, None, 1:, 2] + phi_c[tid][:, None, 1:]
+        res = wrap_angle(np.arctan2(d[..., 1], d[..., 0]) - th)
+        lw = lw + _likelihood.log_gauss(res, sigma_v[tid][:, None, None]).sum(axis=-1)
+    return pts, lw
+
+
+def _resection(tid, poses, phi_c, sigma_v, opts, along_ray=None):
+    """(L (N, 2), log wr + log C prior (N,)) for trajectories (N, i, 3) of triplets ``tid``.
+    Triplets with ``along_ray`` (T,) True get C integrated along the line of sight instead
+    (:func:`_ray_landmarks`; L is then its heaviest point)."""
+    if along_ray is not None and np.any(along_ray[tid]):
+        r = along_ray[tid]
+        L, lw = np.empty((tid.size, 2)), np.empty(tid.size)
+        L[~r], lw[~r] = _resection(tid[~r], poses[~r], phi_c, sigma_v, opts)
+        pts, lq = _ray_landmarks(tid[r], poses[r], phi_c, sigma_v, opts)
+        L[r] = pts[np.arange(pts.shape[0]), np.argmax(lq, axis=1)]
+        lw[r] = _likelihood.logsumexp(lq, axis=1) - np.log(lq.shape[1])
+        return L, lw
     theta = poses[..., 2] + phi_c[tid]
     if opts["resection"] == "lsq":
         L, ok = triangulate_lsq(poses[..., :2], theta)
@@ -105,9 +146,11 @@ def _first(b0, tid, w, lwidth, opts):
     return tid[keep], poses[keep], lw[keep], w[keep], lwidth[keep]
 
 
-def _extend(hyp, bearings, headings, sv, opts):
+def _extend(hyp, bearings, headings, sv, opts, along_ray=None):
     """One motion step: rays along alpha + psi meet the next view's exact arc. ``bearings``
-    (T, i + 1, 3) include the new view, ``headings`` (T, i)."""
+    (T, i + 1, 3) include the new view, ``headings`` (T, i). A view that repeats the previous
+    one's bearings (:func:`._degenerate.repeated_views`) keeps every camera where it was (the
+    camera taken as not moved: no ray, no new point in the prior)."""
     tid, poses, lw, w, lwidth = hyp
     phi, psi = bearings[:, -1], headings[:, -1]
     prev = poses[:, -1, :]
@@ -115,12 +158,17 @@ def _extend(hyp, bearings, headings, sv, opts):
     th = prev[:, 2] + psi[tid]
     pts, valid = ray_circle_intersection(prev[:, :2], th, circ.center[tid], circ.radius[tid],
                                          circ.side[tid])
+    same = np.all(np.abs(wrap_angle(phi - bearings[:, -2])) <= _degenerate.SAME_POSE_TOL,
+                  axis=1)[tid]
+    pts[same, 0], valid[same, 0], valid[same, 1:] = prev[same, :2], True, False
     j, b = np.nonzero(valid)                      # parent, branch; parents stay in order
     X = pts[j, b]
-    alpha = heading_on_locus(X, phi[tid[j], 0])
-    lw_new = lw[j] + _prior.point_log_prior(opts["prior"], X)
+    stay = same[j]
+    alpha = np.where(stay, prev[j, 2], heading_on_locus(X, phi[tid[j], 0]))
+    lw_new = lw[j] + np.where(stay, 0.0, _prior.point_log_prior(opts["prior"], X))
     if opts["jacobian"]:
-        lw_new = lw_new + _arcs.log_ray_jacobian(X, prev[j, :2], th[j])
+        with np.errstate(invalid="ignore"):
+            lw_new = lw_new + np.where(stay, 0.0, _arcs.log_ray_jacobian(X, prev[j, :2], th[j]))
     keep = np.isfinite(lw_new)
     j, X, alpha, lw_new = j[keep], X[keep], alpha[keep], lw_new[keep]
     poses = np.concatenate([poses[j], np.concatenate([X, alpha[:, None]], axis=-1)[:, None, :]],
@@ -129,17 +177,17 @@ def _extend(hyp, bearings, headings, sv, opts):
     cap = opts["max_hypotheses"]
     if tid.size and np.bincount(tid).max() > cap:
         # rank by the current total (prior x resection), keep the prior part: wr is recomputed
-        _, lr = _resection(tid, poses, bearings[..., 2], sv, opts)
+        _, lr = _resection(tid, poses, bearings[..., 2], sv, opts, along_ray)
         keep = _rank_within(tid, lw_new + lr) < cap
         return tid[keep], poses[keep], lw_new[keep], w[keep], lwidth[keep]
     return tid, poses, lw_new, w, lwidth
 
 
-def _chain(bearings, headings, sv, tid, w, lwidth, opts):
+def _chain(bearings, headings, sv, tid, w, lwidth, opts, along_ray=None):
     """Hypotheses after every view, for first-camera parameters ``w`` (N,) of triplets ``tid``."""
     hyp = _first(bearings[:, 0], tid, w, lwidth, opts)
     for i in range(1, bearings.shape[1]):
-        hyp = _extend(hyp, bearings[:, :i + 1], headings[:, :i], sv, opts)
+        hyp = _extend(hyp, bearings[:, :i + 1], headings[:, :i], sv, opts, along_ray)
     return hyp
 
 
@@ -160,9 +208,27 @@ def step(state: FastState, phi, psi) -> FastState:
     bearings = np.concatenate([state.bearings, phi[:, None, :]], axis=1)
     headings = np.concatenate([state.headings, psi[:, None]], axis=1)
     hyp = (state.tid, state.poses, state.lw, state.w, state.lwidth)
-    tid, poses, lw, w, lwidth = _extend(hyp, bearings, headings, state.kernel_sigma(), state.opts)
+    tid, poses, lw, w, lwidth = _extend(hyp, bearings, headings, state.kernel_sigma(), state.opts,
+                                        _along_ray(bearings, headings, state))
     return replace(state, bearings=bearings, headings=headings, tid=tid, poses=poses, lw=lw, w=w,
                    lwidth=lwidth)
+
+
+def _along_ray(bearings, headings, state) -> np.ndarray:
+    """(T,) triplets whose lines of sight to C coincide whatever the trajectory: every view after
+    the first repeats its predecessor (:func:`._degenerate.repeated_views`), or the camera travels
+    along its line of sight to C between every pair of views (the flag of
+    :func:`._degenerate.geometry_reasons`). Their C is integrated along the line of sight."""
+    T, n = bearings.shape[:2]
+    out = np.zeros(T, dtype=bool)
+    if n < 2:
+        return out
+    for t in range(T):
+        rep = _degenerate.repeated_views(bearings[t])
+        out[t] = bool(np.all(rep[1:])) or any(
+            "coincide" in r for r in _degenerate.geometry_reasons(
+                bearings[t], state.sigma_bearing[t], headings[t], state.sigma_heading[t]))
+    return out
 
 
 def _refine(state: FastState, sv):
@@ -172,8 +238,9 @@ def _refine(state: FastState, sv):
     sorted by triplet."""
     opts = state.opts
     b, h = state.bearings, state.headings
+    ray = _along_ray(b, h, state)
     tid, poses, lw, w, lwidth = state.tid, state.poses, state.lw, state.w, state.lwidth
-    L, lr = _resection(tid, poses, b[..., 2], sv, opts)
+    L, lr = _resection(tid, poses, b[..., 2], sv, opts, ray)
     total = lw + lr
     K, R = opts["refine_cells"], opts["refine_factor"]
     for _ in range(opts["refine_levels"]):
@@ -190,8 +257,8 @@ def _refine(state: FastState, sv):
         nt = np.repeat(pt, R)
         nw = (pw[:, None] + np.exp(plw)[:, None] * off).ravel()
         nlw = np.repeat(plw - np.log(R), R)
-        hn = _chain(b, h, sv, nt, nw, nlw, opts)
-        Ln, lrn = _resection(hn[0], hn[1], b[..., 2], sv, opts)
+        hn = _chain(b, h, sv, nt, nw, nlw, opts, ray)
+        Ln, lrn = _resection(hn[0], hn[1], b[..., 2], sv, opts, ray)
         # the refined cells' coarse hypotheses are replaced by their sub-cells'
         key = tid * 4.0 + w
         gone = np.isin(key, pt * 4.0 + pw)
@@ -204,7 +271,7 @@ def _refine(state: FastState, sv):
         w = np.concatenate([w[keep], hn[3]])[order]
         lwidth = np.concatenate([lwidth[keep], hn[4]])[order]
         L = np.concatenate([L[keep], Ln])[order]
-    return tid, poses, total, L
+    return tid, poses, total, L, ray
 
 
 def _segment_normalize(tid, lw, T):
@@ -226,21 +293,28 @@ def finish(state: FastState, hypotheses: bool = False):
     if n == 1:
         k = opts["one_view_samples"]
         tid, poses, lw = state.tid, state.poses, state.lw
-        cam = poses[:, 0, :]
-        ang = cam[:, 2] + state.bearings[tid, 0, 2]
-        q = (np.arange(k) + 0.5) / k
-        # deterministic quantiles of the ray proposal; weight = prior(L) t dt / q(t)
-        pts, lq = _arcs.ray_points(cam[:, :2], ang, np.zeros((ang.size, k)),
-                                   np.broadcast_to(q, (ang.size, k)), 1.0)
-        lq = lq - _likelihood.log_gauss(0.0, 1.0) + 0.5 * np.log(2 * np.pi)
-        r = np.linalg.norm(pts - cam[:, None, :2], axis=-1)
-        lw_q = _prior.point_log_prior(opts["prior"], pts) - lq - np.log(np.maximum(r, 1e-300))
+        # C at deterministic quantiles along the line of sight
+        pts, lw_q = _ray_landmarks(tid, poses, state.bearings[..., 2], sv, opts)
         lw_l = (lw[:, None] + lw_q - np.log(k)).ravel()
         lw_cam = lw + _likelihood.logsumexp(lw_q, axis=-1) - np.log(k)
         l_samples, l_tid = pts.reshape(-1, 2), np.repeat(tid, k)
     else:
-        tid, poses, lw_cam, l_samples = _refine(state, sv)
+        tid, poses, lw_cam, l_samples, ray = _refine(state, sv)
         lw_l, l_tid = lw_cam, tid
+        if np.any(ray):
+            # C along the line of sight: the quadrature points, each with its share of its
+            # trajectory's weight (rows of a triplet stay together, in triplet order)
+            r = ray[tid]
+            pts, lw_q = _ray_landmarks(tid[r], poses[r], state.bearings[..., 2], sv, opts)
+            share = lw_q - _likelihood.logsumexp(lw_q, axis=1)[:, None]
+            k = lw_q.shape[1]
+            reps = np.where(r, k, 1)
+            l_tid = np.repeat(tid, reps)
+            l_samples = np.repeat(l_samples, reps, axis=0)
+            lw_l = np.repeat(lw_cam, reps)
+            at = np.flatnonzero(np.repeat(r, reps))
+            l_samples[at] = pts.reshape(-1, 2)
+            lw_l[at] = (lw_cam[r][:, None] + share).ravel()
     l_w = _segment_normalize(l_tid, lw_l, T)
     c_w = _segment_normalize(tid, lw_cam, T)
     # state histograms for the whole batch at once: one bincount over (triplet, state)
@@ -255,6 +329,9 @@ def finish(state: FastState, hypotheses: bool = False):
     for t in range(T):
         reasons = _degenerate.geometry_reasons(state.bearings[t], state.sigma_bearing[t],
                                                state.headings[t], state.sigma_heading[t])
+        rep = _degenerate.repeated_views(state.bearings[t])
+        if np.any(rep):
+            reasons.append(_degenerate.repeated_reason(rep))
         cw = c_w[cb[t]:cb[t + 1]]
         alive = cw > 0
         if not np.any(alive):

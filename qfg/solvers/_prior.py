@@ -27,12 +27,27 @@ def resolve_prior(prior) -> "_priors.Prior":
 
 
 def point_log_prior(prior, points) -> np.ndarray:
-    """Per-point log density (..., 2) -> (...) used in the solvers' *intermediate* weights only
-    (pruning, resampling, ranking): the cheap product fit for the exact world prior, the prior of
-    a single point otherwise. Final weights use ``prior.log_density`` of the whole configuration
-    (:func:`log_joint_prior`), so this choice affects efficiency, never the target."""
+    """Per-point log density (..., 2) -> (...): the prior of one point of the configuration.
+
+    The SIS solvers use it in their *intermediate* weights only (pruning, resampling, ranking;
+    their final weights use ``prior.log_density`` of the whole configuration,
+    :func:`log_joint_prior`, so there it affects efficiency, never the target); ``fast-paper`` and
+    ``baseline`` build their answers from it (a product of per-point priors, their model).
+
+    For a :class:`qfg.priors.WorldBoxPrior` of the simulator's shape (:func:`is_simulator_world`)
+    it is the cheap product fit :class:`qfg.priors.ProductPrior` (fitted to that box); for any
+    other box the exact one-point marginal ``prior.log_density`` of one point (the marginal up to
+    O(d_min^2), :class:`qfg.priors.WorldBoxPrior`), so that the box's parameters are honoured;
+    any other prior: its density of a single point.
+
+    >>> from qfg.priors import WorldBoxPrior
+    >>> p = np.array([[3.0, 0.5]])          # 3 |AB| across the line AB
+    >>> bool(point_log_prior(WorldBoxPrior(width=20.0, height=1.0), p)[0]   # a long thin box
+    ...      < point_log_prior(WorldBoxPrior(), p)[0] - 2)
+    True
+    """
     pts = np.asarray(points, dtype=float)
-    if isinstance(prior, _priors.WorldBoxPrior):
+    if isinstance(prior, _priors.WorldBoxPrior) and is_simulator_world(prior):
         prior = _PRODUCT
     if isinstance(prior, _priors.ProductPrior):
         dx, dy = pts[..., 0] - prior.CENTRE[0], pts[..., 1] - prior.CENTRE[1]
@@ -43,6 +58,19 @@ def point_log_prior(prior, points) -> np.ndarray:
     return prior.log_density(pts[..., None, :])
 
 
+def is_simulator_world(prior) -> bool:
+    """True for a :class:`qfg.priors.WorldBoxPrior` with the simulator's box up to scale (the
+    AB-frame prior is scale-free: the same ``width / height`` and ``d_min / width``), the box
+    :class:`qfg.priors.ProductPrior` was fitted to."""
+    if not isinstance(prior, _priors.WorldBoxPrior):
+        return False
+    ref = _SIMULATOR_WORLD
+    return bool(np.isclose(prior.width / prior.height, ref.width / ref.height, rtol=1e-9)
+                and np.isclose(prior.d_min / prior.width, ref.d_min / ref.width, rtol=1e-9,
+                               atol=1e-12))
+
+
+_SIMULATOR_WORLD = _priors.WorldBoxPrior(n_rho=4)
 _PRODUCT = _priors.ProductPrior()
 
 

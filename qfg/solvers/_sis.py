@@ -727,10 +727,8 @@ def finish(state: SISState, hypotheses: bool = False):
     for t in range(T):
         reasons = _degenerate.geometry_reasons(state.bearings[t], state.sigma_bearing[t],
                                                state.headings[t], state.sigma_heading[t])
-        sp = np.flatnonzero(state.same_pose[t])
-        if sp.size:
-            reasons.append("view(s) " + ", ".join(str(v + 1) for v in sp)
-                           + " repeat the previous view's bearings (camera taken as not moved)")
+        if np.any(state.same_pose[t]):
+            reasons.append(_degenerate.repeated_reason(state.same_pose[t]))
         if lm[t].sum() <= 0:
             v = int(state.lost[t])
             reasons.append(f"view {v}: no hypothesis survived (rays miss the locus arcs)"
