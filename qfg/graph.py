@@ -40,7 +40,8 @@ import numpy as np
 from .composition import as_table
 
 __all__ = ["QualitativeFactorGraph", "triplet_key", "full_map", "map_from_triplets",
-           "map_from_histories", "truth_states", "KEY_BITS", "brute_force_compositions"]
+           "map_from_histories", "truth_states", "KEY_BITS", "brute_force_compositions",
+           "factor_overlap"]
 
 #: Bits per landmark id in :func:`triplet_key`.
 KEY_BITS = 20
@@ -459,6 +460,42 @@ def truth_states(triplets: Iterable, landmarks, partition: str = "edc") -> np.nd
         return np.zeros(0, dtype=np.intp)
     c = to_frame(L[ts[:, 2]], L[ts[:, 0]], L[ts[:, 1]])
     return np.asarray(get(partition).state_of(c), dtype=np.intp)
+
+
+def factor_overlap(g) -> dict:
+    """How much the composition factors of ``g`` overlap: the structure that makes loopy BP
+    count evidence twice.
+
+    Two factors sharing two triplets (e.g. ``(i, j, k, s)`` and ``(i, j, s, k)``, which share
+    ``(i, j, k)`` and ``(i, j, s)``) close a loop of length 4 in the factor graph, the shortest
+    one it can have; every full map has all of them. Returns a dict:
+
+    * ``overlap``: share of the composition factors that share two or more triplets with
+      another factor (0 with no factors);
+    * ``mean_degree``: mean number of composition factors per triplet among triplets in any
+      factor (a full map of L landmarks: ``3 (L - 3)``);
+    * ``factors``, ``triplets``: the counts.
+
+    >>> import numpy as np
+    >>> factor_overlap(full_map(5, partition=None, tensor=np.ones((2, 2, 2))))["overlap"]
+    1.0
+    """
+    fv = np.asarray(g.factor_vars, dtype=np.int64).reshape(-1, 3)
+    F, n = len(fv), g.n_triplets
+    if F == 0:
+        return {"overlap": 0.0, "mean_degree": 0.0, "factors": 0, "triplets": n}
+    # each factor's three pairs of variables, as one int64 key per (unordered) pair
+    keys = []
+    for a, b in ((0, 1), (0, 2), (1, 2)):
+        lo = np.minimum(fv[:, a], fv[:, b])
+        hi = np.maximum(fv[:, a], fv[:, b])
+        keys.append(lo * (n + 1) + hi)
+    K = np.concatenate(keys)
+    _, inv, counts = np.unique(K, return_inverse=True, return_counts=True)
+    shared = (counts[inv] > 1).reshape(3, F).any(axis=0)
+    deg = np.bincount(fv.ravel(), minlength=n)
+    return {"overlap": float(shared.mean()), "mean_degree": float(deg[deg > 0].mean()),
+            "factors": int(F), "triplets": int(n)}
 
 
 def brute_force_compositions(triplets: Iterable) -> list[tuple[int, int, int, int]]:

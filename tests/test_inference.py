@@ -224,8 +224,10 @@ def test_gtsam_engine_refuses_instead_of_overflowing(n):
     """Issue 12 item 7: OverflowError ('int too large to convert to float') after 12-54 s."""
     g = full_map(n, tensor=np.ones((20, 20, 20)))
     for engine in ("gtsam", "contract", "junction"):
-        with pytest.raises(GraphTooLargeError, match="max_table"):
+        with pytest.raises(GraphTooLargeError, match="refused before any work"):
             exact_marginals(g, engine=engine)
+        with pytest.raises(GraphTooLargeError, match="max_table"):
+            exact_marginals(g, engine=engine, max_table=2 ** 26)
 
 
 def test_refusal_follows_max_table():
@@ -285,7 +287,7 @@ def test_zero_mass_through_a_chain_of_factors():
     assert info.value.local_factors == ()
 
 
-@pytest.mark.parametrize("bad", ["x", 0, -5, 2.5, True, None])
+@pytest.mark.parametrize("bad", ["x", 0, -5, 2.5, True])
 def test_max_table_is_validated_even_on_an_empty_graph(bad):
     """Issue 12 item 9: a TypeError on a non-empty graph, ignored on an empty one."""
     for g in (QualitativeFactorGraph(None, tensor=np.ones((2, 2, 2))),

@@ -1,6 +1,12 @@
-"""UAI model format: round trip with the triplet sidecar, a hand-written file, malformed files."""
+"""UAI model format: round trip with the triplet sidecar, a hand-written file, malformed files;
+evidence (against brute force, both .evid layouts), the PR/MAR/MAP tasks and their result files
+on public UAI 2014 instances (tests/data/uai) against the competition's references and GTSAM,
+the query interface and the ``qfg uai`` command."""
 
+import itertools
 import json
+import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -39,7 +45,7 @@ def test_round_trip_is_exact(tmp_path, seed):
     for p, q in zip(g.priors, h.priors, strict=True):
         assert (p is None) == (q is None)
         if p is not None:
-            np.testing.assert_allclose(q, p, rtol=1e-15)
+            np.testing.assert_array_equal(q, p)                     # bit for bit (issue 19)
     np.testing.assert_allclose(np.asarray(exact_marginals(h)), np.asarray(exact_marginals(g)),
                                atol=1e-15)
 
@@ -140,3 +146,283 @@ def test_full_map_round_trip_sizes(tmp_path):
     write_uai(g, tmp_path / "f.uai")
     h = read_uai_graph(tmp_path / "f.uai")
     assert h.n_triplets == 24 and h.n_factors == 24 and h.factors == g.factors
+
+
+# ------------------------------------------------------------------ issue 19: the reader
+def _write_graph(tmp_path, meta_edit):
+    g = small_graph(0)
+    path = tmp_path / "g.uai"
+    write_uai(g, path)
+    meta = json.loads(sidecar_path(path).read_text())
+    meta_edit(meta)
+    sidecar_path(path).write_text(json.dumps(meta))
+    return path
+
+
+@pytest.mark.parametrize("edit, match", [
+    (lambda m: m.update(triplets=5), "'triplets' must be a list"),
+    (lambda m: m.update(triplets=[[0, 1]] * 6), "'triplets' must be a list"),
+    (lambda m: m.update(factors="x"), "'factors' must be a list"),
+    (lambda m: m.update(factors=[7] * len(m["factors"])), "'factors' must be a list"),
+    (lambda m: m["factors"][-1].update(composition=[0, 1, 2, 99]), "composition"),
+    (lambda m: m["factors"][-1].update(composition="abcd"), "composition must be"),
+    (lambda m: m.update(partition=7), "'partition' must be one of"),
+    (lambda m: m.update(partition="/etc/passwd"), "'partition' must be one of"),
+])
+def test_bad_sidecars_are_value_errors_naming_the_file(tmp_path, edit, match):
+    """Issue 19: TypeError for a wrong type, 'tuple.index(x): x not in tuple' without the file,
+    any partition accepted."""
+    path = _write_graph(tmp_path, edit)
+    with pytest.raises(ValueError, match=match) as info:
+        read_uai_graph(path)
+    assert "g.uai" in str(info.value)
+
+
+def test_huge_cardinalities_do_not_wrap(tmp_path):
+    """2^32 x 2^32 entries wrapped to 0 in int64 and a 0-entry table passed the size check."""
+    path = tmp_path / "big.uai"
+    path.write_text(f"MARKOV 2 {2**32} {2**32} 1 2 0 1 0")
+    with pytest.raises(ValueError, match="declares 0 entries"):
+        read_uai(path)
+
+
+@pytest.mark.parametrize("token", ["1_0", "+2", "0x2", "2.0"])
+def test_integers_are_plain_digits(tmp_path, token):
+    path = tmp_path / "t.uai"
+    path.write_text(f"MARKOV 1 {token} 1 1 0 2 0.5 0.5")
+    with pytest.raises(ValueError, match="integer"):
+        read_uai(path)
+
+
+def test_factor_model_repr_is_short():
+    g = full_map(6, partition=None, tensor=np.ones((20, 20, 20)))
+    r = repr(FactorModel.from_graph(g))
+    assert len(r) < 200 and "n=120" in r and "factors=360" in r
+
+
+# ------------------------------------------------------------------ evidence
+from qfg.inference import MemoryBudgetError, query, read_evid, solve_task  # noqa: E402
+from qfg.inference.tasks import write_result  # noqa: E402
+
+
+def random_model(rng, n=5, max_card=3, n_f=5):
+    cards = [int(c) for c in rng.integers(2, max_card + 1, size=n)]
+    scopes, tables = [], []
+    for _ in range(n_f):
+        k = int(rng.integers(1, 4))
+        s = tuple(int(v) for v in rng.choice(n, size=k, replace=False))
+        scopes.append(s)
+        tables.append(rng.random([cards[v] for v in s]) * (rng.random([cards[v] for v in s]) < 0.9))
+    return FactorModel(cards, scopes, tables)
+
+
+def brute_joint(model):
+    """The unnormalized joint over every assignment, by enumeration."""
+    X = np.array(list(itertools.product(*[range(c) for c in model.cards])), dtype=np.intp)
+    with np.errstate(divide="ignore"):
+        return X, np.exp(model.log_value(X))
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_evidence_against_brute_force(seed):
+    rng = np.random.default_rng(seed)
+    model = random_model(rng)
+    X, w = brute_joint(model)
+    obs = rng.choice(model.n, size=int(rng.integers(1, 3)), replace=False)
+    ev = {int(v): int(rng.integers(model.cards[v])) for v in obs}
+    keep = np.all([X[:, v] == x for v, x in ev.items()], axis=0)
+    Z = w[keep].sum()
+    if not Z > 0:
+        with pytest.raises(ValueError, match="no mass"):
+            JunctionTree(model, evidence=ev).marginals()
+        return
+    jt = JunctionTree(model, evidence=ev)
+    P, logz, _ = jt.calibrate()
+    assert logz == pytest.approx(math.log(Z), rel=1e-12, abs=1e-12)
+    for v, c in enumerate(model.cards):
+        expect = np.bincount(X[keep, v], weights=w[keep], minlength=c) / Z
+        np.testing.assert_allclose(P[v, :c], expect, atol=1e-12)
+    # MAP given the evidence: the brute-force best value (ties: any argmax)
+    x, lp = jt.map_assignment()
+    assert all(x[v] == s for v, s in ev.items())
+    assert lp == pytest.approx(math.log(w[keep].max() / Z), abs=1e-9)
+    # the triplet-free query: labelled by variable
+    q = query(model, [int(obs[0])], evidence=ev)
+    assert list(q) == [int(obs[0])] and q[int(obs[0])][ev[int(obs[0])]] == 1.0
+
+
+def test_evidence_cuts_the_graph():
+    """A chain x0 - x1 - x2: observing x1 leaves two independent parts (no clique over all)."""
+    T = np.array([[0.9, 0.1], [0.2, 0.8]])
+    model = FactorModel([2, 2, 2], [(0, 1), (1, 2)], [T, T])
+    jt = JunctionTree(model, evidence={1: 0})
+    assert jt.estimate.width == 1
+    np.testing.assert_allclose(jt.marginals()[[0, 2]], [[0.9 / 1.1, 0.2 / 1.1], [0.9, 0.1]])
+
+
+@pytest.mark.parametrize("text", [
+    "2 0 1 3 0",                 # UAI 2014: one line
+    "2\n0 1\n3 0\n",             # pairs per line
+    "1\n2 0 1 3 0\n",            # older: one sample
+    "1\n2\n0 1\n3 0",
+])
+def test_both_evidence_layouts(tmp_path, text):
+    path = tmp_path / "m.uai.evid"
+    path.write_text(text)
+    assert read_evid(path) == {0: 1, 3: 0}
+
+
+@pytest.mark.parametrize("text, match", [
+    ("2 0 1 3", "fit neither layout"),
+    ("1 0 1_0", "not a non-negative integer"),
+    ("2 0 1 0 0", "observed twice"),
+    ("x", "not a non-negative integer"),
+])
+def test_bad_evidence_files(tmp_path, text, match):
+    path = tmp_path / "bad.evid"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=match) as info:
+        read_evid(path)
+    assert "bad.evid" in str(info.value)
+
+
+def test_evidence_is_checked_against_the_model():
+    model = FactorModel([2, 3], [(0, 1)], [np.ones((2, 3))])
+    with pytest.raises(KeyError, match="evidence"):
+        JunctionTree(model, evidence={5: 0})
+    with pytest.raises(ValueError, match="outside"):
+        JunctionTree(model, evidence={1: 3})
+    assert read_evid_empty(model)
+
+
+def read_evid_empty(model):
+    return JunctionTree(model, evidence={}).evidence == {}
+
+
+# ------------------------------------------------------------------ shipped public instances
+DATA = Path(__file__).parent / "data" / "uai"
+
+
+def _reference(path):
+    tok = Path(path).read_text().split()
+    if tok[0] == "PR":
+        return float(tok[1])
+    n, pos, out = int(tok[1]), 2, []
+    for _ in range(n):
+        c = int(tok[pos])
+        out.append(np.array(tok[pos + 1:pos + 1 + c], dtype=float))
+        pos += 1 + c
+    return out
+
+
+def _evid(name):
+    p = DATA / f"{name}.uai.evid"
+    return p if p.exists() else None
+
+
+@pytest.mark.parametrize("name", ["Grids_12", "Promedus_24", "CSP_12"])
+def test_pr_on_shipped_instances(tmp_path, name):
+    r = solve_task(DATA / f"{name}.uai", "PR", evidence=_evid(name))
+    ref = _reference(DATA / f"{name}.uai.PR")
+    assert r.log10_z == pytest.approx(ref, abs=6e-5 * max(1.0, abs(ref)) / 10)  # 6 digits printed
+    out = write_result(r, tmp_path / f"{name}.uai.PR")
+    assert _reference(out) == pytest.approx(r.log10_z, rel=1e-14)
+
+
+@pytest.mark.parametrize("name", ["Grids_12", "Promedus_24"])
+def test_mar_on_shipped_instances(tmp_path, name):
+    r = solve_task(DATA / f"{name}.uai", "MAR", evidence=_evid(name))
+    ref = _reference(DATA / f"{name}.uai.MAR")
+    assert len(r.marginals) == len(ref)
+    err = max(float(np.abs(a - b).max()) for a, b in zip(r.marginals, ref, strict=True))
+    assert err <= 5e-7                    # the references carry 6 significant digits
+    back = _reference(write_result(r, tmp_path / f"{name}.uai.MAR"))
+    for a, b in zip(back, r.marginals, strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-14)
+
+
+def _gtsam_map(model, ev):
+    """GTSAM's max-product MPE of the clamped model (an independent engine)."""
+    import gtsam
+
+    from qfg.inference.evidence import clamp
+
+    c = clamp(model, ev)
+    graph = gtsam.DiscreteFactorGraph()
+    for s, t in zip(c.scopes, c.tables, strict=True):
+        graph.push_back(gtsam.DecisionTreeFactor([(v, c.cards[v]) for v in s],
+                                                 np.asarray(t, dtype=float).ravel().tolist()))
+    sol = graph.optimize()
+    x = np.array([sol[v] if v not in ev else ev[v] for v in range(model.n)], dtype=np.intp)
+    xc = x.copy()
+    xc[list(ev)] = 0
+    return x, float(c.log_value(xc)[0])
+
+
+@pytest.mark.parametrize("name", ["Grids_12", "Promedus_24"])
+def test_map_on_shipped_instances_against_gtsam(tmp_path, name):
+    model = read_uai(DATA / f"{name}.uai")
+    ev = read_evid(_evid(name)) if _evid(name) else {}
+    r = solve_task(model, "MAP", evidence=ev)
+    x = np.array(r.assignment)
+    assert all(x[v] == s for v, s in ev.items())
+    gx, glog = _gtsam_map(model, ev)
+    from qfg.inference.evidence import clamp
+    xc = x.copy()
+    xc[list(ev)] = 0
+    ours = float(clamp(model, ev).log_value(xc)[0])
+    assert ours == pytest.approx(glog, abs=1e-9)          # the same best value
+    text = write_result(r, tmp_path / "out.MAP").read_text().split()
+    assert text[0] == "MAP" and int(text[1]) == model.n and [int(t) for t in text[2:]] == list(x)
+
+
+def test_cli_writes_the_competition_result(tmp_path):
+    from qfg.harness.cli import main
+
+    out = tmp_path / "res" / "p.PR"
+    rc = main(["uai", str(DATA / "Promedus_24.uai"), "--task", "PR", "--output", str(out)])
+    assert rc == 0
+    assert _reference(out) == pytest.approx(_reference(DATA / "Promedus_24.uai.PR"), abs=1e-5)
+    # the default evidence is MODEL.evid; --no-evid drops it (a different Z)
+    out2 = tmp_path / "noev.PR"
+    assert main(["uai", str(DATA / "Promedus_24.uai"), "--task", "PR", "--no-evid",
+                 "--output", str(out2)]) == 0
+    assert abs(_reference(out2) - _reference(out)) > 1.0
+
+
+def test_cli_refuses_over_the_memory_budget(tmp_path, capsys):
+    from qfg.harness.cli import main
+
+    rc = main(["uai", str(DATA / "Grids_12.uai"), "--task", "MAR", "--memory", "1K",
+               "--output", str(tmp_path / "x.MAR")])
+    assert rc != 0 and not (tmp_path / "x.MAR").exists()
+    assert "memory budget" in capsys.readouterr().err
+
+
+def test_query_on_a_graph_with_evidence():
+    """Labelled by triplet; the copy tensor makes every triplet of a factor equal."""
+    T = np.zeros((2, 2, 2))
+    T[0, 0, 0] = T[1, 1, 1] = 1.0
+    g = QualitativeFactorGraph(None, tensor=T)
+    for t in [(0, 1, 2), (1, 2, 3), (0, 1, 3)]:
+        g.add_triplet(t, [0.5, 0.5])
+    g.discover_compositions()
+    r = query(g, [(0, 1, 3), (1, 2, 3)], evidence={(0, 1, 2): 1})
+    assert r.triplets == ((0, 1, 3), (1, 2, 3))
+    np.testing.assert_allclose(r.probabilities, [[0, 1], [0, 1]])
+    assert r.info["evidence"] == {(0, 1, 2): 1}
+    assert r.info["log_partition"] == pytest.approx(math.log(0.125))
+    with pytest.raises(KeyError):
+        query(g, [(5, 6, 7)])
+    with pytest.raises(KeyError, match="evidence"):
+        query(g, None, evidence={(5, 6, 7): 0})
+    # the graph's exact_marginals and map_assignment take the same evidence
+    np.testing.assert_allclose(exact_marginals(g, evidence={(0, 1, 2): 1})[(0, 1, 3)], [0, 1])
+    from qfg.inference import map_assignment
+    assert map_assignment(g, evidence={(0, 1, 2): 1}).best == {t: 1 for t in g.triplets}
+
+
+def test_tasks_refuse_before_work_over_budget():
+    with pytest.raises(MemoryBudgetError, match="memory budget") as info:
+        solve_task(DATA / "Grids_12.uai", "MAR", memory=1000)
+    assert info.value.estimate > 1000 and info.value.budget == 1000

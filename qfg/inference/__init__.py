@@ -14,9 +14,13 @@ and return the same :class:`Marginals` type.
 from .exact import ENGINES, elimination_estimate, exact_marginals, k_best, map_assignment
 from .junction import MAX_TABLE, FactorModel, JunctionTree, SizeEstimate, size_estimate
 from .results import Assignment, GraphTooLargeError, Marginals, MissingKeyError, ZeroMassError
+from .evidence import clamp, read_evid
+from .memory import MemoryBudgetError, MemoryEstimate, memory_budget
+from .tasks import TaskResult, query, solve_task, write_result
 from .uai import read_uai, read_uai_graph, write_uai
 
 __all__ = ["exact_marginals", "map_assignment", "k_best", "elimination_estimate", "ENGINES",
            "FactorModel", "JunctionTree", "SizeEstimate", "size_estimate", "MAX_TABLE",
            "Marginals", "Assignment", "GraphTooLargeError", "ZeroMassError", "MissingKeyError",
-           "write_uai", "read_uai", "read_uai_graph"]
+           "write_uai", "read_uai", "read_uai_graph", "read_evid", "clamp", "MemoryBudgetError",
+           "MemoryEstimate", "memory_budget", "query", "solve_task", "write_result", "TaskResult"]

@@ -19,7 +19,6 @@ from __future__ import annotations
 import numpy as np
 
 from .junction import (
-    MAX_TABLE,
     FactorModel,
     JunctionTree,
     _too_large,
@@ -27,6 +26,7 @@ from .junction import (
     contract_scaled,
     size_estimate,
 )
+from .memory import check_memory, memory_budget
 from .results import Assignment, GraphTooLargeError, Marginals, ZeroMassError
 
 __all__ = ["exact_marginals", "map_assignment", "k_best", "elimination_estimate", "ENGINES"]
@@ -38,8 +38,8 @@ def _result(g, P, method, **info) -> Marginals:
     return Marginals(tuple(g.triplets), g.partition, P, method, info)
 
 
-def exact_marginals(g, engine: str = "junction", max_table: int = MAX_TABLE,
-                    log_domain: bool = False) -> Marginals:
+def exact_marginals(g, engine: str = "junction", max_table: int | None = None,
+                    log_domain: bool = False, *, evidence=None, memory=None) -> Marginals:
     """Exact marginals ``P(S_v) = sum over the other variables of prod(factors) / Z``, labelled.
 
     The product runs over the unary priors and the composition factors ``T[s_t1, s_t2, s_t3]``;
@@ -48,10 +48,16 @@ def exact_marginals(g, engine: str = "junction", max_table: int = MAX_TABLE,
     Args:
         g: a :class:`~qfg.graph.QualitativeFactorGraph`.
         engine: ``"junction"``, ``"contract"`` or ``"gtsam"`` (see the module docstring).
-        max_table: largest table (entries) an engine may build; above it
-            :class:`GraphTooLargeError` names the estimate, before any work.
+        max_table: optional limit on the largest clique (entries); above it
+            :class:`GraphTooLargeError` names the estimate, before any work. None (default):
+            only the memory budget limits.
         log_domain: junction engine only: calibrate in the log domain from the start (it falls
             back there by itself when linear arithmetic would underflow).
+        evidence: junction engine only: observed triplets, ``{triplet: state}`` (clamped
+            before planning; their rows are one-hot, ``info["log_partition"]`` is ``log Z(e)``).
+        memory: budget in bytes (:func:`~qfg.inference.memory.memory_budget`); the engine's
+            estimated peak allocation above it -> :class:`~qfg.inference.memory.MemoryBudgetError`
+            before any work.
 
     Returns a :class:`~qfg.inference.results.Marginals` (``method`` = the engine; ``info``:
     ``log_partition`` and ``largest_table`` for the junction engine).
@@ -69,22 +75,66 @@ def exact_marginals(g, engine: str = "junction", max_table: int = MAX_TABLE,
     max_table = check_max_table(max_table)
     if engine not in ENGINES:
         raise ValueError(f"engine: expected one of {ENGINES}, got {engine!r}")
+    budget = memory_budget(memory)
+    if evidence is not None and engine != "junction":
+        raise ValueError(f"evidence: supported by engine='junction' only, got engine={engine!r}")
     n, m = g.n_triplets, g.m
     if n == 0:
         return _result(g, np.zeros((0, m)), engine)
     if engine == "junction":
-        jt = JunctionTree(FactorModel.from_graph(g), max_table=max_table)
+        jt = JunctionTree(FactorModel.from_graph(g), max_table=max_table, evidence=evidence,
+                          memory=budget)
         P, logz, domain = jt.calibrate(log_domain=bool(log_domain))
         return _result(g, P, "junction", log_partition=logz, largest_table=jt.estimate.entries,
                        domain=domain)
     model = FactorModel.from_graph(g)
-    est = size_estimate(model, max_table)
+    limit = max_table if max_table is not None else max(1, budget // 8)
+    est = size_estimate(model, limit)
     if not est.complete:
-        raise _too_large(est, max_table, "elimination order")
+        if max_table is not None:
+            raise _too_large(est, max_table, "elimination order")
+        check_memory(8.0 * max(est.entries, est.lower_bound), budget, f"engine={engine!r}",
+                     f"a clique over {est.width} variables, about {est.entries:.3g} entries",
+                     entries=est.entries, width=est.width)
     out = np.full((n, m), 1.0 / m)
     if engine == "gtsam":
+        check_memory(gtsam_estimate(model, est), budget, "engine='gtsam'",
+                     f"about {GTSAM_BYTES_PER_ENTRY} bytes per entry of its decision-tree "
+                     f"factors over the cliques (largest {est.entries:.3g} entries)",
+                     entries=est.entries, width=est.width)
         return _result(g, _exact_gtsam(g, out, model), "gtsam")
-    return _result(g, _exact_contract(g, out, max_table, model), "contract")
+    return _result(g, _exact_contract(g, out, max_table, model, budget), "contract")
+
+
+#: Bytes GTSAM's DecisionTreeFactor takes per table entry (a leaf and its share of the choice
+#: nodes, shared pointers included), measured on dense 20-state cliques (docs/graph.md).
+GTSAM_BYTES_PER_ENTRY = 120
+
+
+def gtsam_estimate(model, est=None) -> float:
+    """Peak bytes of ``engine="gtsam"``: decision trees over the min-fill cliques, about
+    :data:`GTSAM_BYTES_PER_ENTRY` per entry (GTSAM orders by COLAMD, not min-fill; its cliques
+    are no smaller than the min-fill ones on the graphs measured), the largest three at once
+    plus every clique's conditional kept in the Bayes tree."""
+    jt_sizes = _clique_sizes(model)
+    if not jt_sizes:
+        return 0.0
+    top = sorted(jt_sizes, reverse=True)[:3]
+    return float(GTSAM_BYTES_PER_ENTRY * (sum(jt_sizes) + sum(top)))
+
+
+def _clique_sizes(model) -> list[float]:
+    from .junction import _plan
+
+    est, order, nbrs = _plan(model, None)
+    cards = model.cards
+    out = []
+    for v, nb in zip(order, nbrs, strict=True):
+        size = float(cards[v])
+        for x in nb:
+            size *= cards[x]
+        out.append(size)
+    return out
 
 
 def elimination_estimate(g) -> tuple[int, int]:
@@ -151,7 +201,7 @@ def _components(n: int, fvars: np.ndarray) -> list[np.ndarray]:
     return [np.flatnonzero(roots == r) for r in np.unique(roots)]
 
 
-def _exact_contract(g, out, max_table, model):
+def _exact_contract(g, out, max_table, model, budget):
     import opt_einsum as oe
 
     T = g.table
@@ -177,14 +227,22 @@ def _exact_contract(g, out, max_table, model):
             terms.append("".join(sym[int(v)] for v in fvars[f]))
             ops.append(T)
         lhs = ",".join(terms)
-        for v in comp:
+        plans = []
+        for v in comp:      # every plan first: the refusal comes before any contraction
             eq = f"{lhs}->{sym[int(v)]}"
             path, info = oe.contract_path(eq, *ops, optimize="auto")
-            if info.largest_intermediate > max_table:
+            if max_table is not None and info.largest_intermediate > max_table:
                 raise GraphTooLargeError(
                     f"g: contraction would build an intermediate of about "
                     f"{float(info.largest_intermediate):.3g} entries > max_table={max_table}",
                     entries=float(info.largest_intermediate), max_table=max_table)
+            inter = sorted((float(x) for x in info.size_list), reverse=True)
+            need = 8.0 * (sum(inter[:2]) + sum(np.size(o) for o in ops))
+            check_memory(need, budget, "engine='contract'",
+                         f"an intermediate of {float(info.largest_intermediate):.3g} entries",
+                         entries=float(info.largest_intermediate))
+            plans.append((v, eq, info))
+        for v, eq, info in plans:
             r = contract_scaled(eq, ops, info.contraction_list)[0]
             s = r.sum()
             if not s > 0:
@@ -199,7 +257,8 @@ def _assignment(g, X, logp) -> Assignment:
     return Assignment(tuple(g.triplets), g.partition, X, p, logp)
 
 
-def map_assignment(g, max_table: int = MAX_TABLE) -> Assignment:
+def map_assignment(g, max_table: int | None = None, *, evidence=None, memory=None
+                   ) -> Assignment:
     """The most probable joint assignment of all triplet states (max-product on the junction
     tree), with its probability under the normalized joint.
 
@@ -213,16 +272,21 @@ def map_assignment(g, max_table: int = MAX_TABLE) -> Assignment:
     >>> a.best, a.probabilities.round(3).tolist()
     ({(0, 1, 2): 0, (1, 2, 3): 0, (0, 1, 3): 0}, [0.8])
     """
-    return k_best(g, 1, max_table=max_table)
+    return k_best(g, 1, max_table=max_table, evidence=evidence, memory=memory)
 
 
-def k_best(g, k: int, max_table: int = MAX_TABLE) -> Assignment:
+def k_best(g, k: int, max_table: int | None = None, *, evidence=None, memory=None
+           ) -> Assignment:
     """The ``k`` most probable joint assignments (best first) with their probabilities.
 
     Fewer than ``k`` rows when fewer assignments have non-zero probability. Equal probabilities
-    come out in an order fixed by the graph (deterministic), not by state index.
+    come out in an order fixed by the graph (deterministic), not by state index. With
+    ``evidence`` ({triplet: state}), assignments consistent with it and their probabilities
+    given it. ``memory``: as in :func:`exact_marginals` (the queue of Lawler-Murty
+    subproblems grows with ``k``: a ``k`` whose queue does not fit is refused up front).
     """
     max_table = check_max_table(max_table)
-    jt = JunctionTree(FactorModel.from_graph(g), max_table=max_table)
+    jt = JunctionTree(FactorModel.from_graph(g), max_table=max_table, evidence=evidence,
+                      memory=memory)
     X, logp = jt.k_best(k)
     return _assignment(g, X, logp)

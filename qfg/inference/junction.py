@@ -58,7 +58,9 @@ from .results import GraphTooLargeError, ZeroMassError
 
 __all__ = ["FactorModel", "SizeEstimate", "JunctionTree", "size_estimate", "MAX_TABLE"]
 
-#: Default limit on the largest table (entries) an exact engine may build (2**26: 512 MiB).
+#: A conventional limit on the largest table (entries; 2**26: 512 MiB). No longer the default of
+#: the engines: they are bounded by the memory they would allocate (:mod:`qfg.inference.memory`);
+#: ``max_table=`` adds a limit on the largest clique when given.
 MAX_TABLE = 2 ** 26
 
 #: Absolute error one multiplication of values <= 1 can make by underflow (below ~1e-292 a double
@@ -68,8 +70,11 @@ _TAU = 1e-291
 _REL_TOL = 1e-13
 
 
-def check_max_table(max_table) -> int:
-    """``max_table`` as a positive int (ValueError naming it otherwise)."""
+def check_max_table(max_table) -> int | None:
+    """``max_table`` as a positive int, or None (no limit on one table: the memory budget
+    decides); ValueError naming it otherwise."""
+    if max_table is None:
+        return None
     if isinstance(max_table, bool) or not isinstance(max_table, (int, np.integer)) or max_table < 1:
         raise ValueError(f"max_table: expected a positive integer (table entries), got "
                          f"{max_table!r}")
@@ -77,7 +82,7 @@ def check_max_table(max_table) -> int:
 
 
 # ----------------------------------------------------------------------------- the model
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class FactorModel:
     """A discrete factor model: variables ``0..n-1`` with ``cards[v]`` states, factors
     ``tables[f]`` over ``scopes[f]`` (axes in scope order, C order as in the UAI format).
@@ -128,6 +133,14 @@ class FactorModel:
     @property
     def n(self) -> int:
         return len(self.cards)
+
+    def __repr__(self) -> str:
+        # the tables can hold millions of entries: counts only
+        entries = sum(t.size for t in {id(t): t for t in self.tables}.values())
+        return (f"FactorModel(n={self.n}, factors={len(self.scopes)}, max_card="
+                f"{max(self.cards) if self.cards else 0}, max_scope="
+                f"{max((len(s) for s in self.scopes), default=0)}, distinct_entries={entries}, "
+                f"partition={self.partition!r}, named={bool(self.names)})")
 
     @classmethod
     def from_graph(cls, g) -> FactorModel:
@@ -392,16 +405,37 @@ class JunctionTree:
     every variable owns the node whose table holds it and from which its marginal is read.
     """
 
-    def __init__(self, model, max_table: int = MAX_TABLE, contract_above: int = 20 ** 5):
+    def __init__(self, model, max_table: int | None = None, contract_above: int = 20 ** 5, *,
+                 evidence=None, memory=None):
+        from .evidence import check_evidence, clamp
+        from .memory import check_memory, memory_budget
+
         max_table = check_max_table(max_table)
         contract_above = check_max_table(contract_above)
+        if contract_above is None:
+            raise ValueError("contract_above: expected a positive integer (table entries), "
+                             "got None")
+        self.budget = memory_budget(memory)
         if not isinstance(model, FactorModel):
             model = FactorModel.from_graph(model)
+        self.source = model
+        self.evidence = check_evidence(model, evidence)
+        model = clamp(model, self.evidence)
         self.model = model
-        est, order, nbrs = _plan(model, max_table)
+        # no limit given: a clique whose table alone is over the budget is not planned further
+        # (a contracted clique's intermediates are smaller, but such cliques are hours of work)
+        limit = max_table if max_table is not None else max(1, self.budget // 8)
+        est, order, nbrs = _plan(model, limit)
         self.estimate = est
         if not est.complete:
-            raise _too_large(est, max_table)
+            if max_table is not None:
+                raise _too_large(est, max_table)
+            check_memory(8.0 * max(est.entries, est.lower_bound), self.budget, "exact inference",
+                         f"the min-fill junction tree has a clique over {est.width} variables, "
+                         f"about {est.entries:.3g} entries" if est.lower_bound <= limit else
+                         f"every elimination order has a clique over at least {est.width} "
+                         f"variables, at least {est.lower_bound:.3g} entries",
+                         entries=est.entries, width=est.width)
         n, cards = model.n, model.cards
         self.order = np.asarray(order, dtype=np.intp)
         pos = [0] * n
@@ -494,13 +528,16 @@ class JunctionTree:
         # Large nodes (more than contract_above entries; e.g. a clique of 6 triplets: 20^6) are
         # never materialized in the linear pass: each message and marginal is one contraction of
         # the node's factors and messages (opt_einsum plan, rescaled steps, contract_scaled).
-        self._big = [self._fast[k] is None and math.prod(self._shape[k]) > contract_above
-                     for k in range(nn)]
+        # Free nodes: no factor and no child (variables in no factor): uniform, never built.
+        self._free = [not assigned[k] and not self._node_children[k] for k in range(nn)]
+        self._big = [self._fast[k] is None and not self._free[k]
+                     and math.prod(self._shape[k]) > contract_above for k in range(nn)]
         # broadcasting plans of the factors and child messages of the nodes that build a table
         # (the others get theirs on first use: the log domain and max-product build every table)
         self._fac_ex = [None] * nn
         self._child_ex = [None] * nn
-        self._expanders([k for k in range(nn) if self._fast[k] is None and not self._big[k]])
+        self._expanders([k for k in range(nn) if self._fast[k] is None and not self._big[k]
+                         and not self._free[k]])
 
     def _expanders(self, nodes=None):
         cards, scopes = self.model.cards, self.model.scopes
@@ -510,6 +547,111 @@ class JunctionTree:
                 self._fac_ex[k] = [(f, _expander(scopes[f], C, cards)) for f in self._assigned[k]]
                 self._child_ex[k] = [(c, _expander(self._sep[c], C, cards))
                                      for c in self._node_children[k]]
+
+    def __repr__(self) -> str:
+        return (f"JunctionTree(n={self.model.n}, nodes={len(self.nodes)}, width="
+                f"{self.estimate.width}, largest_table={self.estimate.entries:.3g}, evidence="
+                f"{len(self.evidence)}, budget={self.budget})")
+
+    # ------------------------------------------------------------------ memory
+    def _big_peak(self, k) -> float:
+        """Entries a large node's contractions hold at once (linear pass): the rescaled copies of
+        its operands plus the two largest intermediates of the worst of its contractions (the
+        same ``opt_einsum`` plans the pass runs, from shapes only)."""
+        import opt_einsum as oe
+
+        cards, scopes = self.model.cards, self.model.scopes
+        shapes = [tuple(cards[x] for x in scopes[f]) for f in self._assigned[k]]
+        terms = [self._letters(k, scopes[f]) for f in self._assigned[k]]
+        for c in self._node_children[k]:
+            shapes.append(tuple(cards[x] for x in self._sep[c]))
+            terms.append(self._letters(k, self._sep[c]))
+        eqs = []
+        lhs = ",".join(terms)
+        eqs.append((f"{lhs}->{self._letters(k, self._sep[k])}", shapes))
+        if self._node_parent[k] >= 0:
+            shapes = shapes + [tuple(cards[x] for x in self._sep[k])]
+            lhs = lhs + "," + self._letters(k, self._sep[k])
+        C = self.nodes[k]
+        outs = [(C[i],) for i in range(self.owned[k])] + [self._sep[c]
+                                                          for c in self._node_children[k]]
+        eqs += [(f"{lhs}->{self._letters(k, o)}", shapes) for o in outs]
+        worst = 0.0
+        for eq, shp in eqs:
+            _, info = oe.contract_path(eq, *shp, shapes=True, optimize="auto")
+            inter = sorted((float(x) for x in getattr(info, "size_list", ())), reverse=True)
+            worst = max(worst, sum(inter[:2]) or float(info.largest_intermediate))
+        return worst + float(sum(math.prod(sh) for sh in shapes))
+
+    def memory_estimate(self, task: str = "MAR", k: int = 1, log_domain: bool = False):
+        """Peak bytes the engine allocates for ``task`` beyond the model itself, from the plan
+        alone (no table is built): a :class:`~qfg.inference.memory.MemoryEstimate`.
+
+        ``"MAR"``/``"PR"``: one calibration. Linear pass: the scaled copies of the factor
+        tables, every clique table it materializes (kept from the upward to the downward pass),
+        the messages, the (n, max card) result, plus the largest transient of one node (a
+        product of two parts: one clique table; a contracted node: its operands' copies and its
+        two largest intermediates). ``log_domain=True`` (or the log-domain retry): every clique
+        table is built, plus three clique-sized temporaries. ``"MAP"``: one calibration (for
+        ``log Z``), then max-product: every clique table kept for decoding. ``"KBEST"``: that,
+        and Lawler-Murty's queue: up to ``1 + (k - 1) n`` subproblems of an (n, max card) mask
+        each.
+        """
+        from .memory import MemoryEstimate
+
+        task = str(task).upper()
+        if task not in ("MAR", "PR", "MAP", "MPE", "KBEST"):
+            raise ValueError(f"task: expected MAR, PR, MAP or KBEST, got {task!r}")
+        model = self.model
+        n = model.n
+        nn = len(self.nodes)
+        cmax = max(model.cards) if n else 0
+        seen, tables = set(), 0.0
+        for t in model.tables:
+            if id(t) not in seen:
+                seen.add(id(t))
+                tables += t.size
+        sizes = [float(math.prod(sh)) for sh in self._shape]
+        live = [not f for f in self._free]
+        msgs = sum(float(math.prod(self.model.cards[x] for x in self._sep[c])) for c in range(nn))
+        result = float(n * cmax)
+        overhead = 400.0 * nn                       # array headers and Python objects per node
+        # linear pass: (contiguous transposes of shared tables: at most 6 per table)
+        lin_persist = sum(sz for kk, sz in enumerate(sizes)
+                          if live[kk] and self._fast[kk] is None and not self._big[kk])
+        lin_trans = 0.0
+        for kk in range(nn):
+            if not live[kk] or self._fast[kk] is not None:
+                continue
+            lin_trans = max(lin_trans, self._big_peak(kk) if self._big[kk] else sizes[kk])
+        linear = 8 * (2 * tables + lin_persist + lin_trans + 2 * msgs + result)
+        logd = 8 * (tables + sum(sz for kk, sz in enumerate(sizes) if live[kk])
+                    + 3 * max((sz for kk, sz in enumerate(sizes) if live[kk]), default=0.0)
+                    + 2 * msgs + result)
+        cal = logd if log_domain else linear
+        parts = {"tables": 8 * tables, "linear_pass": linear, "log_pass": logd}
+        if task in ("MAR", "PR"):
+            total = cal
+        else:
+            mp = 8 * (tables + sum(sz for kk, sz in enumerate(sizes) if live[kk])
+                      + 2 * max((sz for kk, sz in enumerate(sizes) if live[kk]), default=0.0)
+                      + msgs + n)
+            queue = 0.0
+            if task == "KBEST":
+                entries = 1.0 + (float(k) - 1.0) * n
+                queue = entries * (n * cmax + 8 * n + 300) + float(k) * (8 * n + 100)
+            parts.update(max_product=mp, queue=queue)
+            total = max(cal, mp + queue)
+        return MemoryEstimate(bytes=float(total + overhead), task=task, parts=parts)
+
+    def _check(self, task, k=1, log_domain=False):
+        from .memory import check_memory
+
+        est = self.memory_estimate(task, k=k, log_domain=log_domain)
+        check_memory(est.bytes, self.budget, f"{task} on this junction tree",
+                     ", ".join(f"{a} {b:.3g}" for a, b in est.parts.items()),
+                     entries=self.estimate.entries, width=self.estimate.width)
+        return est
 
     # ------------------------------------------------------------------ helpers
     def _components(self):
@@ -615,6 +757,10 @@ class JunctionTree:
         fast = self._fast if not log else [None] * nn
         for k in range(nn):
             shape = self._shape[k]
+            if self._free[k]:          # uniform: sum of ones = the table size, message 1
+                logz += sum(math.log(c) for c in shape)
+                up[k] = np.zeros(()) if log else np.ones(())
+                continue
             if fast[k] is not None:
                 f, ex, unary, kids = fast[k]
                 Tk = expand(f, ex)
@@ -698,6 +844,11 @@ class JunctionTree:
         P = np.zeros((n, max(model.cards) if n else 0))
         down = [None] * nn
         for k in range(nn - 1, -1, -1):
+            if self._free[k]:
+                for v in self.nodes[k]:
+                    c = model.cards[v]
+                    P[v, :c] = 1.0 / c
+                continue
             beta = psi_store[k]
             psi_store[k] = None
             if fast[k] is not None:
@@ -872,29 +1023,49 @@ class JunctionTree:
         return self.calibrate(log_domain)[0]
 
     def calibrate(self, log_domain: bool = False):
-        """(marginals, log Z, domain used: "linear" or "log")."""
+        """(marginals, log Z, domain used: "linear" or "log") of the (clamped) model.
+
+        Checked against the memory budget first (:meth:`memory_estimate`); the log-domain retry,
+        which builds every clique table, is checked again before it starts."""
+        self._check("MAR", log_domain=bool(log_domain))
         if not log_domain:
             out = self._calibrate(log=False)
             if out is not None:
-                return out[0], out[1], "linear"
+                return self._expand(out[0]), out[1], "linear"
+            self._check("MAR", log_domain=True)
         P, logz = self._calibrate(log=True)
-        return P, logz, "log"
+        return self._expand(P), logz, "log"
+
+    def _expand(self, P):
+        if not self.evidence:
+            return P
+        from .evidence import expand_marginals
+
+        return expand_marginals(P, self.source, self.evidence)
 
     def log_partition(self) -> float:
-        """``log Z``, the log of the sum over all joint assignments of the factor product."""
+        """``log Z`` (``log Z(e)`` with evidence): the log of the sum over all joint assignments
+        (consistent with the evidence) of the factor product."""
         return self.calibrate()[1]
 
     # ------------------------------------------------------------------ max-product
     def _max_product(self, tabs, mask=None):
         """(assignment (n,), unnormalized log value) or (None, -inf) if no assignment has mass."""
-        self._expanders()
-        n = self.model.n
+        self._expanders([k for k in range(len(self.nodes)) if not self._free[k]])
+        model = self.model
+        n = model.n
         nn = len(self.nodes)
         store = [None] * nn
         up = [None] * nn
         total = 0.0
         for k in range(nn):
             shape = self._shape[k]
+            if self._free[k]:     # no factor: any allowed state, the lowest one
+                for v in self.nodes[k]:
+                    if mask is not None and not mask[v, :model.cards[v]].any():
+                        return None, -np.inf
+                up[k] = np.zeros(())
+                continue
             psi = np.zeros(shape)
             for f, ex in self._fac_ex[k]:
                 psi += _expand(tabs[f], ex)
@@ -916,6 +1087,10 @@ class JunctionTree:
         x = np.zeros(n, dtype=np.intp)
         for k in range(nn - 1, -1, -1):
             C = self.nodes[k]
+            if self._free[k]:
+                for v in C:
+                    x[v] = 0 if mask is None else int(np.argmax(mask[v, :model.cards[v]]))
+                continue
             no = self.owned[k]
             col = store[k][(slice(None),) * no + tuple(int(x[u]) for u in C[no:])]
             best = np.unravel_index(int(np.argmax(col)), col.shape)
@@ -951,6 +1126,7 @@ class JunctionTree:
         from .._validate import positive_int
 
         k = positive_int("k", k)
+        self._check("KBEST" if k > 1 else "MAP", k=k)
         model = self.model
         n = model.n
         logz = self.log_partition()
@@ -987,4 +1163,7 @@ class JunctionTree:
                 m[v, x[v]] = True
         X = np.array(out_x, dtype=np.intp).reshape(-1, n)
         # exact log values from the original tables (not the running max-product sums)
-        return X, model.log_value(X) - logz
+        lp = model.log_value(X) - logz
+        for v, x_v in self.evidence.items():     # clamped variables kept their one state
+            X[:, v] = x_v
+        return X, lp

@@ -227,7 +227,9 @@ class Assignment:
 
     def __post_init__(self):
         ts = tuple(tuple(int(x) for x in t) for t in self.triplets)
-        S = np.array(self.states, dtype=np.intp).reshape(-1, len(ts))
+        S = np.array(self.states, dtype=np.intp)
+        # no variables: (K, 0) states, K from the probabilities (reshape(-1, 0) is ambiguous)
+        S = S.reshape(np.size(self.probabilities), 0) if not ts else S.reshape(-1, len(ts))
         S.setflags(write=False)
         object.__setattr__(self, "triplets", ts)
         object.__setattr__(self, "states", S)
@@ -250,6 +252,11 @@ class Assignment:
 
     def __len__(self) -> int:
         return len(self.states)
+
+    def __repr__(self) -> str:
+        K, n = self.states.shape
+        top = f", best p={float(self.probabilities[0]):.3g}" if K else ""
+        return f"Assignment(partition={self.partition!r}, K={K}, n={n}{top})"
 
     @property
     def best(self) -> dict:

@@ -34,6 +34,7 @@ exact.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -83,6 +84,10 @@ def write_uai(g, path, *, sidecar: bool = True) -> None:
         sidecar_path(path).write_text(json.dumps(meta, indent=1) + "\n")
 
 
+def _is_int(x) -> bool:
+    return isinstance(x, int) and not isinstance(x, bool)
+
+
 def _tokens(path: Path) -> list[str]:
     try:
         text = path.read_text()
@@ -107,10 +112,10 @@ def read_uai(path) -> FactorModel:
 
     def integer(what, minimum=0):
         s = take(what)
-        try:
-            v = int(s)
-        except ValueError:
-            raise ValueError(f"path: {path}: expected an integer for {what}, got {s!r}") from None
+        # plain decimal digits only: int() would also take "1_0" (10), "+3" or "٣"
+        if not (s.isascii() and s.lstrip("-").isdigit() and s.count("-") <= int(s[:1] == "-")):
+            raise ValueError(f"path: {path}: expected an integer for {what}, got {s!r}")
+        v = int(s)
         if v < minimum:
             raise ValueError(f"path: {path}: {what} must be >= {minimum}, got {v}")
         return v
@@ -132,10 +137,13 @@ def read_uai(path) -> FactorModel:
     tables = []
     for f, s in enumerate(scopes):
         size = integer(f"the table size of factor {f}")
-        want = int(np.prod([cards[v] for v in s])) if s else 1
+        want = math.prod(cards[v] for v in s)       # Python ints: no int64 wrap-around
         if size != want:
             raise ValueError(f"path: {path}: factor {f} declares {size} entries, its scope needs "
                              f"{want}")
+        if size > len(tok) - pos:
+            raise ValueError(f"path: {path}: file ends before entry {len(tok) - pos} of factor "
+                             f"{f} (it declares {size} entries)")
         vals = [take(f"entry {i} of factor {f}") for i in range(size)]
         try:
             t = np.array(vals, dtype=float)
@@ -149,12 +157,25 @@ def read_uai(path) -> FactorModel:
     names, partition = (), None
     meta = _sidecar(path)
     if meta is not None:
-        if meta.get("triplets") is not None:
-            if len(meta["triplets"]) != n:
-                raise ValueError(f"path: {sidecar_path(path)} lists {len(meta['triplets'])} "
-                                 f"triplets for {n} variables")
-            names = tuple(tuple(t) for t in meta["triplets"])
+        sp = sidecar_path(path)
+        trips = meta.get("triplets")
+        if trips is not None:
+            if not isinstance(trips, list) or not all(
+                    isinstance(t, list) and len(t) == 3 and all(_is_int(x) for x in t)
+                    for t in trips):
+                raise ValueError(f"path: sidecar {sp}: 'triplets' must be a list of [i, j, k] "
+                                 f"integer lists")
+            if len(trips) != n:
+                raise ValueError(f"path: {sp} lists {len(trips)} triplets for {n} variables")
+            names = tuple(tuple(t) for t in trips)
         partition = meta.get("partition")
+        if partition is not None:
+            from ..partitions import available
+
+            if not isinstance(partition, str) or partition.lower() not in available():
+                raise ValueError(f"path: sidecar {sp}: 'partition' must be one of "
+                                 f"{', '.join(available())} or null, got {partition!r}")
+            partition = partition.lower()
     return FactorModel(cards=cards, scopes=scopes, tables=tables, names=names,
                        partition=partition)
 
@@ -185,22 +206,32 @@ def read_uai_graph(path):
         raise ValueError(f"path: {path} has no sidecar {sidecar_path(path).name} with the "
                          f"triplets and factor roles; read it with read_uai() instead")
     roles = meta["factors"]
+    sp = sidecar_path(path)
+    if not isinstance(roles, list) or not all(isinstance(r, dict) for r in roles):
+        raise ValueError(f"path: sidecar {sp}: 'factors' must be a list of role objects")
     if len(roles) != len(model.scopes):
         raise ValueError(f"path: sidecar lists {len(roles)} factor roles for "
                          f"{len(model.scopes)} factors")
+    index = {t: v for v, t in enumerate(model.names)}
     T = None
     priors: dict[int, np.ndarray] = {}
     comps = []
     for f, (role, s, t) in enumerate(zip(roles, model.scopes, model.tables, strict=True)):
         if "prior" in role:
-            if s != (int(role["prior"]),):
-                raise ValueError(f"path: factor {f} is a prior of {role['prior']} but has scope {s}")
+            if not _is_int(role["prior"]) or s != (int(role["prior"]),):
+                raise ValueError(f"path: {sp}: factor {f} is a prior of {role['prior']!r} but "
+                                 f"has scope {s}")
             priors[s[0]] = t
         elif "composition" in role:
-            i, j, k, q = (int(x) for x in role["composition"])
-            want = tuple(model.names.index(x) for x in ((i, j, k), (j, k, q), (i, j, q)))
+            c = role["composition"]
+            if not (isinstance(c, list) and len(c) == 4 and all(_is_int(x) for x in c)):
+                raise ValueError(f"path: {sp}: factor {f}: composition must be [i, j, k, s] "
+                                 f"integers, got {c!r}")
+            i, j, k, q = c
+            want = tuple(index.get(x, -1) for x in ((i, j, k), (j, k, q), (i, j, q)))
             if s != want:
-                raise ValueError(f"path: factor {f} is composition {(i, j, k, q)} but has scope {s}")
+                raise ValueError(f"path: {sp}: factor {f} is composition {(i, j, k, q)} but has "
+                                 f"scope {s} (its triplets are variables {want}; -1: absent)")
             if T is None:
                 T = t
             elif not np.array_equal(T, t):
@@ -208,13 +239,16 @@ def read_uai_graph(path):
                                  f"first one (a factor graph has one tensor)")
             comps.append((i, j, k, q))
         else:
-            raise ValueError(f"path: sidecar factor role {role!r} is neither prior nor composition")
+            raise ValueError(f"path: {sp}: factor {f}: role {role!r} is neither prior nor "
+                             f"composition")
     m = model.cards[0] if model.n else 0
     if T is None:  # no composition factor: the partition's tensor (lazily), or a placeholder
         T = None if model.partition else np.ones((m,) * 3)
     g = QualitativeFactorGraph(model.partition, tensor=T)
     for v, t in enumerate(model.names):
         g.add_triplet(t, priors.get(v))
+        if v in priors:       # validated above; kept bit for bit (add_triplet re-normalizes)
+            g._priors[v] = np.array(priors[v], dtype=float)
     for c in comps:
         g.add_composition(c)
     return g
