@@ -37,18 +37,30 @@ def _geom_patch(geom, **kw):
 
 
 def draw_partition(partition="edc", ax=None, *, probabilities=None, highlight=None,
-                   label_states=True, cmap="Greens"):
+                   label_states=True, cmap="Greens", colorbar=True):
     """Draw a partition's states in the AB frame, with A, B and the 1-based labels.
 
-    ``probabilities``: (m,) values shading each state; ``highlight``: a 0-based state outlined in red.
+    ``probabilities``: (m,) values shading each state, explained by a colour bar (``colorbar``);
+    ``highlight``: a 0-based state outlined in red.
     """
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import ListedColormap, Normalize
+
     part = _partitions.get(partition)
     if ax is None:
         _, ax = plt.subplots(figsize=(5, 6))
     colors = plt.get_cmap("tab20")(np.arange(part.n_states) % 20)
     if probabilities is not None:
         p = np.asarray(probabilities, dtype=float)
-        colors = plt.get_cmap(cmap)(0.1 + 0.85 * p / max(p.max(), 1e-12))
+        top = max(float(p.max()), 1e-12)
+        # the lightest 10% and darkest 5% of the map are left out: 0 stays visible as a tint
+        # and the labels stay readable on the most likely state
+        shades = ListedColormap(plt.get_cmap(cmap)(np.linspace(0.1, 0.95, 256)))
+        colors = shades(p / top)
+        if colorbar:
+            sm = ScalarMappable(norm=Normalize(0.0, top), cmap=shades)
+            ax.figure.colorbar(sm, ax=ax, shrink=0.75, pad=0.02,
+                               label="probability of the state")
     for i, poly in enumerate(part.polygons):
         patch = _geom_patch(poly, facecolor=colors[i], edgecolor="0.3", lw=0.6,
                             alpha=0.9 if probabilities is not None else 0.45)
@@ -106,7 +118,10 @@ def draw_scenario(scenario, ax=None, *, triplet=None):
     ax.set_aspect("equal")
     ax.set_xlabel("x [world units]")
     ax.set_ylabel("y [world units]")
-    ax.legend(loc="upper right", fontsize=7)
+    if triplet is not None:
+        ax.plot([], [], ":", color="0.5", lw=0.7, label="sight lines of the triplet")
+    # below the axes: inside, a legend covers part of the path wherever it goes
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.11), ncol=3, fontsize=7, frameon=False)
     ax.set_title("scenario (world frame)")
     return ax
 
@@ -118,10 +133,12 @@ def draw_triplet(history, ax=None, *, partition="edc", probabilities=None):
     if history.truth is not None:
         c = history.truth.C_ab
         ax.plot(c[0], c[1], "r*", ms=12, label="C (truth)")
+        ax.plot([], [], "-", color="red", lw=2, label="its state (outlined)")
         cams = history.truth.poses_ab
         if cams is not None:  # None for real data without camera ground truth
             ax.plot(cams[:, 0], cams[:, 1], "^", color="tab:purple", label="cameras (truth)")
-        ax.legend(loc="lower right", fontsize=7)
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.11), ncol=3, fontsize=7,
+                  frameon=False)
     a, b, c = history.landmarks
     ax.set_title(f"triplet {a},{b}:{c} in its AB frame")
     return ax

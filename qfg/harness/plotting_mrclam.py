@@ -94,24 +94,33 @@ def dataset_figure(dataset, robot, path, **kw):
     return path
 
 
+def _count_marker_size(count):
+    """Marker area (points^2) of a bin holding ``count`` estimates: logarithmic, so that bins of
+    10 and of 100 000 estimates are both visible and sizes compare across groups and panels."""
+    return 10.0 + 15.0 * np.log10(1.0 + np.asarray(count, dtype=float))
+
+
 def reliability_figure(groups, *, bins: int = 10, title: str = "reliability"):
     """Calibration of estimates: for each group ``name -> (P (n, m), truths (n,))`` the top-state
     reliability (mean confidence of the most likely state against how often it is the truth) and
     the all-states one (every (estimate, state) probability against its frequency), from
-    :func:`qfg.metrics.reliability`; the diagonal is perfect calibration, and the marker size
-    grows with the bin's count. Returns the figure."""
+    :func:`qfg.metrics.reliability`; the diagonal is perfect calibration, and the marker area
+    grows with the logarithm of the bin's count (a legend shows 10, 100, 1000, 10000). Legends sit
+    below the axes, where they cover no point. Returns the figure."""
     from qfg import metrics
 
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4.6))
+    # constrained layout makes room for the legends below the axes
+    fig, axes = plt.subplots(1, 2, figsize=(10, 5.6), layout="constrained")
     for name, (P, g) in groups.items():
         r = metrics.reliability(P, g, bins)
         ece = metrics.expected_calibration_error(P, g, bins)
         for ax, conf, acc, cnt in ((axes[0], r.top_confidence, r.top_accuracy, r.top_count),
                                    (axes[1], r.all_confidence, r.all_frequency, r.all_count)):
             ok = cnt > 0
-            ax.plot(conf[ok], acc[ok], "-", lw=1, alpha=0.7)
-            ax.scatter(conf[ok], acc[ok], s=8 + 60 * np.sqrt(cnt[ok] / cnt.max()),
-                       label=f"{name} (n = {len(g)}, ECE {ece:.2f})" if ax is axes[0] else name)
+            line, = ax.plot(conf[ok], acc[ok], "-", lw=1, alpha=0.7)
+            ax.scatter(conf[ok], acc[ok], s=_count_marker_size(cnt[ok]), color=line.get_color(),
+                       label=f"{name} (n = {len(g)}, ECE {ece:.2f})" if ax is axes[0] else name,
+                       clip_on=False, zorder=3)
     for ax, lab in ((axes[0], "most likely state"), (axes[1], "every state")):
         ax.plot([0, 1], [0, 1], "k:", lw=1)
         ax.set_xlim(0, 1)
@@ -120,9 +129,13 @@ def reliability_figure(groups, *, bins: int = 10, title: str = "reliability"):
         ax.set_xlabel("predicted probability (bin mean)")
         ax.set_ylabel("observed frequency")
         ax.set_title(f"{lab}", fontsize=9)
-        ax.legend(fontsize=7, loc="upper left")
+    axes[0].legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.12), frameon=False)
+    sizes = [10, 100, 1000, 10000]
+    handles = [axes[1].scatter([], [], s=_count_marker_size(c), color="0.5") for c in sizes]
+    axes[1].legend(handles, [f"{c}" for c in sizes], title="estimates in the bin", ncol=4,
+                   fontsize=7, title_fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.12),
+                   frameon=False)
     fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
     return fig
 
 

@@ -509,7 +509,8 @@ def reliability_figures(outdir: Path, rows: list[dict], headline) -> list[Path]:
             continue
         P, g = _probs(sub)
         rel = metrics.reliability(P, g, 10)
-        fig, axes = plt.subplots(1, 2, figsize=(8.5, 3.9))
+        # constrained layout: room for the legend below the axes, where it covers no point
+        fig, axes = plt.subplots(1, 2, figsize=(8.5, 4.4), layout="constrained")
         for ax, (conf, acc, cnt, title) in zip(axes, (
                 (rel.top_confidence, rel.top_accuracy, rel.top_count, "most likely state"),
                 (rel.all_confidence, rel.all_frequency, rel.all_count, "every state")),
@@ -520,7 +521,12 @@ def reliability_figures(outdir: Path, rows: list[dict], headline) -> list[Path]:
             ax.errorbar(conf[ok], acc[ok], yerr=2 * se[ok], fmt="o-", ms=4, capsize=2,
                         label="observed (+-2 se of a calibrated bin)")
             for x, y, c in zip(conf[ok], acc[ok], cnt[ok], strict=True):
-                ax.annotate(str(int(c)), (x, y), fontsize=6, xytext=(3, -9),
+                # below right of the point, but above it near the x axis and to its left near
+                # the right edge, so that no count sits on an axis
+                right = x > 0.85
+                ax.annotate(str(int(c)), (x, y), fontsize=6, ha="right" if right else "left",
+                            va="bottom" if y < 0.15 else "top",
+                            xytext=(-4 if right else 4, 4 if y < 0.15 else -4),
                             textcoords="offset points")
             ax.set_xlim(0, 1)
             ax.set_ylim(-0.02, 1.02)
@@ -528,10 +534,10 @@ def reliability_figures(outdir: Path, rows: list[dict], headline) -> list[Path]:
             ax.set_ylabel("frequency true")
             ax.set_title(title, fontsize=9)
             ax.grid(alpha=0.3)
-        axes[0].legend(fontsize=7, loc="upper left")
+        fig.legend(*axes[0].get_legend_handles_labels(), fontsize=7, loc="outside lower center",
+                   ncol=2, frameon=False)
         fig.suptitle(f"{m}: reliability at sigma_v = {sv:g} deg, sigma_w = {sw:g} deg "
                      f"({len(sub)} scenarios; numbers: estimates per bin)", fontsize=9)
-        fig.tight_layout()
         paths.append(save_figure(fig, outdir, f"reliability_{m}", dpi=120))
     return paths
 
