@@ -17,6 +17,13 @@ guarantees (``docs/runner.md``):
   directory exactly one proceeds;
 * a scenario that raises is recorded with its index, seed and traceback, and the run goes on; a
   run in which every scenario failed raises :class:`ScenariosFailed`;
+* nothing lost: a pool worker killed by a signal has its scenarios rerun one at a time (a
+  scenario whose worker dies ``retries + 1`` times alone raises :class:`RunAborted`); a full disk
+  or an unwritable records file cuts the file back to its last complete record and raises
+  :class:`RunAborted` (one line; ``resume`` continues); records carry their seed and are checked
+  (index, rows, seed) with the file and line when read;
+* outputs are written to a temporary file in the folder and renamed (:func:`write_text`): a
+  link planted at an output's name is replaced, never written through;
 * worker processes exit when the main process dies (even by SIGKILL), and ignore Ctrl-C, which
   the main process turns into :class:`RunInterrupted` (finished scenarios are kept for
   ``resume``);
