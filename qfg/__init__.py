@@ -24,7 +24,7 @@ import importlib as _importlib
 from ._version import __version__
 
 _MODULES = ("geometry", "partitions", "simulation", "datasets", "solvers", "composition", "graph",
-            "inference", "propagation", "metrics")
+            "inference", "propagation", "configurations", "metrics")
 
 #: top-level name -> module that defines it
 _NAMES = {
@@ -45,6 +45,8 @@ _NAMES = {
     "compare_unseen": "propagation",
     "GraphTooLargeError": "propagation",
     "ZeroMassError": "propagation",
+    "infer_configurations": "configurations",
+    "configuration_marginals": "configurations",
     "Marginals": "inference",
     "Assignment": "inference",
     "MissingKeyError": "inference",

@@ -23,7 +23,7 @@ CONFIG = {"cfg_state": "state", "cfg_metric": "metric"}
 
 #: study parameters of the configuration methods (defaults of qfg.configurations where shared)
 PARAMS = {"map_methods": True, "config_particles": 2000, "config_floor": 0.01,
-          "config_state_mix": 0.1, "config_components": 16}
+          "config_state_mix": 0.1, "config_components": 32}
 
 
 def randomized_pit(P, truth, u) -> np.ndarray:
