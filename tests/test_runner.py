@@ -414,6 +414,31 @@ def test_a_full_disk_stops_with_one_line_and_loses_nothing(tmp_path):
         _umount(disk)
 
 
+def test_a_disk_full_while_writing_the_outputs_keeps_every_record(tmp_path):
+    import toy_faults
+
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    if not _mount(disk, "-t", "tmpfs", "-o", "size=64k", "tmpfs"):
+        pytest.skip("cannot mount a small tmpfs here (needs root on Linux)")
+    try:
+        out = disk / "o"
+        params = {"n": 5, "bytes": 200_000}
+        with pytest.raises(runner.RunAborted) as info:
+            runner.run_study(toy_faults.BIG_SUMMARY, params, out, seed=1, progress=False)
+        msg = str(info.value)
+        assert "\n" not in msg and "No space left on device" in msg and "--resume" in msg
+        assert len(runner.read_records(out / "records.jsonl")[0]) == 5
+        assert not list(out.glob(".*.tmp")), "the temporary file is removed"
+        assert not (out / "big.txt").exists()
+        assert _mount(disk, "-o", "remount,size=1m")
+        runner.run_study(toy_faults.BIG_SUMMARY, params, out, seed=1, resume=True,
+                         progress=False)
+        assert (out / "big.txt").stat().st_size == 200_000
+    finally:
+        _umount(disk)
+
+
 def test_an_unwritable_records_file_is_one_line(tmp_path):
     out = tmp_path / "o"
     runner.run_study(toy_study.STUDY, {"n": 4}, out, seed=1, progress=False)

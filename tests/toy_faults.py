@@ -33,3 +33,18 @@ def run_task_killing(task, rng):
 
 
 KILLING = Study("toy-killing", tasks, run_task_killing, None, "scenarios that kill their worker")
+
+
+def summarize_big(outdir, rows, params):
+    """Writes ``params["bytes"]`` bytes next to the outputs (fills a small disk)."""
+    from qfg.harness.runner import write_text
+
+    write_text(Path(outdir) / "big.txt", "x" * params["bytes"])
+
+
+def big_tasks(params):
+    return [{"i": i, "fail": False} for i in range(params["n"])]
+
+
+BIG_SUMMARY = Study("toy-big-summary", big_tasks, run_task, summarize_big,
+                    "a summary larger than a small disk")
