@@ -36,7 +36,7 @@ from typing import Sequence
 
 import numpy as np
 
-from . import _baseline, _degenerate, _estimate, _fast, _input, _options, _seeds, _sis
+from . import _baseline, _budget, _degenerate, _estimate, _fast, _input, _options, _seeds, _sis
 from ._estimate import Hypotheses, TripletEstimate
 from ._options import DEFAULTS, METHODS
 
@@ -115,6 +115,7 @@ def solve_triplet(bearings, headings=None, *, method: str = "full", partition="e
     part = _input.get_partition(partition)
     model = _model(method, meas)
     opts = _model_options(method, model, options)
+    _budget.check(model, opts, 1, meas.n_views)
     root = _seeds.root_seed(seed)
     if model == "fast-paper":
         return _solve_fast_batch([meas], part, opts)[0]
@@ -223,6 +224,9 @@ def solve_triplets(histories, headings=None, *, method: str = "full", partition=
     root = _seeds.root_seed(seed)
     out: list = [None] * len(metas)
     groups: dict = {}
+    for meas in metas:
+        model = _model(method, meas)
+        _budget.check(model, _model_options(method, model, options), 1, meas.n_views)
     for t, meas in enumerate(metas):
         model = _model(method, meas)
         if model in ("fast-paper",) + _SIS:
@@ -423,6 +427,7 @@ class TripletSolver:
             raise ValueError(f"heading: method {self.method!r} needs the heading from the "
                              "previous view")
         part, opts = self.partition, self.options
+        _budget.check(self.method, opts, 1, self.n_views + 1)
         if self.method == "reference":
             # solved from scratch at estimate(): keep the measurements
             b = phi[None, :] if first else np.vstack([self._state.bearings, phi])

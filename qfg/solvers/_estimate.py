@@ -159,9 +159,13 @@ def make_estimate(method, part, n_views, landmark, cameras, *, hypotheses: Hypot
                   reasons=(), mc_error=float("nan"), opts) -> tuple[TripletEstimate, Hypotheses]:
     """The (answer, hypotheses) pair every solver's ``finish`` returns. With the option
     ``mc_shrinkage`` = alpha > 0 the landmark and camera distributions are shrunk toward the
-    uniform by alpha pseudo-draws against the final sample's ESS (:func:`shrink_to_uniform`)."""
+    uniform by alpha pseudo-draws against the final sample's ESS (:func:`shrink_to_uniform`);
+    with the option ``min_ess``, an answer whose ESS is smaller is flagged (a failed sampler)."""
     lw = hypotheses.landmark_weights
     e = ess(lw)
+    if "min_ess" in opts and e < opts["min_ess"]:
+        reasons = tuple(reasons) + (f"effective sample size {e:.1f} < {opts['min_ess']:g}: the "
+                                    "answer rests on too few effective draws",)
     a = float(opts.get("mc_shrinkage", 0.0) or 0.0)
     landmark = shrink_to_uniform(landmark, e, a)
     cameras = shrink_to_uniform(cameras, e, a)
