@@ -390,6 +390,9 @@ def _death_reason(procs) -> str:
     return f"exited with status {c}"
 
 
+_END = object()
+
+
 class ProcessExecutor:
     """A local process pool (``--workers N``), at most ``2 N`` calls in flight. Workers ignore
     Ctrl-C and die with the main process (:func:`_worker_init`).
@@ -415,59 +418,77 @@ class ProcessExecutor:
         return ProcessPoolExecutor(max_workers=self.workers, initializer=_worker_init,
                                    initargs=(os.getpid(),))
 
-    def _submit(self, pending, fn, args, attempts):
-        pending[self._pool.submit(fn, *args)] = (args, attempts)
+    def _submit(self, pending, fn, args, attempts) -> bool:
+        """Submit one call; False when the pool broke since the last look (nothing submitted)."""
+        try:
+            pending[self._pool.submit(fn, *args)] = (args, attempts)
+        except BrokenProcessPool:
+            return False
         # remember the worker processes: after a break the pool forgets them, and their exit
         # codes say how the worker died
         self._procs.update(getattr(self._pool, "_processes", None) or {})
+        return True
 
     def map_unordered(self, fn, arglists):
         it = iter(arglists)
         pending: dict = {}    # future -> (args, times it ran alone and its worker died)
         suspects: list = []   # calls lost in a break, run again one at a time
+        backlog: list = []    # calls not submitted because the pool had just broken
+        fruitless = 0         # restarts in a row with no call finished: a pool that cannot start
         alone = False
         while True:
+            broke = False
             if suspects:
                 if not pending:
-                    self._submit(pending, fn, *suspects.pop(0))
-                    alone = True
+                    item = suspects.pop(0)
+                    if self._submit(pending, fn, *item):
+                        alone = True
+                    else:
+                        suspects.insert(0, item)
+                        broke = True
             else:
                 alone = False
-                for args in it:
-                    self._submit(pending, fn, args, 0)
-                    if len(pending) >= 2 * self.workers:
+                while len(pending) < 2 * self.workers:
+                    args = backlog.pop(0) if backlog else next(it, _END)
+                    if args is _END:
                         break
-            if not pending:
+                    if not self._submit(pending, fn, args, 0):
+                        backlog.insert(0, args)
+                        broke = True
+                        break
+            if not pending and not broke:
                 return
-            done, _ = wait(pending, return_when=FIRST_COMPLETED)
             lost = []
-            for f in done:
-                args, attempts = pending.pop(f)
-                try:
-                    res = f.result()
-                except BrokenProcessPool:
-                    lost.append((args, attempts))
-                    continue
-                yield res
-            if not lost:
+            first = True
+            while pending:
+                # after a break every call in flight fails at once (or finished just before)
+                done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for f in done:
+                    args, attempts = pending.pop(f)
+                    try:
+                        res = f.result()
+                    except BrokenProcessPool:
+                        lost.append((args, attempts))
+                        continue
+                    fruitless = 0
+                    yield res
+                if first and not lost and not broke:
+                    break  # the usual case: refill
+                first = False
+            if not lost and not broke:
                 continue
-            # the pool is broken: every call still in flight fails (or finished just before)
-            for f in wait(pending)[0]:
-                args, attempts = pending.pop(f)
-                try:
-                    res = f.result()
-                except BrokenProcessPool:
-                    lost.append((args, attempts))
-                    continue
-                yield res
             reason = self._restart()
-            if alone:
+            fruitless += 1
+            if alone and lost:
                 (args, attempts), = lost
                 if attempts + 1 > self.retries:
                     raise WorkerLost(args, reason, attempts + 1)
                 suspects.insert(0, (args, attempts + 1))
             else:
                 suspects.extend(lost)
+            if fruitless > 3 * (self.retries + 1):
+                raise WorkerLost(suspects[0][0] if suspects else (backlog[0] if backlog else ()),
+                                 reason, fruitless)
 
     def _restart(self) -> str:
         """A fresh pool after a break; returns how the old pool's worker died."""
