@@ -177,7 +177,7 @@ class PositionSummary:
         if self.centres.shape[0] == 0:
             return np.ones(p.shape[:-1])
         lin, lnorm = _chol_inverse(self.bandwidth[None])
-        out = _log_mixture(p.reshape(-1, 1, 2), self.centres[None], self.log_weights[None],
+        out = _log_mixture(p.reshape(1, -1, 2), self.centres[None], self.log_weights[None],
                            lin, lnorm)
         return np.exp(out).reshape(p.shape[:-1])
 
@@ -206,24 +206,24 @@ def _chol_inverse(cov):
 
 
 def _log_mixture(c, centres, log_w, lin, lnorm):
-    """log sum_j w_j N(c; mu_j, H) for points c (P, T, 2), per-term centres (T, K, 2), log
-    weights (T, K), inverse Cholesky (T, 2, 2) and log normalizers (T,) -> (P, T).
+    """log sum_j w_j N(c; mu_j, H) for points c (T, P, 2), per-term centres (T, K, 2), log
+    weights (T, K), inverse Cholesky (T, 2, 2) and log normalizers (T,) -> (T, P).
 
     Summed without a max shift: the log weights are moderate (-log K - log prior), so the terms
     cannot overflow, and a sum that underflows to 0 is a ratio the floor makes irrelevant."""
-    d0 = c[:, :, None, 0] - centres[None, :, :, 0]                        # (P, T, K)
-    d1 = c[:, :, None, 1] - centres[None, :, :, 1]
-    z1 = lin[None, :, None, 1, 0] * d0
-    z1 += lin[None, :, None, 1, 1] * d1
-    d0 *= lin[None, :, None, 0, 0]
+    d0 = c[:, :, None, 0] - centres[:, None, :, 0]                        # (T, P, K)
+    d1 = c[:, :, None, 1] - centres[:, None, :, 1]
+    z1 = lin[:, None, None, 1, 0] * d0
+    z1 += lin[:, None, None, 1, 1] * d1
+    d0 *= lin[:, None, None, 0, 0]
     d0 *= d0
     z1 *= z1
     d0 += z1
     d0 *= -0.5
-    d0 += log_w[None]
+    d0 += log_w[:, None, :]
     np.exp(d0, out=d0)
     with np.errstate(divide="ignore"):
-        return np.log(d0.sum(axis=-1)) + lnorm[None]
+        return np.log(d0.sum(axis=-1)) + lnorm[:, None]
 
 
 def summarize_position(hypotheses, states=None, prior="world", *, partition="edc",
@@ -447,46 +447,56 @@ def _concat_terms(a: _Terms, b: _Terms) -> _Terms:
 
 # --------------------------------------------------------------------------- the sampler
 class _Sampler:
-    """Tempered SMC over world configurations X (P, n, 2); particles p belong to group p // Pg."""
+    """Tempered SMC over world configurations, stored landmark-major: ``Xt`` (n, P, 2) (gathering
+    the landmarks of many triplets is then a copy of whole rows); per-term log-likelihoods ``ll``
+    (T, P). Particle p belongs to group p // Pg."""
 
     def __init__(self, X, terms, part, pr, floor, rng, n_groups):
-        self.X, self.terms, self.part, self.pr = X, terms, part, pr
+        self.Xt = np.ascontiguousarray(np.transpose(X, (1, 0, 2)))
+        self.terms, self.part, self.pr = terms, part, pr
         self.floor, self.rng, self.G = floor, rng, n_groups
-        self.P, self.n = X.shape[:2]
+        self.n, self.P = self.Xt.shape[:2]
         self.Pg = self.P // n_groups
         self.box = np.array([pr.width, pr.height])
         self.of_landmark = [np.flatnonzero(np.any(terms.ijk == l, axis=1)) for l in range(self.n)]
-        self.ll = self._loglik(X, np.arange(len(terms.ijk)))
+        # the partition's vectorized lookup without re-checking inputs to_frame made finite
+        lk = part.lookup
+        self._lookup = ((lambda c: np.asarray(lk(c), dtype=np.int64)) if lk is not None
+                        else part.state_of)
+        self.ll = self._loglik(np.arange(len(terms.ijk)))
         self.step = np.full(self.n, 0.5)
         self.sim_step = 0.5
         self.acc_land, self.acc_sim = [], []
 
+    @property
+    def X(self):
+        """(P, n, 2) positions."""
+        return np.transpose(self.Xt, (1, 0, 2))
+
     # -- likelihood
-    def _loglik(self, X, idx, l=None, prop=None):
-        """(P, len(idx)) log-likelihood of terms idx; with l, prop: landmark l moved to prop."""
+    def _loglik(self, idx, l=None, prop=None):
+        """(len(idx), P) log-likelihood of terms idx; with l, prop: landmark l moved to prop."""
         t = self.terms
         ijk = t.ijk[idx]
-        pts = [X[:, ijk[:, a]] for a in range(3)]                       # (P, T, 2) each
+        pts = [self.Xt[ijk[:, a]] for a in range(3)]                    # (T, P, 2) each, copies
         if l is not None:
             for a in range(3):
                 hit = ijk[:, a] == l
                 if hit.any():
-                    pts[a] = pts[a].copy()
-                    pts[a][:, hit] = prop[:, None, :]
+                    pts[a][hit] = prop[None]
         from .geometry import to_frame
 
         c = to_frame(pts[2], pts[0], pts[1])
-        s = self.part.state_of(c)
-        out = t.logtab[idx[None, :], s]
+        s = self._lookup(c)                                              # (T, P)
+        out = np.take_along_axis(t.logtab[idx], s, axis=1)
         met = t.metric[idx]
         if met.any():
             mi = idx[met]
-            sm = s[:, met]
-            r = np.exp(_log_mixture(c[:, met], t.centres[mi], t.logw[mi], t.lin[mi],
-                                    t.lnorm[mi]))
-            st = t.ratiotab[mi[None, :], sm]
-            b = t.mix[mi][None, :]
-            out[:, met] = np.log((1.0 - self.floor) * ((1.0 - b) * r + b * st) + self.floor)
+            sm = s[met]
+            r = np.exp(_log_mixture(c[met], t.centres[mi], t.logw[mi], t.lin[mi], t.lnorm[mi]))
+            st = np.take_along_axis(t.ratiotab[mi], sm, axis=1)
+            b = t.mix[mi][:, None]
+            out[met] = np.log((1.0 - self.floor) * ((1.0 - b) * r + b * st) + self.floor)
         return out
 
     def coef(self, beta):
@@ -496,36 +506,34 @@ class _Sampler:
     def tempered(self):
         """(P,) d log target / d beta."""
         k = self.terms.kind
-        return self.ll[:, k == 1].sum(axis=1) - self.ll[:, k == 2].sum(axis=1)
+        return self.ll[k == 1].sum(axis=0) - self.ll[k == 2].sum(axis=0)
 
     # -- prior
     def _inside(self, pts):
         return np.all((pts >= 0.0) & (pts <= self.box), axis=-1)
 
-    def _min_dist(self, X, l, prop):
-        """(P,) least distance from prop (P, 2) to the other landmarks of X."""
-        d = X - prop[:, None, :]
-        d2 = np.sum(d * d, axis=-1)
-        d2[:, l] = np.inf
-        return np.sqrt(np.min(d2, axis=1)) if self.n > 1 else np.full(self.P, np.inf)
-
-    def _min_pair(self, X):
-        """(P,) least pairwise distance within each configuration (blocks of particles)."""
+    def _min_dist(self, l, prop):
+        """(P,) least distance from prop (P, 2) to the other landmarks."""
         if self.n < 2:
-            return np.full(X.shape[0], np.inf)
-        iu = np.triu_indices(self.n, k=1)
-        out = np.empty(X.shape[0])
-        step = max(1, _CHUNK // (4 * len(iu[0])))
-        for a in range(0, X.shape[0], step):
-            d = X[a:a + step, iu[0]] - X[a:a + step, iu[1]]
-            out[a:a + step] = np.sqrt(np.min(np.sum(d * d, axis=-1), axis=1))
-        return out
+            return np.full(self.P, np.inf)
+        d = self.Xt - prop[None]
+        d2 = np.einsum("npk,npk->np", d, d)
+        d2[l] = np.inf
+        return np.sqrt(np.min(d2, axis=0))
+
+    def _min_pair(self, Xt):
+        """(P,) least pairwise distance within each configuration, Xt (n, P, 2)."""
+        out = np.full(Xt.shape[1], np.inf)
+        for i in range(self.n - 1):
+            d = Xt[i + 1:] - Xt[i][None]
+            np.minimum(out, np.min(np.einsum("npk,npk->np", d, d), axis=0), out=out)
+        return np.sqrt(out)
 
     # -- moves
     def _spread(self):
         """(n,) per landmark, the mean within-group standard deviation of its position."""
-        Xg = self.X.reshape(self.G, self.Pg, self.n, 2)
-        return np.sqrt(np.mean(np.var(Xg, axis=1), axis=(0, 2)))
+        Xg = self.Xt.reshape(self.n, self.G, self.Pg, 2)
+        return np.sqrt(np.mean(np.var(Xg, axis=2), axis=(1, 2)))
 
     def move_landmarks(self, beta):
         coef = self.coef(beta)
@@ -534,45 +542,43 @@ class _Sampler:
         acc = np.zeros(self.n)
         for l in rng.permutation(self.n):
             sd = max(self.step[l] * spread[l], 1e-6)
-            prop = self.X[:, l] + sd * rng.standard_normal((self.P, 2))
+            prop = self.Xt[l] + sd * rng.standard_normal((self.P, 2))
             ok = self._inside(prop)
             if self.pr.d_min > 0:
-                ok &= self._min_dist(self.X, l, prop) >= self.pr.d_min
+                ok &= self._min_dist(l, prop) >= self.pr.d_min
             idx = self.of_landmark[l]
             logu = np.log(rng.random(self.P))
             if idx.size:
-                new = self._loglik(self.X, idx, l, prop)
-                dlog = (new - self.ll[:, idx]) @ coef[idx]
+                new = self._loglik(idx, l, prop)
+                dlog = coef[idx] @ (new - self.ll[idx])
             else:
                 new, dlog = None, np.zeros(self.P)
             a = ok & (logu < dlog)
-            self.X[a, l] = prop[a]
+            self.Xt[l, a] = prop[a]
             if new is not None and a.any():
-                rows = np.flatnonzero(a)
-                self.ll[rows[:, None], idx[None, :]] = new[rows]
+                self.ll[idx] = np.where(a[None, :], new, self.ll[idx])
             acc[l] = a.mean()
-            # adapt the step toward an acceptance of about 0.3 (between stages it is fixed)
         self.acc_land.append(float(acc.mean()))
         return acc
 
     def move_similarity(self):
         rng, P, n = self.rng, self.P, self.n
-        c = self.X.mean(axis=1, keepdims=True)
+        c = self.Xt.mean(axis=0, keepdims=True)
         th = self.sim_step * 0.3 * rng.standard_normal(P)
         ls = self.sim_step * 0.5 / max(n, 1) * rng.standard_normal(P)
-        tr = self.sim_step * 0.3 * rng.standard_normal((P, 1, 2))
+        tr = self.sim_step * 0.3 * rng.standard_normal((1, P, 2))
         s = np.exp(ls)
         cs, sn = np.cos(th) * s, np.sin(th) * s
-        d = self.X - c
-        Y = np.stack([cs[:, None] * d[..., 0] - sn[:, None] * d[..., 1],
-                      sn[:, None] * d[..., 0] + cs[:, None] * d[..., 1]], axis=-1) + c + tr
-        ok = np.all(self._inside(Y), axis=1)
+        d = self.Xt - c
+        Y = np.stack([cs * d[..., 0] - sn * d[..., 1], sn * d[..., 0] + cs * d[..., 1]],
+                     axis=-1) + c + tr
+        ok = np.all(self._inside(Y), axis=0)
         shrink = ok & (s < 1)
         if self.pr.d_min > 0 and shrink.any():
-            ok[shrink] = self._min_pair(Y[shrink]) >= self.pr.d_min
+            ok[shrink] = self._min_pair(Y[:, shrink]) >= self.pr.d_min
         # likelihoods are invariant; the box prior is flat: the Jacobian s^(2n) decides
         a = ok & (np.log(rng.random(P)) < 2 * n * ls)
-        self.X[a] = Y[a]
+        self.Xt[:, a] = Y[:, a]
         self.acc_sim.append(float(a.mean()))
         return float(a.mean())
 
@@ -582,6 +588,7 @@ class _Sampler:
             accs.append(self.move_landmarks(beta))
             sims.append(self.move_similarity())
         acc = np.mean(accs, axis=0)
+        # steps adapted toward an acceptance of about 0.3 (fixed within a stage)
         self.step *= np.exp(np.clip(acc - 0.3, -0.3, 0.3) * 2)
         self.step = np.clip(self.step, 1e-4, 3.0)
         self.sim_step = float(np.clip(self.sim_step * np.exp(2 * (np.mean(sims) - 0.3)),
@@ -602,8 +609,8 @@ class _Sampler:
         idx = np.stack([np.searchsorted(cdf[g], u[g]) for g in range(G)])
         idx = np.minimum(idx, Pg - 1) + (np.arange(G) * Pg)[:, None]
         idx = idx.reshape(-1)
-        self.X = self.X[idx]
-        self.ll = self.ll[idx]
+        self.Xt = self.Xt[:, idx]
+        self.ll = self.ll[:, idx]
         return logz
 
     def ess_fraction(self, logw):
@@ -665,6 +672,7 @@ class ConfigurationPosterior:
         X = np.array(X)
         X.setflags(write=False)
         self.positions = X
+        self._Xt = np.ascontiguousarray(np.transpose(X, (1, 0, 2)))
         self.weights = np.full(X.shape[0], 1.0 / X.shape[0])
         self.weights.setflags(write=False)
         self.groups = np.asarray(groups)
@@ -698,11 +706,14 @@ class ConfigurationPosterior:
         return self._states(self._indices(ts))
 
     def _states(self, ijk):
+        return self._states_t(ijk).T
+
+    def _states_t(self, ijk):
+        """(r, P) states, from the landmark-major copy (whole-row gathers)."""
         from .geometry import to_frame
 
-        X = self.positions
-        return self.partition.state_of(to_frame(X[:, ijk[:, 2]], X[:, ijk[:, 0]],
-                                                X[:, ijk[:, 1]]))
+        Xt = self._Xt
+        return self.partition.state_of(to_frame(Xt[ijk[:, 2]], Xt[ijk[:, 0]], Xt[ijk[:, 1]]))
 
     def all_triplets(self) -> list:
         """Every ordered triplet of this configuration's landmarks (n (n-1) (n-2))."""
@@ -733,9 +744,9 @@ class ConfigurationPosterior:
         counts = np.zeros((G, R, m))
         step = max(1, _CHUNK // P)
         for r0 in range(0, R, step):
-            s = self._states(ijk[r0:r0 + step])                           # (P, r)
-            r = s.shape[1]
-            flat = (self.groups[:, None] * r + np.arange(r)[None, :]) * m + s
+            s = self._states_t(ijk[r0:r0 + step])                         # (r, P)
+            r = s.shape[0]
+            flat = (self.groups[None, :] * r + np.arange(r)[:, None]) * m + s
             counts[:, r0:r0 + r] = np.bincount(flat.ravel(), minlength=G * r * m
                                                ).reshape(G, r, m)
         Pg = P // G
