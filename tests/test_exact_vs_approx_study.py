@@ -33,6 +33,14 @@ def test_same_graphs_as_the_propagation_study_and_exact_rows_exact(tmp_path):
             assert r["exact_tv"] == 0.0 and r["exact_kl"] == 0.0
             for m in eva.APPROX:
                 assert 0.0 <= r[f"{m}_tv"] <= 1.0 + 1e-12 and r[f"{m}_kl"] >= 0.0
+    # the map methods run on the same graphs with the same seeds: the same scores, seen and unseen
+    a_all = {(r["scenario"], r["triplet"]): r for r in rows}
+    b_all = {(r["scenario"], r["triplet"]): r for r in prow}
+    assert set(a_all) == set(b_all)
+    for k, r in a_all.items():
+        for m in ("prior", "solver", "alg2", "pooled", "cfg_state", "cfg_metric"):
+            assert r[f"{m}_ls"] == b_all[k][f"{m}_ls"] and r[f"{m}_pit"] == b_all[k][f"{m}_pit"]
+    assert (tmp_path / "e" / "scores.md").exists()
     assert (tmp_path / "e" / "table.md").exists()
     assert (tmp_path / "e" / "figures" / "exact_vs_approx.png").exists()
 
