@@ -66,7 +66,7 @@ LIKELIHOODS = ("state", "metric")
 #: Defaults of :func:`infer_configurations` (chosen on development seeds: docs/configurations.md).
 DEFAULTS = {
     "n_particles": 2000, "n_groups": 4, "target_ess": 0.5, "n_sweeps": 2, "floor": 1e-2,
-    "state_mix": 0.1, "low_ess_mix": 0.5, "pseudo_count": 2.0,
+    "state_mix": 0.1, "low_ess_mix": 0.5, "pseudo_count": 2.0, "temper": 1.0,
 }
 
 #: Samples behind the prior's state distribution (:func:`prior_states`).
@@ -392,7 +392,11 @@ class _Terms:
                       == bool else [self.evidence[i] for i in keep])
 
 
-def _make_terms(items, index, q, floor, state_mix, low_ess_mix, kind):
+def _make_terms(items, index, q, o, kind):
+    from .combine import temper
+
+    floor, state_mix, low_ess_mix, tau = (o["floor"], o["state_mix"], o["low_ess_mix"],
+                                          float(o["temper"]))
     m = q.shape[0]
     T = len(items)
     K = max([s.centres.shape[0] for _, s in items.values() if s is not None], default=1)
@@ -409,7 +413,8 @@ def _make_terms(items, index, q, floor, state_mix, low_ess_mix, kind):
     trips, evs = [], []
     for r, (t, (v, s)) in enumerate(items.items()):
         ijk[r] = [index[x] for x in t]
-        ratio[r] = v / q
+        # the state likelihood P_t / q, tempered (P_t / q)^tau (renormalized: mean 1 under q)
+        ratio[r] = (v if tau == 1 else temper(v, q, tau)) / q
         if s is not None and s.centres.shape[0] > 0:
             k = s.centres.shape[0]
             metric[r] = True
@@ -785,7 +790,7 @@ class ConfigurationPosterior:
         old.kind = np.where(np.isin(np.arange(len(old.triplets)),
                                     [i for i, t in enumerate(old.triplets) if t in items]),
                             2, 0).astype(np.int8)
-        new = _make_terms(items, index, self._q, o["floor"], o["state_mix"], o["low_ess_mix"], 1)
+        new = _make_terms(items, index, self._q, o, 1)
         terms = _concat_terms(old, new) if len(old.triplets) else new
         return _run(ids, X, terms, self.partition, self.prior, self.likelihood, o, self._q, rng,
                     self.groups)
@@ -846,7 +851,9 @@ def infer_configurations(evidence, prior="world", *, partition="edc", likelihood
         **options: :data:`DEFAULTS` -- ``n_particles`` (P, a multiple of ``n_groups``),
             ``n_groups`` (independent populations, >= 2 for an error estimate), ``target_ess``
             (fraction kept per tempering stage), ``n_sweeps`` (Metropolis sweeps per stage),
-            ``floor`` (eps), ``state_mix``, ``low_ess_mix`` (b), ``pseudo_count`` (the
+            ``floor`` (eps), ``state_mix``, ``low_ess_mix`` (b), ``temper`` (tau: every state
+            likelihood enters as ``(P_t / q)^tau``, renormalized, :func:`qfg.combine.temper`;
+            1 = as the solver says), ``pseudo_count`` (the
             marginals' shrinkage toward the prior's state distribution).
 
     Returns:
@@ -863,7 +870,7 @@ def infer_configurations(evidence, prior="world", *, partition="edc", likelihood
     if not 0 < float(o["target_ess"]) < 1:
         raise ValueError(f"target_ess: expected a fraction in (0, 1), got {o['target_ess']!r}")
     positive_int("n_sweeps", o["n_sweeps"])
-    for k in ("floor", "state_mix", "low_ess_mix"):
+    for k in ("floor", "state_mix", "low_ess_mix", "temper"):
         v = non_negative(k, o[k])
         if v > 1:
             raise ValueError(f"{k}: expected a number in [0, 1], got {v}")
@@ -885,7 +892,7 @@ def infer_configurations(evidence, prior="world", *, partition="edc", likelihood
     rng = as_rng(seed)
     index = {l: i for i, l in enumerate(ids)}
     X = pr.sample_world(rng, len(ids), P)
-    terms = _make_terms(items, index, q, o["floor"], o["state_mix"], o["low_ess_mix"], 1)
+    terms = _make_terms(items, index, q, o, 1)
     groups = np.repeat(np.arange(G), P // G)
     return _run(ids, X, terms, part, pr, likelihood, o, q, rng, groups)
 
