@@ -389,3 +389,154 @@ def test_results_pickle_round_trip():
         back = pickle.loads(pickle.dumps(r))
         np.testing.assert_array_equal(np.asarray(back.probabilities), np.asarray(r.probabilities))
         assert back.triplets == r.triplets
+
+
+# ------------------------------------------------------------------ issue 19: defects, memory
+def test_factor_less_variables_above_contract_above():
+    """An einsum error on a node with nothing to contract (JunctionTree(..., contract_above=2))."""
+    jt = JunctionTree(FactorModel(cards=[5], scopes=[], tables=[]), contract_above=2)
+    np.testing.assert_allclose(jt.marginals(), [[0.2] * 5])
+    assert jt.log_partition() == pytest.approx(np.log(5))
+    big = JunctionTree(FactorModel(cards=[20 ** 5 + 1, 3], scopes=[(1,)], tables=[[1, 2, 1]]))
+    P = big.marginals()
+    assert P[0, 0] == pytest.approx(1 / (20 ** 5 + 1)) and P[1, :3].tolist() == [0.25, 0.5, 0.25]
+    X, lp = big.k_best(3)
+    # x1 = 1 (p 0.5) with any x0: three tied best, three distinct states of x0
+    assert X[:, 1].tolist() == [1, 1, 1] and len(set(X[:, 0].tolist())) == 3
+    np.testing.assert_allclose(lp, np.log(0.5 / (20 ** 5 + 1)))
+
+
+def test_map_and_k_best_on_an_empty_graph():
+    """A reshape error before."""
+    g = QualitativeFactorGraph(None, tensor=np.ones((2, 2, 2)))
+    a = map_assignment(g)
+    assert a.states.shape == (1, 0) and a.probabilities.tolist() == [1.0] and a.best == {}
+    assert len(repr(a)) < 100
+
+
+def test_k_best_with_an_unbounded_k_is_refused_before_work():
+    """k_best(g, 10**9) ran on with no bound: the queue of subproblems is in the estimate."""
+    import time
+
+    g = full_map(4, partition=None, tensor=np.ones((2, 2, 2)))
+    t = time.perf_counter()
+    with pytest.raises(GraphTooLargeError, match="memory budget") as info:
+        k_best(g, 10 ** 9)
+    assert time.perf_counter() - t < 5 and info.value.estimate > info.value.budget
+    assert len(k_best(g, 10)) == 10
+
+
+@pytest.mark.parametrize("kw", [{"damping": None}, {"tol": None}, {"damping": "0.5"},
+                                {"tol": True}])
+def test_loopy_bp_argument_types_are_value_errors(kw):
+    """TypeError before."""
+    g = full_map(4, partition=None, tensor=np.ones((2, 2, 2)))
+    with pytest.raises(ValueError, match=next(iter(kw))):
+        loopy_bp(g, **kw)
+
+
+def test_loopy_bp_warns_when_not_converged_and_on_dense_maps():
+    from qfg.propagation import DenseMapWarning, NotConvergedWarning
+
+    rng = np.random.default_rng(0)
+    g = full_map(5, partition=None, tensor=rng.random((3, 3, 3)))
+    g.add_triplet((0, 1, 2), [0.9, 0.05, 0.05])
+    with pytest.warns(DenseMapWarning, match="share two triplets"):
+        with pytest.warns(NotConvergedWarning, match="not converged after 2"):
+            r = loopy_bp(g, max_iters=2)
+    assert not r.converged and r.info["overlap"] == 1.0
+    # a tree of factors: no overlap, converges, no warning
+    import warnings
+
+    T = rng.random((3, 3, 3))
+    t = QualitativeFactorGraph(None, tensor=T)
+    for trip in [(0, 1, 2), (1, 2, 3), (0, 1, 3)]:
+        t.add_triplet(trip, rng.random(3))
+    t.discover_compositions()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert loopy_bp(t).converged
+
+
+def _band(L, w, m=20, seed=0):
+    """Triplets i < j < k of landmarks within a window of w (compositions among them)."""
+    rng = np.random.default_rng(seed)
+    g = QualitativeFactorGraph(None, tensor=rng.random((m, m, m)) + 0.01)
+    for t in itertools.combinations(range(L), 3):
+        if max(t) - min(t) < w:
+            g.add_triplet(t, rng.random(m) if rng.random() < 0.5 else None)
+    g.discover_compositions()
+    return g
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_memory_estimate_bounds_what_numpy_allocates(seed):
+    """The estimate is an upper bound of the traced allocations, and not a loose one."""
+    import tracemalloc
+
+    rng = np.random.default_rng(seed)
+    g = _band(7 + seed, 4 + seed % 2, m=int(rng.integers(4, 9)), seed=seed)
+    for task in ("MAR", "MAP", "KBEST"):
+        jt = JunctionTree(g)
+        est = jt.memory_estimate(task, k=20).bytes
+        tracemalloc.start()
+        if task == "MAR":
+            jt.marginals()
+        else:
+            jt.k_best(1 if task == "MAP" else 20)
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        assert peak <= est, (task, peak, est)
+        assert est <= 40 * peak + 2e6, (task, peak, est)
+    jt = JunctionTree(g)
+    est = jt.memory_estimate("MAR", log_domain=True).bytes
+    tracemalloc.start()
+    jt.marginals(log_domain=True)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak <= est
+
+
+_REFUSE = """
+import resource, sys, numpy as np
+from qfg.inference import FactorModel, JunctionTree, MemoryBudgetError, exact_marginals, map_assignment
+from qfg.propagation import loopy_bp
+sys.path.insert(0, {tests!r})
+from test_inference import _band
+budget = {budget}
+def run(what):
+    try:
+        what()
+    except MemoryBudgetError as e:
+        return "refused:%.3g" % e.estimate
+    return "ran"
+out = []
+out.append(run(lambda: JunctionTree(FactorModel([2 ** 21] * 200, [], []), memory=budget).marginals()))
+g = _band(30, 5)
+out.append(run(lambda: map_assignment(g, memory=budget)))
+g10 = _band(10, 5)
+out.append(run(lambda: exact_marginals(g10, log_domain=True, memory=budget)))
+out.append(run(lambda: exact_marginals(g10, engine="gtsam", memory=budget)))
+out.append(run(lambda: exact_marginals(g10, engine="contract", memory=budget)))
+from qfg.graph import full_map
+# loopy BP: 11,880 factors' messages (11 MB) under a 5 MB budget
+out.append(run(lambda: loopy_bp(full_map(12, partition=None, tensor=np.ones((20, 20, 20))), memory=5 * 2 ** 20, warn=False)))
+print(";".join(out), resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024)
+"""
+
+
+def test_memory_refusal_happens_before_allocation():
+    """Issue 19: each of these allocated gigabytes (MemoryError at 5.8 GB, std::bad_alloc after
+    68 s, 3.3 GB for 200 isolated variables); under a 400 MB budget each is refused and the
+    process's peak RSS stays under the budget."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    budget = 400 * 2 ** 20
+    code = _REFUSE.format(tests=str(Path(__file__).parent), budget=budget)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    verdicts, rss = out.stdout.split()
+    assert all(v.startswith("refused") for v in verdicts.split(";")), verdicts
+    assert int(rss) < budget, (int(rss), budget)

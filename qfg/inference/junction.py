@@ -556,8 +556,9 @@ class JunctionTree:
     # ------------------------------------------------------------------ memory
     def _big_peak(self, k) -> float:
         """Entries a large node's contractions hold at once (linear pass): the rescaled copies of
-        its operands plus the two largest intermediates of the worst of its contractions (the
-        same ``opt_einsum`` plans the pass runs, from shapes only)."""
+        its operands plus, for the worst of its contractions, three times its largest
+        intermediate and the next two (the same ``opt_einsum`` plans the pass runs, from shapes
+        only)."""
         import opt_einsum as oe
 
         cards, scopes = self.model.cards, self.model.scopes
@@ -580,7 +581,10 @@ class JunctionTree:
         for eq, shp in eqs:
             _, info = oe.contract_path(eq, *shp, shapes=True, optimize="auto")
             inter = sorted((float(x) for x in getattr(info, "size_list", ())), reverse=True)
-            worst = max(worst, sum(inter[:2]) or float(info.largest_intermediate))
+            # a step holds its inputs, its result and the result's rescaled copy; tensordot
+            # may copy a transposed input as well
+            big = inter[0] if inter else float(info.largest_intermediate)
+            worst = max(worst, 3 * big + sum(inter[1:3]))
         return worst + float(sum(math.prod(sh) for sh in shapes))
 
     def memory_estimate(self, task: str = "MAR", k: int = 1, log_domain: bool = False):
@@ -589,10 +593,11 @@ class JunctionTree:
 
         ``"MAR"``/``"PR"``: one calibration. Linear pass: the scaled copies of the factor
         tables, every clique table it materializes (kept from the upward to the downward pass),
-        the messages, the (n, max card) result, plus the largest transient of one node (a
-        product of two parts: one clique table; a contracted node: its operands' copies and its
-        two largest intermediates). ``log_domain=True`` (or the log-domain retry): every clique
-        table is built, plus three clique-sized temporaries. ``"MAP"``: one calibration (for
+        the messages, the (n, max card) result, plus the largest transient of one node (the
+        product being built and its broadcast successor: two clique tables; a contracted node:
+        its operands' copies and about four of its largest intermediates). ``log_domain=True``
+        (or the log-domain retry): every clique table is built, plus four clique-sized
+        temporaries. ``"MAP"``: one calibration (for
         ``log Z``), then max-product: every clique table kept for decoding. ``"KBEST"``: that,
         and Lawler-Murty's queue: up to ``1 + (k - 1) n`` subproblems of an (n, max card) mask
         each.
@@ -615,7 +620,8 @@ class JunctionTree:
         live = [not f for f in self._free]
         msgs = sum(float(math.prod(self.model.cards[x] for x in self._sep[c])) for c in range(nn))
         result = float(n * cmax)
-        overhead = 400.0 * nn                       # array headers and Python objects per node
+        # Python objects: a fixed part, then array headers, lists and tuples per node
+        overhead = 65536.0 + 2000.0 * nn
         # linear pass: (contiguous transposes of shared tables: at most 6 per table)
         lin_persist = sum(sz for kk, sz in enumerate(sizes)
                           if live[kk] and self._fast[kk] is None and not self._big[kk])
@@ -623,10 +629,11 @@ class JunctionTree:
         for kk in range(nn):
             if not live[kk] or self._fast[kk] is not None:
                 continue
-            lin_trans = max(lin_trans, self._big_peak(kk) if self._big[kk] else sizes[kk])
+            # building a table: the product so far and its broadcast successor coexist
+            lin_trans = max(lin_trans, self._big_peak(kk) if self._big[kk] else 2 * sizes[kk])
         linear = 8 * (2 * tables + lin_persist + lin_trans + 2 * msgs + result)
         logd = 8 * (tables + sum(sz for kk, sz in enumerate(sizes) if live[kk])
-                    + 3 * max((sz for kk, sz in enumerate(sizes) if live[kk]), default=0.0)
+                    + 4 * max((sz for kk, sz in enumerate(sizes) if live[kk]), default=0.0)
                     + 2 * msgs + result)
         cal = logd if log_domain else linear
         parts = {"tables": 8 * tables, "linear_pass": linear, "log_pass": logd}
