@@ -1,16 +1,37 @@
 """``qfg mrclam PATH``: the MRCLAM study on one dataset directory (paper section 6d).
 
-The dataset is one scenario of a run made by :func:`qfg.harness.runner.run_study`, so the output
-directory follows the rules of ``qfg experiment``: a used directory needs ``--resume`` (a finished
-run is then only summarized again) or ``--overwrite``; it is locked while running; Ctrl-C stops
-with one line.
+What it guarantees (docs/mrclam.md, "The command"):
+
+* **Checked up front.** Every option value, the dataset folder and every data file of the
+  dataset are checked before anything is solved or written: a bad value, the folder above the
+  datasets, a folder that is not a dataset or a damaged file ends the command with one line
+  naming the option (in its command-line spelling) or the file and line, exit status 2, and
+  nothing written.
+* **Visible.** Each phase says what it did on stderr: loading, histories, solving (a bar),
+  combining, the map, scores.
+* **Recorded in pieces.** The histories are solved in pieces of ``--piece-size`` (128), each
+  recorded in ``records.jsonl`` as it finishes (the run is a runner run, one scenario per piece:
+  :func:`qfg.harness.runner.run_study`); Ctrl-C keeps finished pieces and ``--resume`` solves only
+  the rest. Piece c is solved with ``SeedSequence(seed, spawn_key=(c,))``, so an interrupted and
+  resumed run writes the same ``triplets.csv`` as one that ran through. The map is recorded too
+  (``maps/<name>.npz``); ``--resume`` with another ``--map``, ``--combine`` or ``--temper`` reuses
+  the solved pieces (the run's identity, ``run.json``, is what fixes the solved estimates).
+* **The output folder** follows the rules of ``qfg experiment``: a used folder needs ``--resume``
+  or ``--overwrite``; it is locked while running.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import sys
+import time
+from pathlib import Path
 
 from qfg.harness.commands import add_format, seed_int
+
+#: The map methods ``--map`` accepts (the registry of :mod:`qfg.harness.studies.mrclam_maps`).
+_PROPAGATION_MAP = {"mean": "pooled", "best": "best"}
 
 
 def _int_list(text: str, option: str = "--robots") -> list[int]:
@@ -20,20 +41,35 @@ def _int_list(text: str, option: str = "--robots") -> list[int]:
         raise ValueError(f"{option}: expected comma-separated integers, got {text!r}") from None
 
 
+def _one_line_error(parser):
+    """argparse's error as one line (``qfg mrclam: error: ...``, exit 2), not usage + message."""
+
+    def error(message):
+        parser.exit(2, f"qfg mrclam: error: {message} (qfg mrclam --help)\n")
+
+    return error
+
+
 def register(sub):
+    from qfg.harness.studies.mrclam_maps import MAP_METHODS
+
     p = sub.add_parser("mrclam", help="solve, map, propagate and score one MRCLAM dataset",
                        description="Every triplet history of the dataset solved, histories of one "
                                    "ordered triplet combined, the full qualitative map propagated, "
                                    "everything scored against the landmark ground truth "
-                                   "(docs/results/mrclam.md).")
+                                   "(docs/results/mrclam.md). Options and data are checked "
+                                   "before anything runs; the solving is recorded in pieces "
+                                   "(Ctrl-C, then --resume, continues).")
+    p.error = _one_line_error(p)
     p.add_argument("path", help="an MRCLAM_DatasetN directory")
     p.add_argument("--robots", default="", help="comma-separated robot numbers (default: all)")
     p.add_argument("--method", default="full", choices=("fast", "full", "baseline"),
                    help="single-triplet solver (robots without odometry: baseline; default full)")
-    p.add_argument("--propagation", default="mean", choices=("mean", "best"),
-                   help="unseen triplets: the mean of their compositions from the nearest "
-                        "updated triplets (default), or the paper's Algorithm 2 (best "
-                        "information score)")
+    p.add_argument("--map", default=None, choices=tuple(MAP_METHODS),
+                   help="map method: " + "; ".join(f"{m.name}: {m.description}"
+                                                   for m in MAP_METHODS.values()))
+    p.add_argument("--propagation", default=None, choices=tuple(_PROPAGATION_MAP),
+                   help="former name of --map: mean = --map pooled, best = --map best")
     p.add_argument("--mode", default="honest", choices=("honest", "paper"),
                    help="honest: measured bearings and odometry (default); paper: bearings and "
                         "headings from motion capture (paper emulation; dataset 6)")
@@ -68,85 +104,246 @@ def register(sub):
     p.add_argument("--no-fix-landmarks", action="store_true",
                    help="score against the landmark ground truth as shipped (no swap check)")
     p.add_argument("--seed", type=seed_int, default=0, help="solver seed (default 0)")
+    p.add_argument("--piece-size", type=int, default=128,
+                   help="histories solved and recorded together (default 128; piece c is solved "
+                        "with child c of the seed, so this is part of the run's identity)")
     p.add_argument("--output", default=None, help="output directory (default out/mrclam-<name>)")
     p.add_argument("--resume", action="store_true", help="continue (or re-summarize) a run in "
                                                          "--output")
     p.add_argument("--overwrite", action="store_true", help="start again in a used --output")
     p.add_argument("--no-figures", action="store_true", help="skip the figures")
+    p.add_argument("--no-progress", action="store_true",
+                   help="no phase lines and no bar on stderr")
     add_format(p)
     p.set_defaults(func=_main)
 
 
-def run_one(task: dict, rng) -> list[dict]:
-    """The runner's scenario: one dataset, solved with the seed given on the command line (not
-    the scenario stream, so that ``--seed`` means what it meant before the runner)."""
-    from qfg.harness.studies import mrclam as study
+# ------------------------------------------------------------------------------ checks
+def _number(args, name: str, *, lo=None, hi=None, lo_open=False) -> float:
+    import math
 
-    T = study._load_tensor(task["partition"], task["tensor"]) if task["tensor"] else None
-    return study.run_dataset(task["path"], robots=task["robots"] or None, method=task["method"],
-                             mode=task["mode"], prior=task["prior"], combine=task["combine"],
-                             partition=task["partition"], tensor=T,
-                             fix_landmarks=task["fix_landmarks"], seed=task["seed"],
-                             min_travel=task["min_travel"], max_gap=task["max_gap"],
-                             max_views=task["max_views"], temper=task["temper"],
-                             spread_views=task["spread_views"],
-                             propagation=task.get("propagation", "mean"),
-                             distances=task.get("distances", True),
-                             sigma_distance_ratio=task.get("sigma_distance_ratio", 0.0))
+    v = getattr(args, name.lstrip("-").replace("-", "_"))
+    bad = not math.isfinite(v) or (lo is not None and (v <= lo if lo_open else v < lo)) or (
+        hi is not None and v > hi)
+    if bad:
+        if lo is not None and hi is not None:
+            want = f"a number in [{lo:g}, {hi:g}]"
+        elif lo is not None:
+            want = f"a number {'>' if lo_open else '>='} {lo:g}"
+        else:
+            want = "a finite number"
+        raise ValueError(f"{name}: expected {want}, got {v:g}")
+    return float(v)
 
 
+def _views(args, name: str) -> int:
+    v = getattr(args, name.lstrip("-").replace("-", "_"))
+    if v < 0 or v == 1:
+        raise ValueError(f"{name}: expected 0 (every view) or an integer >= 2, got {v}")
+    return int(v)
+
+
+def check_options(args) -> dict:
+    """Every option value checked, no file read: the run's parameters, or ValueError naming the
+    option as typed on the command line."""
+    robots = _int_list(args.robots)
+    if any(r < 1 for r in robots):
+        raise ValueError(f"--robots: expected robot numbers >= 1, got {args.robots!r}")
+    if len(set(robots)) != len(robots):
+        raise ValueError(f"--robots: a robot named twice in {args.robots!r}")
+    map_name = args.map
+    if args.propagation is not None:
+        if map_name is not None and map_name != _PROPAGATION_MAP[args.propagation]:
+            raise ValueError(f"--propagation {args.propagation} and --map {map_name} disagree; "
+                             "give --map alone")
+        map_name = _PROPAGATION_MAP[args.propagation]
+    caps = _int_list(args.curve, "--curve")
+    if any(c < 0 or c == 1 for c in caps):
+        raise ValueError(f"--curve: expected view caps 0 (every view) or >= 2, got {args.curve!r}")
+    if args.piece_size < 1:
+        raise ValueError(f"--piece-size: expected an integer >= 1, got {args.piece_size}")
+    if args.resume and args.overwrite:
+        raise ValueError("--resume and --overwrite: give one of them")
+    tensor = ""
+    if args.tensor:
+        t = Path(args.tensor)
+        if not t.is_file():
+            raise ValueError(f"--tensor: {t} is not a file")
+        tensor = str(t.resolve())
+    return {
+        "robots": robots, "method": args.method, "mode": args.mode, "prior": args.prior,
+        "partition": "edc", "fix_landmarks": not args.no_fix_landmarks,
+        "min_travel": _number(args, "--min-travel", lo=0.0),
+        "max_gap": _number(args, "--max-gap", lo=0.0, lo_open=True),
+        "max_views": _views(args, "--max-views"),
+        "spread_views": _views(args, "--spread-views"),
+        "sigma_bearing_deg": 0.0, "sigma_heading_deg": 0.0,
+        "distances": bool(args.distances),
+        "sigma_distance_ratio": _number(args, "--sigma-distance-ratio", lo=0.0),
+        "piece": int(args.piece_size), "seed": int(args.seed),
+        # the phases after solving: not part of the run's identity
+        "_after": {"combine": args.combine, "temper": _number(args, "--temper", lo=0.0, hi=1.0),
+                   "map": map_name or "pooled", "tensor": tensor, "curve": caps},
+    }
+
+
+def _check_dataset_folder(path: Path) -> None:
+    from qfg.datasets.mrclam import DataFormatError
+
+    if not path.exists():
+        raise ValueError(f"path: {path} does not exist")
+    if not path.is_dir():
+        raise ValueError(f"path: {path} is not a directory (give an MRCLAM_DatasetN folder)")
+    try:
+        next(iter(path.iterdir()), None)
+    except OSError as exc:
+        raise DataFormatError(path, None, f"cannot list the folder: {exc.strerror or exc}") from None
+
+
+def check_output(out: Path, params: dict, seed: int, resume: bool, overwrite: bool) -> None:
+    """The runner's checks of an output folder, made before anything is read or written (the
+    runner makes them again, under its lock): a file in the way, a used folder without
+    ``--resume``/``--overwrite``, a run with other parameters to resume."""
+    from qfg.harness.runner import RunnerError
+
+    for p in (out, *out.parents):
+        if p.exists() and not p.is_dir():
+            what = "is a file" if p == out else f"is inside {p}, which is a file"
+            raise RunnerError(f"output: {out} {what}; give a directory")
+    if (out / "records.jsonl").exists() and not (resume or overwrite):
+        raise RunnerError(f"output: {out} already holds a run; pass --resume to continue it or "
+                          "--overwrite to start again")
+    run_json = out / "run.json"
+    if resume and run_json.is_file():
+        try:
+            old = json.loads(run_json.read_text())
+        except (OSError, ValueError):
+            return  # the runner names what is wrong with it
+        if not isinstance(old, dict):
+            return
+        mine = {"study": "mrclam", "params": params, "seed": seed}
+        theirs = {k: old.get(k) for k in mine}
+        if json.loads(json.dumps(mine)) != theirs:
+            diff = sorted(k for k in set(params) | set(theirs.get("params") or {})
+                          if params.get(k) != (theirs.get("params") or {}).get(k))
+            raise RunnerError(f"output: {out} holds a run with other options "
+                              f"({', '.join(diff) or 'seed'} differ); --resume needs the same "
+                              "ones, or pass --overwrite")
+
+
+def _no_camera_reason(ds, robots) -> str:
+    rs = robots or sorted(ds.robots)
+    if not any(ds.robot(r).groundtruth is not None for r in rs):
+        which = "" if not robots else f" for robot{'s' if len(rs) > 1 else ''} " \
+                                      f"{', '.join(map(str, rs))}"
+        return f"no motion capture (RobotN_Groundtruth) in {ds.name}{which}"
+    return "no view of a solved history is covered by the motion capture"
+
+
+# ------------------------------------------------------------------------------ the command
 def _main(args):
     import shlex
-    import sys
-    from pathlib import Path
 
     from qfg.harness import runner
     from qfg.harness.studies import mrclam as study
+    from qfg.harness.studies import mrclam_maps
 
-    robots = _int_list(args.robots)
+    # 1. options and the output folder: no file read, nothing written
+    opts = check_options(args)
+    after = opts.pop("_after")
+    mrclam_maps.get(after["map"])
     path = Path(args.path)
-    if not path.is_dir():
-        raise ValueError(f"path: {path} is not a directory")
-    params = {"path": str(path.resolve()), "robots": robots, "method": args.method,
-              "mode": args.mode, "prior": args.prior, "combine": args.combine,
-              "min_travel": args.min_travel, "max_gap": args.max_gap, "max_views": args.max_views,
-              "temper": args.temper, "spread_views": args.spread_views, "partition": "edc",
-              "propagation": args.propagation, "distances": args.distances,
-              "sigma_distance_ratio": args.sigma_distance_ratio,
-              "tensor": args.tensor or "",
-              "fix_landmarks": not args.no_fix_landmarks, "seed": args.seed,
-              "figures": not args.no_figures}
+    _check_dataset_folder(path)
+    params = {"path": str(path.resolve()), **opts}
     out = Path(args.output or f"out/mrclam-{path.resolve().name}")
+    check_output(out, params, args.seed, args.resume, args.overwrite)
+    quiet = args.no_progress
+
+    def say(msg):
+        if not quiet:
+            print(msg, file=sys.stderr, flush=True)
+
+    # 2. the data: every file read and checked (DataFormatError names file and line)
+    from qfg.datasets import mrclam as data
+
+    t0 = time.perf_counter()
+    ds = data.load(path)
+    missing = [r for r in opts["robots"] if r not in ds.robots]
+    if missing:
+        raise ValueError(f"--robots: {', '.join(map(str, missing))} not in {ds.name} (robots "
+                         f"{', '.join(map(str, sorted(ds.robots)))})")
+    if opts["mode"] == "paper" and not any(ds.robot(r).groundtruth is not None
+                                           for r in (opts["robots"] or ds.robots)):
+        raise ValueError(f"--mode paper: needs motion capture (RobotN_Groundtruth); "
+                         f"{_no_camera_reason(ds, opts['robots'])}")
+    T = None
+    if after["tensor"]:
+        try:
+            T = study._load_tensor("edc", after["tensor"])
+        except (OSError, ValueError, KeyError) as exc:
+            raise ValueError(f"--tensor: {after['tensor']}: {exc}") from None
+    prep = study.prepare_run(path, dataset=ds, **{k: opts[k] for k in (
+        "mode", "prior", "partition", "fix_landmarks", "min_travel", "max_gap", "max_views",
+        "spread_views", "sigma_bearing_deg", "sigma_heading_deg", "distances",
+        "sigma_distance_ratio")}, robots=opts["robots"] or None)
+    if not prep.histories:
+        raise ValueError(f"--robots: no triplet history to solve in {ds.name}"
+                         + (f" for robots {args.robots}" if opts["robots"] else ""))
+    study.remember(params, prep)
+    n_views = sum(rd.n_views for rd in ds.robots.values())
+    say(f"loaded {ds.name}: {len(ds.robots)} robots, {n_views} views, every file checked "
+        f"({time.perf_counter() - t0:.1f} s)")
+    if prep.swaps:
+        say(f"landmark ground truth corrected: swapped "
+            f"{';'.join(f'{a}-{b}' for a, b in prep.swaps)} (check_landmarks)")
+    k = study.n_pieces(prep, opts["piece"])
+    say(f"histories: {len(prep.histories)} of robots "
+        f"{', '.join(map(str, sorted({r for r, _ in prep.histories})))}, solved in {k} "
+        f"piece{'s' if k > 1 else ''} of up to {opts['piece']}")
+
+    # 3. solving, piece by piece, recorded; 4. combine, map, scores (the runner's summary step)
     shown = {}
 
     def summarize(outdir, rows, _params):
-        shown["summary"] = study.write_outputs(outdir, rows, figures=not args.no_figures,
-                                               figure_robot=robots[0] if robots else None)
+        ests = study.estimates_from_rows(prep, rows)
+        trows, details = study.finish(prep, ests, combine=after["combine"],
+                                      temper=after["temper"], map_method=after["map"], tensor=T,
+                                      seed=opts["seed"], say=say, record_dir=outdir,
+                                      tensor_name=after["tensor"])
+        shown["rows"] = trows
+        shown["summary"] = study.write_outputs(
+            outdir, trows, figures=not args.no_figures, details=details,
+            figure_robot=opts["robots"][0] if opts["robots"] else None,
+            options={**params, **{k: v for k, v in after.items() if k != "curve"}})
 
-    one = runner.Study("mrclam", lambda p: [{"index": 0, **p}], run_one, summarize,
-                       "one MRCLAM dataset")
-    rows = runner.run_study(one, params, out, seed=args.seed, resume=args.resume,
-                            overwrite=args.overwrite, progress=False,
-                            command="qfg " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
-                            figure_format=args.format)
+    pieces = runner.Study("mrclam", study.piece_tasks, study.run_piece, summarize,
+                          "one MRCLAM dataset, solved in pieces")
+    if not quiet:
+        say("solving:")
+    runner.run_study(pieces, params, out, seed=args.seed, resume=args.resume,
+                     overwrite=args.overwrite, progress=not quiet,
+                     command="qfg " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
+                     figure_format=args.format)
     summ = shown["summary"]
-    swaps = rows[0].get("gt_swaps") if rows else ""
-    if swaps:
-        print(f"landmark ground truth corrected: swapped {swaps} (check_landmarks)")
     print("\n".join(study.table_lines(summ)))
-    s = summ.get(args.mode, {})
+    print(study.TABLE_KEY)
+    s = summ.get(opts["mode"], {})
+    n_cam = s.get("camera", {}).get("n", 0)
+    why = f" ({_no_camera_reason(ds, opts['robots'])})" if not n_cam else ""
     print(f"{s.get('seen', {}).get('n', 0)} seen, {s.get('propagated', {}).get('n', 0)} "
-          f"propagated ({s.get('n_reached', 0)} reached), {s.get('camera', {}).get('n', 0)} "
-          f"camera views scored -> {out}")
-    if args.curve:
-        caps = _int_list(args.curve, "--curve")
-        recs = study.views_curve(path, caps, robots=robots or None, method=args.method,
-                                 mode=args.mode, prior=args.prior, combine=args.combine,
-                                 min_travel=args.min_travel, max_gap=args.max_gap,
-                                 temper=args.temper, spread_views=args.spread_views,
-                                 fix_landmarks=not args.no_fix_landmarks, seed=args.seed,
-                                 distances=args.distances,
-                                 sigma_distance_ratio=args.sigma_distance_ratio)
+          f"propagated ({s.get('n_reached', 0)} reached), {n_cam} camera views scored{why} "
+          f"-> {out}")
+    if after["curve"]:
+        say(f"curve: the seen triplets again with each pass cut to "
+            f"{', '.join(str(c or 'all') for c in after['curve'])} views")
+        recs = study.views_curve(path, after["curve"], robots=opts["robots"] or None,
+                                 method=opts["method"], mode=opts["mode"], prior=opts["prior"],
+                                 combine=after["combine"], min_travel=opts["min_travel"],
+                                 max_gap=opts["max_gap"], temper=after["temper"],
+                                 spread_views=opts["spread_views"],
+                                 fix_landmarks=opts["fix_landmarks"], seed=args.seed,
+                                 distances=opts["distances"],
+                                 sigma_distance_ratio=opts["sigma_distance_ratio"])
         study.write_curve(out, recs, figures=not args.no_figures)
         for line in study.curve_lines(recs):
             print(line)

@@ -92,6 +92,8 @@ DEFAULTS = {
     "max_views": 0,                        # first views of each pass kept (0: all)
     "propagate": True,                     # map and propagate (False: seen triplets only)
     "propagation": "mean",                 # "mean": pooled composition; "best": Algorithm 2
+    "map": "",                             # map method by name (mrclam_maps; "": from the two
+                                           # above: "seen", "pooled" or "best")
     "sigma_bearing_deg": 0.0,              # bearing sigma the solver assumes (0: loader default)
     "sigma_heading_deg": 0.0,              # heading sigma the solver assumes (0: loader default)
     "temper": 1.0,                         # power on each estimate's likelihood part (1: none)
@@ -257,6 +259,100 @@ class _Light:
     degenerate: bool
 
 
+# ----------------------------------------------------------------------------- the pipeline
+# run_dataset and ``qfg mrclam`` run the same phases: prepare_run (load, prior, histories),
+# solve_piece for each piece of PIECE histories (``qfg mrclam`` records each piece as it
+# finishes), then finish: temper, combine, map (a named method, mrclam_maps), score.
+
+#: The options that fix the solved estimates (what a piece record depends on).
+SOLVE_KEYS = ("path", "robots", "method", "mode", "prior", "partition", "fix_landmarks",
+              "min_travel", "max_gap", "max_views", "spread_views", "sigma_bearing_deg",
+              "sigma_heading_deg", "distances", "sigma_distance_ratio", "piece")
+
+
+@dataclass(frozen=True, eq=False)
+class Prepared:
+    """One dataset ready to solve: what :func:`prepare_run` made.
+
+    ``histories``: (robot, history) pairs in solving order (robot-major); piece c of a run is
+    histories ``[c * piece, (c + 1) * piece)``, solved with ``SeedSequence(seed,
+    spawn_key=(c,))``. ``prior_states`` / ``prior_camera_states``: the state distributions of C
+    and of a camera the prior alone gives (the ``prior_`` baselines, and tempering).
+    """
+
+    path: str
+    dataset: object
+    swaps: tuple
+    prior: object
+    partition: object
+    prior_states: np.ndarray
+    prior_camera_states: np.ndarray
+    histories: list
+    mode: str
+    prior_name: str
+
+
+def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena",
+                partition: str = "edc", fix_landmarks: bool = True, min_travel: float = 0.02,
+                max_gap: float = 120.0, max_views: int = 0, spread_views: int = 3,
+                sigma_bearing_deg: float = 0.0, sigma_heading_deg: float = 0.0,
+                distances: bool = True, sigma_distance_ratio: float = 0.0,
+                dataset=None) -> Prepared:
+    """Load (or take ``dataset``, loaded from ``path``), fix the landmark ground truth, make the
+    prior and its state distributions, and the histories to solve (module docstring, steps
+    1-4). Every data file is read and checked here, before anything is solved."""
+    if mode not in MODES:
+        raise ValueError(f"mode: expected one of {MODES}, got {mode!r}")
+    part = get_partition(partition)
+    if dataset is None:
+        ds, swaps = prepare(path, fix_landmarks=fix_landmarks)
+    else:
+        swaps = tuple(tuple(int(x) for x in s) for s in
+                      (_mrclam.check_landmarks(dataset).swaps if fix_landmarks else ()))
+        ds = _mrclam.swap_landmarks(dataset, swaps) if swaps else dataset
+    pr = make_prior(ds, prior)
+    q_c = prior_state_distribution(pr, part, samples=PRIOR_SAMPLES, seed=1)
+    q_x = prior_state_distribution(pr, part, point=1, n_cameras=1, samples=PRIOR_SAMPLES, seed=2)
+    sig = {}
+    if sigma_bearing_deg:
+        sig["sigma_bearing"] = np.deg2rad(float(sigma_bearing_deg))
+    if sigma_heading_deg:
+        sig["sigma_heading"] = np.deg2rad(float(sigma_heading_deg))
+    rh = histories(ds, robots, mode=mode, max_views=max_views, spread_views=spread_views,
+                   partition=part, min_travel=min_travel, max_gap=max_gap, **sig)
+    if not distances:
+        rh = [(r, dataclasses.replace(h, distances=None)) for r, h in rh]
+    elif sigma_distance_ratio:
+        rh = [(r, dataclasses.replace(h, sigma_distance_ratio=float(sigma_distance_ratio)))
+              for r, h in rh]
+    return Prepared(path=str(Path(path)), dataset=ds, swaps=swaps, prior=pr, partition=part,
+                    prior_states=q_c, prior_camera_states=q_x, histories=rh, mode=mode,
+                    prior_name=prior)
+
+
+def n_pieces(prep: Prepared, piece: int = CHUNK) -> int:
+    """How many pieces of ``piece`` histories the run has."""
+    return -(-len(prep.histories) // int(piece))
+
+
+def solve_piece(prep: Prepared, index: int, *, method: str = "full", seed=0, piece: int = CHUNK,
+                **solver_options) -> list[_Light]:
+    """Solve piece ``index`` (histories ``[index * piece, (index + 1) * piece)``) with the
+    random stream ``SeedSequence(seed, spawn_key=(index,))`` (= child ``index`` of
+    ``SeedSequence(seed)``): the same numbers whether pieces are solved in one go, one by one,
+    or some of them again after an interruption. Only the (m,) vectors are kept (an estimate
+    may keep solver state; dataset 5 in one call once exhausted 24 GB)."""
+    from qfg.solvers import solve_triplets
+
+    if method not in METHODS:
+        raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
+    hs = [h for _, h in prep.histories[index * piece:(index + 1) * piece]]
+    ss = np.random.SeedSequence(int(seed), spawn_key=(int(index),))
+    ests = solve_triplets(hs, method=method, partition=prep.partition, seed=ss,
+                          **dict(solver_options, prior=prep.prior))
+    return [_Light(e.landmark, e.cameras, e.method, bool(e.degenerate)) for e in ests]
+
+
 def _solve(hs, method, part, seed, options) -> list[_Light]:
     """Solve in chunks of :data:`CHUNK`; chunk c gets child c of ``SeedSequence(seed)``."""
     from qfg.solvers import solve_triplets
@@ -270,6 +366,187 @@ def _solve(hs, method, part, seed, options) -> list[_Light]:
         out += [_Light(e.landmark, e.cameras, e.method, bool(e.degenerate)) for e in ests]
         del ests
     return out
+
+
+def _exact(p) -> str:
+    """A vector as text that reads back to the same floats (``repr``: shortest exact)."""
+    return ";".join(repr(float(x)) for x in np.ravel(p))
+
+
+def _unexact(text: str, shape=None) -> np.ndarray:
+    a = np.array([float(x) for x in str(text).split(";")]) if text else np.zeros(0)
+    return a.reshape(shape) if shape is not None else a
+
+
+def piece_rows(prep: Prepared, index: int, ests: list[_Light], piece: int = CHUNK) -> list[dict]:
+    """The record of a solved piece: one row per history with its estimates written exactly
+    (``landmark``: P(S^{AB:C} | H), m numbers; ``cameras``: the views' camera states, n_views x m,
+    kept only when the capture gives them a truth to be scored against)."""
+    rows = []
+    for k, e in enumerate(ests):
+        hk = index * piece + k
+        r, h = prep.histories[hk]
+        cams = h.truth.camera_states is not None
+        rows.append({"history": hk, "robot": int(r), "A": int(h.landmarks[0]),
+                     "B": int(h.landmarks[1]), "C": int(h.landmarks[2]),
+                     "n_views": int(h.n_views), "method": e.method, "degenerate": e.degenerate,
+                     "landmark": _exact(e.landmark),
+                     "cameras": _exact(e.cameras) if cams else ""})
+    return rows
+
+
+def estimates_from_rows(prep: Prepared, rows: list[dict]) -> list[_Light]:
+    """The solved estimates of every history back from piece records (:func:`piece_rows`);
+    ValueError when the records do not cover the run's histories one by one."""
+    by = {int(r["history"]): r for r in rows}
+    n = len(prep.histories)
+    if sorted(by) != list(range(n)):
+        raise ValueError(f"records: {len(by)} solved histories recorded, the run has {n}")
+    m = prep.partition.n_states
+    out = []
+    for k in range(n):
+        r = by[k]
+        h = prep.histories[k][1]
+        if (int(r["A"]), int(r["B"]), int(r["C"])) != tuple(int(x) for x in h.landmarks):
+            raise ValueError(f"records: history {k} is of another triplet than the data give")
+        cams = (_unexact(r["cameras"], (h.n_views, m)) if r.get("cameras")
+                else np.full((h.n_views, m), 1.0 / m))
+        out.append(_Light(_unexact(r["landmark"]), cams, str(r["method"]),
+                          str(r["degenerate"]) == "True" or r["degenerate"] is True))
+    return out
+
+
+def seen_estimates(prep: Prepared, ests: list[_Light], *, combine: str = "geometric",
+                   temper: float = 1.0, seed: int = 0, tensor=None) -> tuple:
+    """Temper each history's estimate, combine those of each ordered triplet (module docstring,
+    step 5). Returns (:class:`~qfg.harness.studies.mrclam_maps.SeenEstimates`, the tempered
+    estimates, ``{triplet: Combined}``)."""
+    from qfg.harness.studies.mrclam_maps import SeenEstimates
+
+    if combine not in COMBINE:
+        raise ValueError(f"combine: expected one of {COMBINE}, got {combine!r}")
+    ds, q_c, q_x = prep.dataset, prep.prior_states, prep.prior_camera_states
+    if temper != 1:
+        ests = [_Light(_temper(e.landmark, q_c, temper), _temper(e.cameras, q_x, temper),
+                       e.method, e.degenerate) for e in ests]
+    groups: dict[tuple, list[int]] = {}
+    for k, (_, h) in enumerate(prep.histories):
+        groups.setdefault(tuple(ds.landmark_index(h.landmarks).tolist()), []).append(k)
+    combined = {t: _combine(np.array([ests[k].landmark for k in ks]), q_c, combine)
+                for t, ks in groups.items()}
+    trip = np.array(sorted(combined), dtype=np.intp).reshape(-1, 3)
+    m = prep.partition.n_states
+    seen = SeenEstimates(
+        dataset=ds, partition=prep.partition, triplets=trip,
+        probabilities=np.array([combined[tuple(t)].probabilities for t in trip.tolist()],
+                               dtype=float).reshape(-1, m),
+        conflict=np.array([bool(combined[tuple(t)].conflict) for t in trip.tolist()], bool),
+        estimates=np.array([e.landmark for e in ests], dtype=float).reshape(-1, m),
+        groups=groups, prior_states=q_c, seed=int(seed),
+        histories=lambda: list(prep.histories), tensor=tensor)
+    return seen, ests, combined
+
+
+def score_map(prep: Prepared, seen, result, ests: list[_Light], common: dict) -> list[dict]:
+    """Rows of a map (module docstring, step 7): every row of ``result`` scored against the
+    landmark ground truth, beside the uniform and prior-alone baselines."""
+    from qfg.graph import truth_states
+
+    ds, part = prep.dataset, prep.partition
+    trip = np.asarray(result.triplets, dtype=np.intp).reshape(-1, 3)
+    P = np.asarray(result.probabilities, dtype=float).reshape(len(trip), part.n_states)
+    P = P / P.sum(axis=1, keepdims=True)
+    missing = {tuple(t) for t in seen.triplets.tolist()} - {tuple(t) for t in trip.tolist()}
+    if missing:
+        raise ValueError(f"map {common.get('map')!r}: leaves out {len(missing)} seen triplet(s)")
+    truth = truth_states(trip, ds.landmark_xy, part.name) if len(trip) else np.zeros(0, int)
+    sc = _score_rows(P, truth, prep.prior_states, part.centroids) if len(trip) else {}
+    conflict = {tuple(t): bool(c) for t, c in zip(seen.triplets.tolist(), seen.conflict,
+                                                   strict=True)}
+    rh, ids = prep.histories, ds.landmark_ids
+    rows = []
+    for v, t in enumerate(map(tuple, trip.tolist())):
+        ks = seen.groups.get(t, [])
+        row = {**common, "kind": "seen" if result.seen[v] else "propagated",
+               "A": int(ids[t[0]]), "B": int(ids[t[1]]), "C": int(ids[t[2]]),
+               "truth_state": int(truth[v]), "map_state": int(np.argmax(P[v])),
+               "n_histories": len(ks), "n_views": int(sum(rh[k][1].n_views for k in ks)),
+               "robots": ";".join(str(r) for r in sorted({rh[k][0] for k in ks})),
+               "method": ";".join(sorted({ests[k].method for k in ks})) if ks else "propagated",
+               # share of the row's histories the solver flagged (degenerate geometry, low ESS)
+               "flagged": float(np.mean([ests[k].degenerate for k in ks])) if ks else 0.0,
+               "conflict": conflict.get(t, False),
+               "reached": bool(result.reached[v])}
+        for key, arr in sc.items():
+            row[key] = float(arr[v])
+        row["probabilities"] = _enc(P[v])
+        rows.append(row)
+    return rows
+
+
+def map_name(propagate: bool = True, propagation: str = "mean", map_method: str = "") -> str:
+    """The map method the older options name: ``propagate=False`` -> ``"seen"``;
+    ``propagation`` ``"mean"`` -> ``"pooled"``, ``"best"`` -> ``"best"``; ``map_method`` wins."""
+    if map_method:
+        return map_method
+    if not propagate:
+        return "seen"
+    if propagation not in ("mean", "best"):
+        raise ValueError(f"propagation: expected 'mean' or 'best', got {propagation!r}")
+    return {"mean": "pooled", "best": "best"}[propagation]
+
+
+def finish(prep: Prepared, ests: list[_Light], *, combine: str = "geometric",
+           temper: float = 1.0, map_method: str = "pooled", tensor=None, seed: int = 0,
+           say=None, record_dir=None, tensor_name: str = "") -> tuple[list[dict], dict]:
+    """From the solved estimates to scored rows: temper, combine, the map method, scores of the
+    map's rows and of the camera views. ``say``: a callable told each phase (progress);
+    ``record_dir``: the map is recorded there (``maps/<name>.npz``) and a record made from the
+    same inputs is used instead of making it again. Returns (rows, details)."""
+    from qfg.harness.studies import mrclam_maps
+
+    say = say or (lambda msg: None)
+    method = mrclam_maps.get(map_method)
+    seen, ests, combined = seen_estimates(prep, ests, combine=combine, temper=temper, seed=seed,
+                                          tensor=tensor)
+    say(f"combined: {len(ests)} histories into {len(seen.triplets)} seen ordered triplets "
+        f"({combine}{'' if temper == 1 else f', tempered {temper:g}'})")
+    ds = prep.dataset
+    swap_txt = ";".join(f"{a}-{b}" for a, b in prep.swaps)
+    common = {"dataset": ds.name, "path": prep.path, "mode": prep.mode,
+              "prior": prep.prior_name, "combine": combine, "temper": float(temper),
+              "map": method.name, "gt_swaps": swap_txt}
+    t0 = time.perf_counter()
+    result = None
+    rec = None
+    if record_dir is not None:
+        digest = mrclam_maps.inputs_digest(method.name, seen, tensor_name)
+        rec = Path(record_dir) / "maps" / f"{method.name}.npz"
+        result = mrclam_maps.load_map(rec, digest)
+        if result is not None:
+            say(f"map {method.name}: {len(result.triplets)} triplets, as recorded in {rec}")
+    if result is None:
+        say(f"map {method.name}: {method.description} ...")
+        result = method.fn(seen)
+        if rec is not None:
+            mrclam_maps.save_map(rec, result, digest)
+        n_prop = int(np.count_nonzero(~np.asarray(result.seen)))
+        say(f"map {method.name}: {len(result.triplets)} triplets ({n_prop} not seen, "
+            f"{int(np.count_nonzero(result.reached))} reached) in "
+            f"{time.perf_counter() - t0:.1f} s")
+    t_map = time.perf_counter() - t0
+    rows = score_map(prep, seen, result, ests, common)
+    rows += _camera_rows([h for _, h in prep.histories], prep.histories, ests,
+                         prep.prior_camera_states, prep.partition, common)
+    say(f"scores: {sum(r['kind'] == 'seen' for r in rows)} seen, "
+        f"{sum(r['kind'] == 'propagated' for r in rows)} propagated, "
+        f"{sum(r['kind'] == 'camera' for r in rows)} camera views")
+    if rows:
+        rows[0]["time_propagate_s"] = t_map
+    return rows, {"dataset": ds, "swaps": prep.swaps, "histories": prep.histories,
+                  "estimates": ests, "seen": seen, "map": result, "partition": prep.partition,
+                  "prior": prep.prior, "prior_states": prep.prior_states,
+                  "prior_camera_states": prep.prior_camera_states, "combined": combined}
 
 
 # ----------------------------------------------------------------------------- scoring
@@ -329,8 +606,11 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
                 sigma_bearing_deg: float = 0.0, sigma_heading_deg: float = 0.0,
                 temper: float = 1.0, spread_views: int = 3, return_details: bool = False,
                 propagation: str = "mean", distances: bool = True,
-                sigma_distance_ratio: float = 0.0, **solver_options):
-    """Solve, combine, map, propagate and score one dataset directory.
+                sigma_distance_ratio: float = 0.0, map_method: str = "",
+                piece: int = CHUNK, **solver_options):
+    """Solve, combine, map, propagate and score one dataset directory, in memory (``qfg
+    mrclam`` runs the same phases and records them: :func:`prepare_run`, :func:`solve_piece`
+    per piece, :func:`finish`).
 
     Args:
         path: an MRCLAM dataset directory.
@@ -339,15 +619,19 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
             odometry always get the baseline (the row's ``method``).
         mode: ``"honest"`` (measured inputs) or ``"paper"`` (inputs from motion capture).
         prior: ``"arena"`` or ``"world"`` (:func:`make_prior`).
-        combine: ``"prior-once"`` or ``"product"`` (module docstring, step 5).
+        combine: ``"prior-once"``, ``"geometric"`` or ``"product"`` (module docstring, step 5).
         tensor: composition tensor ((m, m, m) array or CompositionTensor); None: the shipped one.
-        seed: solver seed (chunk c of :data:`CHUNK` histories gets child c of
+        seed: solver seed (piece c of ``piece`` histories gets child c of
             ``SeedSequence(seed)``).
         min_travel, max_gap, max_views: history options (module docstring, step 2).
-        propagate: build the map and propagate (False: seen triplets and cameras only).
-        propagation: ``"mean"`` (:func:`qfg.propagation.propagate_pooled`: every unseen triplet
-            the mean of its compositions from the nearest updated triplets) or ``"best"`` (the
-            paper's Algorithm 2, :func:`qfg.propagation.propagate`: the sharpest proposal).
+        map_method: the map method by name (:mod:`qfg.harness.studies.mrclam_maps`:
+            ``"pooled"``, ``"best"``, ``"seen"``, ...); empty: named by the two options below.
+        propagate: build the map and propagate (False: seen triplets and cameras only, the map
+            method ``"seen"``).
+        propagation: ``"mean"`` (map method ``"pooled"``: :func:`qfg.propagation.propagate_pooled`,
+            every unseen triplet the mean of its compositions from the nearest updated
+            triplets) or ``"best"`` (the paper's Algorithm 2, :func:`qfg.propagation.propagate`:
+            the sharpest proposal).
         sigma_bearing_deg, sigma_heading_deg: noise the solver assumes, degrees (0: the loader's
             measured defaults, ``DEFAULT_SIGMA_BEARING`` / ``DEFAULT_SIGMA_HEADING``).
         temper: each history's estimate (C and cameras) tempered before anything else,
@@ -361,99 +645,38 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
             docs/results/mrclam.md); False solves without them.
         sigma_distance_ratio: noise of their log ratio the solver assumes (0: the loader's
             ``DEFAULT_SIGMA_DISTANCE_RATIO``).
+        piece: histories solved per call (and per recorded piece of ``qfg mrclam``).
 
     Returns:
         rows (list of dicts; module docstring). With ``return_details``: ``(rows, details)``.
     """
-    from qfg.graph import full_map, truth_states
-    from qfg.propagation import propagate as _propagate
-
     if method not in METHODS:
         raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
     if combine not in COMBINE:
         raise ValueError(f"combine: expected one of {COMBINE}, got {combine!r}")
-    part = get_partition(partition)
-    ds, swaps = prepare(path, fix_landmarks=fix_landmarks)
-    pr = make_prior(ds, prior)
-    q_c = prior_state_distribution(pr, part, samples=PRIOR_SAMPLES, seed=1)
-    q_x = prior_state_distribution(pr, part, point=1, n_cameras=1, samples=PRIOR_SAMPLES, seed=2)
+    name = map_name(propagate, propagation, map_method)
+    from qfg.harness.studies import mrclam_maps
+
+    mrclam_maps.get(name)
+    prep = prepare_run(path, robots=robots, mode=mode, prior=prior, partition=partition,
+                       fix_landmarks=fix_landmarks, min_travel=min_travel, max_gap=max_gap,
+                       max_views=max_views, spread_views=spread_views,
+                       sigma_bearing_deg=sigma_bearing_deg, sigma_heading_deg=sigma_heading_deg,
+                       distances=distances, sigma_distance_ratio=sigma_distance_ratio)
     t0 = time.perf_counter()
-    sig = {}
-    if sigma_bearing_deg:
-        sig["sigma_bearing"] = np.deg2rad(float(sigma_bearing_deg))
-    if sigma_heading_deg:
-        sig["sigma_heading"] = np.deg2rad(float(sigma_heading_deg))
-    rh = histories(ds, robots, mode=mode, max_views=max_views, spread_views=spread_views,
-                   partition=part,
-                   min_travel=min_travel, max_gap=max_gap, **sig)
-    hs = [h for _, h in rh]
-    if not distances:
-        hs = [dataclasses.replace(h, distances=None) for h in hs]
-    elif sigma_distance_ratio:
-        hs = [dataclasses.replace(h, sigma_distance_ratio=float(sigma_distance_ratio))
-              for h in hs]
-    ests = _solve(hs, method, part, seed, dict(solver_options, prior=pr))
+    ests = []
+    for c in range(n_pieces(prep, piece)):
+        ests += solve_piece(prep, c, method=method, seed=seed, piece=piece, **solver_options)
     t_solve = time.perf_counter() - t0
-    if temper != 1:
-        ests = [_Light(_temper(e.landmark, q_c, temper), _temper(e.cameras, q_x, temper),
-                       e.method, e.degenerate) for e in ests]
-
-    groups: dict[tuple, list[int]] = {}
-    for k, h in enumerate(hs):
-        groups.setdefault(tuple(ds.landmark_index(h.landmarks).tolist()), []).append(k)
-    combined = {t: _combine(np.array([ests[k].landmark for k in ks]), q_c, combine)
-                for t, ks in groups.items()}
-
-    ids = ds.landmark_ids
-    swap_txt = ";".join(f"{a}-{b}" for a, b in swaps)
-    common = {"dataset": ds.name, "path": str(Path(path)), "mode": mode, "prior": prior,
-              "combine": combine, "temper": float(temper), "gt_swaps": swap_txt}
-    t0 = time.perf_counter()
-    if propagate:
-        T = _load_tensor(part.name, None) if tensor is None else tensor
-        g = full_map(ids.size, partition=part.name, tensor=T,
-                     priors={t: c.probabilities for t, c in combined.items()})
-        res = _propagate(g, rule=propagation)
-        trip = np.array(g.triplets, dtype=np.intp)
-        P = np.asarray(res.probabilities, dtype=float)
-        seen = np.asarray(g.seen, dtype=bool)
-        reached = np.asarray(res.info["reached"], dtype=bool)
-    else:
-        g = res = None
-        trip = np.array(sorted(combined), dtype=np.intp).reshape(-1, 3)
-        P = np.array([combined[tuple(t)].probabilities for t in trip.tolist()]).reshape(-1, part.n_states)
-        seen = np.ones(len(trip), bool)
-        reached = np.zeros(len(trip), bool)
-    t_prop = time.perf_counter() - t0
-    P = P / P.sum(axis=1, keepdims=True)
-    truth = truth_states(trip, ds.landmark_xy, part.name) if len(trip) else np.zeros(0, int)
-    sc = _score_rows(P, truth, q_c, part.centroids) if len(trip) else {}
-    rows = []
-    for v, t in enumerate(map(tuple, trip.tolist())):
-        ks = groups.get(t, [])
-        row = {**common, "kind": "seen" if seen[v] else "propagated",
-               "A": int(ids[t[0]]), "B": int(ids[t[1]]), "C": int(ids[t[2]]),
-               "truth_state": int(truth[v]), "map_state": int(np.argmax(P[v])),
-               "n_histories": len(ks), "n_views": int(sum(hs[k].n_views for k in ks)),
-               "robots": ";".join(str(r) for r in sorted({rh[k][0] for k in ks})),
-               "method": ";".join(sorted({ests[k].method for k in ks})) if ks else "propagated",
-               # share of the row's histories the solver flagged (degenerate geometry, low ESS)
-               "flagged": float(np.mean([ests[k].degenerate for k in ks])) if ks else 0.0,
-               "conflict": bool(combined[t].conflict) if t in combined else False,
-               "reached": bool(reached[v])}
-        for key, arr in sc.items():
-            row[key] = float(arr[v])
-        row["probabilities"] = _enc(P[v])
-        rows.append(row)
-    rows += _camera_rows(hs, rh, ests, q_x, part, common)
+    rows, details = finish(prep, ests, combine=combine, temper=temper, map_method=name,
+                           tensor=tensor, seed=int(seed))
     if rows:
         rows[0]["time_solve_s"] = t_solve
-        rows[0]["time_propagate_s"] = t_prop
     if not return_details:
         return rows
-    return rows, {"dataset": ds, "swaps": swaps, "histories": rh, "estimates": ests, "graph": g,
-                  "propagation": res, "partition": part, "prior": pr, "prior_states": q_c,
-                  "prior_camera_states": q_x, "combined": combined}
+    details["graph"] = None
+    details["propagation"] = details["map"]
+    return rows, details
 
 
 def _camera_rows(hs, rh, ests, q, part, common) -> list[dict]:
@@ -535,11 +758,26 @@ def _fmt(x, d=2) -> str:
     return "nan" if x is None or not np.isfinite(x) else f"{x:.{d}f}"
 
 
+#: What the table's columns mean (printed under it by ``qfg mrclam``).
+TABLE_KEY = ("Key: each score of the estimates (est.) beside two baselines: uniform (every state "
+             "1/m) and prior (the state distribution the prior alone gives, no measurement). "
+             "log score: mean ln p(truth), clipped at 1e-4, higher is better; Brier: lower is "
+             "better; GT rating: rank of the true state, 1 best; truth < 1%: share of rows giving "
+             "the truth under 1%; flagged: share of solves flagged degenerate; flat: share of "
+             "uniform estimates; ECE: expected calibration error of the top state.")
+
+_TABLE_SCORES = (("log_score", "log score", 2), ("brier", "Brier", 3), ("gt_rating", "GT rating", 2),
+                 ("truth_under_1pct", "truth < 1%", 2))
+
+
 def table_lines(summ: dict) -> list[str]:
-    """Markdown rows: per dataset, mode and kind, each score as estimate / uniform / prior."""
-    lines = ["| dataset | mode | kind | n | log score | Brier | GT rating | truth < 1% | flagged | "
-             "uniform est. | ECE |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    """Markdown rows: per dataset, mode and kind, each score of the estimates beside its uniform
+    and prior-alone baselines, in labelled columns (:data:`TABLE_KEY`)."""
+    head = ["dataset", "mode", "kind", "n"]
+    for _, label, _ in _TABLE_SCORES:
+        head += [f"{label} est.", "uniform", "prior"]
+    head += ["flagged", "flat", "ECE"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     names = list(summ.get("datasets", {})) + ["all"]
     for name in names:
         s = summ if name == "all" else summ["datasets"][name]
@@ -550,31 +788,36 @@ def table_lines(summ: dict) -> list[str]:
                 k = s[mode][kind]
                 if not k["n"]:
                     continue
-                trio = [" / ".join(_fmt(k[f"{p}{key}"], 3 if key == "brier" else 2)
-                                   for p in ("", "uniform_", "prior_"))
-                        for key in ("log_score", "brier", "gt_rating", "truth_under_1pct")]
-                lines.append(f"| {name} | {mode} | {kind} | {k['n']} | " + " | ".join(trio)
-                             + f" | {_fmt(k['flagged'])} | {_fmt(k['uniform_estimate'])} | "
-                             f"{_fmt(k['ece'])} |")
+                cells = [name, mode, kind, str(k["n"])]
+                for key, _, d in _TABLE_SCORES:
+                    cells += [_fmt(k[f"{p}{key}"], d) for p in ("", "uniform_", "prior_")]
+                cells += [_fmt(k["flagged"]), _fmt(k["uniform_estimate"]), _fmt(k["ece"])]
+                lines.append("| " + " | ".join(cells) + " |")
     return lines
 
 
 def write_outputs(outdir, rows: list[dict], *, figures: bool = True, figure_robot=None,
-                  details=None) -> dict:
+                  details=None, options=None) -> dict:
     """``triplets.csv`` (seen and propagated rows), ``cameras.csv`` (camera rows, when any),
-    ``summary.json``, ``table.md`` and figures; returns the summary dict."""
+    ``summary.json`` (with ``options``, when given), ``table.md`` (the table and its key) and
+    figures; returns the summary dict."""
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
-    trip = [r for r in rows if r["kind"] != "camera"]
-    cams = [r for r in rows if r["kind"] == "camera"]
+    # timings stay out of the tables (the runner's timings.csv has them), so that the same
+    # inputs write the same bytes, however often the run was interrupted
+    untimed = [{k: v for k, v in r.items() if not k.startswith("time_")} for r in rows]
+    trip = [r for r in untimed if r["kind"] != "camera"]
+    cams = [r for r in untimed if r["kind"] == "camera"]
     write_table(out / "triplets.csv", trip, digits=None)
     if cams:
         write_table(out / "cameras.csv", cams, digits=None)
     names = list(dict.fromkeys(r["dataset"] for r in rows))
     summ = summary(rows)
     summ["datasets"] = {n: summary([r for r in rows if r["dataset"] == n]) for n in names}
+    if options is not None:
+        summ["options"] = options
     (out / "summary.json").write_text(json.dumps(summ, indent=2) + "\n")
-    (out / "table.md").write_text("\n".join(table_lines(summ)) + "\n")
+    (out / "table.md").write_text("\n".join(table_lines(summ)) + "\n\n" + TABLE_KEY + "\n")
     if figures and rows:
         make_figures(out, rows, details=details, robot=figure_robot)
     return summ
@@ -698,6 +941,56 @@ def write_curve(outdir, recs: list[dict], *, figures: bool = True) -> None:
         save_figure(curve_figure(recs), out, "views_curve")
 
 
+# ----------------------------------------------------------------------------- qfg mrclam: pieces
+# ``qfg mrclam`` is a runner run whose scenarios are the pieces of one dataset's histories: a
+# piece's record holds its histories' estimates (piece_rows), the runner's summary step makes
+# the rest from them (estimates_from_rows, finish). The command prepares the dataset once
+# (checking every file before anything is written) and hands it to the pieces through
+# ``remember``; a worker process that was not handed it prepares it again from the params.
+
+_PREPARED: dict[str, Prepared] = {}
+
+
+def _prep_key(params: dict) -> str:
+    return json.dumps({k: params[k] for k in SOLVE_KEYS if k not in ("method", "piece")},
+                      sort_keys=True, default=str)
+
+
+def remember(params: dict, prep: Prepared) -> None:
+    """Keep ``prep`` for the pieces of the run with ``params`` (one dataset at a time)."""
+    _PREPARED.clear()
+    _PREPARED[_prep_key(params)] = prep
+
+
+def prepared(params: dict) -> Prepared:
+    """The prepared dataset of a run's params (:data:`SOLVE_KEYS`), made once per process."""
+    key = _prep_key(params)
+    if key not in _PREPARED:
+        remember(params, prepare_run(
+            params["path"], robots=params["robots"] or None,
+            **{k: params[k] for k in SOLVE_KEYS if k not in ("path", "robots", "method", "piece")}))
+    return _PREPARED[key]
+
+
+def piece_tasks(params: dict) -> list[dict]:
+    """One task per piece of ``params["piece"]`` histories (the params of ``qfg mrclam``:
+    :data:`SOLVE_KEYS` and ``seed``)."""
+    return [{"index": c, **params} for c in range(n_pieces(prepared(params), params["piece"]))]
+
+
+def run_piece(task: dict, rng) -> list[dict]:
+    """Solve one piece (:func:`solve_piece`, with the command's seed, not the runner's stream:
+    piece c gets child c of ``SeedSequence(seed)`` as the in-memory :func:`run_dataset` does)."""
+    prep = prepared(task)
+    t0 = time.perf_counter()
+    ests = solve_piece(prep, task["index"], method=task["method"], seed=task["seed"],
+                       piece=task["piece"])
+    rows = piece_rows(prep, task["index"], ests, task["piece"])
+    if rows:
+        rows[0]["time_solve_s"] = time.perf_counter() - t0
+    return rows
+
+
 # ----------------------------------------------------------------------------- runner study
 def _params(params: dict) -> dict:
     unknown = set(params) - set(DEFAULTS)
@@ -709,6 +1002,11 @@ def _params(params: dict) -> dict:
                          ("prior", PRIORS)):
         if p[key] not in allowed:
             raise ValueError(f"{key}: expected one of {allowed}, got {p[key]!r}")
+    if p["map"]:
+        from qfg.harness.studies.mrclam_maps import MAP_METHODS
+
+        if p["map"] not in MAP_METHODS:
+            raise ValueError(f"map: expected one of {tuple(MAP_METHODS)}, got {p['map']!r}")
     return p
 
 
@@ -732,7 +1030,7 @@ def dataset_dirs(data, numbers=()) -> list[Path]:
 _TASK_KEYS = ("method", "mode", "prior", "combine", "partition", "fix_landmarks", "tensor",
               "min_travel", "max_gap", "max_views", "propagate", "sigma_bearing_deg",
               "sigma_heading_deg", "temper", "spread_views", "propagation", "distances",
-              "sigma_distance_ratio")
+              "sigma_distance_ratio", "map")
 
 
 def tasks(params: dict) -> list[dict]:
@@ -744,14 +1042,16 @@ def tasks(params: dict) -> list[dict]:
 
 
 def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
-    T = _load_tensor(task["partition"], task["tensor"] or None) if task["propagate"] else None
-    opts = {k: task[k] for k in _TASK_KEYS if k not in ("tensor",)}
+    T = _load_tensor(task["partition"], task["tensor"] or None) if task["propagate"] and \
+        task.get("map", "") != "seen" else None
+    opts = {k: task[k] for k in _TASK_KEYS if k not in ("tensor", "map")}
     return run_dataset(task["path"], robots=task["robots"] or None, tensor=T,
-                       seed=int(rng.integers(2**63)), **opts)
+                       map_method=task.get("map", ""), seed=int(rng.integers(2**63)), **opts)
 
 
 def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
     print("\n".join(table_lines(write_outputs(outdir, rows))))
+    print(TABLE_KEY)
 
 
 STUDY = Study(name="mrclam", tasks=tasks, run_task=run_task, summarize=summarize,

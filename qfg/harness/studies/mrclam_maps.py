@@ -1,0 +1,228 @@
+"""Map methods of the MRCLAM study: from the seen triplets' estimates to a qualitative map.
+
+A *map method* is one named step of ``qfg mrclam`` (``--map NAME``) and of
+:func:`qfg.harness.studies.mrclam.run_dataset` (``map_method=NAME``). It receives the solved and
+combined estimates of the seen ordered triplets (:class:`SeenEstimates`) and returns the rows of
+its map (:class:`MapResult`): the seen triplets, and any other triplets it estimates. The study
+scores every row of a map with the same code (:func:`qfg.harness.studies.mrclam.score_map`),
+against the landmark ground truth, which a map method never sees.
+
+Registered here (:data:`MAP_METHODS`):
+
+* ``"pooled"``: the full map (:func:`qfg.graph.full_map`, every ordered triplet), the combined
+  estimates as priors, the rest by pooled composition (:func:`qfg.propagation.propagate_pooled`:
+  every unseen triplet the mean of its compositions from the nearest updated triplets). This was
+  ``--propagation mean``, the default.
+* ``"best"``: the same map propagated by the paper's Algorithm 2
+  (:func:`qfg.propagation.propagate`, the proposal with the best information score);
+  ``--propagation best``.
+* ``"seen"``: the seen triplets alone, as combined (no map; ``propagate=False``).
+
+To add a method: write ``def my_map(seen: SeenEstimates) -> MapResult`` here (or anywhere that
+is imported before the run) and call ``register("my-name", my_map, "one line")``. It may use
+``seen.probabilities`` (the combined estimate of each seen triplet), ``seen.estimates`` with
+``seen.groups`` (each history's own estimate, the histories of each triplet),
+``seen.histories()`` (the (robot, history) pairs, rebuilt from the data: bearings, headings,
+distances, view times), ``seen.dataset`` (the raw measurements: ``dataset.robot(r)``),
+``seen.composition_tensor()`` and ``seen.seed``; not the dataset's landmark positions
+(``dataset.landmark_xy``: the ground truth the map is scored against). ``qfg mrclam`` records
+each method's map in ``<output>/maps/<name>.npz`` and uses the record again on ``--resume`` while
+the seen estimates it was made from are unchanged (:func:`inputs_digest`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Mapping
+
+import numpy as np
+
+__all__ = ["SeenEstimates", "MapResult", "MapMethod", "MAP_METHODS", "register", "get",
+           "inputs_digest", "save_map", "load_map", "map_pooled", "map_best", "map_seen"]
+
+
+@dataclass(frozen=True, eq=False)
+class SeenEstimates:
+    """What every map method starts from: the seen ordered triplets of one dataset, solved and
+    combined (one row per seen triplet, sorted).
+
+    Attributes:
+        dataset: the :class:`qfg.datasets.mrclam.MRCLAMDataset` (landmark ground truth swapped
+            back when the study found swapped pairs); ``landmark_ids`` names the landmarks.
+        partition: the :class:`qfg.partitions.Partition` of the states (m states).
+        triplets: (s, 3) int, each seen ordered triplet as landmark *indices* (into
+            ``dataset.landmark_ids``), sorted.
+        probabilities: (s, m), each seen triplet's combined estimate (rows sum to 1).
+        conflict: (s,) bool, whether its histories' estimates conflict (:mod:`qfg.combine`).
+        estimates: (H, m), each history's own estimate of C (after tempering), history order.
+        groups: ``{triplet (tuple of 3 indices): [history numbers]}``.
+        prior_states: (m,) the state distribution the prior alone gives.
+        seed: an int for the method's own random numbers.
+        histories: ``() -> list[(robot, history)]``, the solved histories in history order.
+        tensor: the composition tensor to use (an array or CompositionTensor), or None for the
+            shipped tensor of the partition (:meth:`composition_tensor`).
+    """
+
+    dataset: object
+    partition: object
+    triplets: np.ndarray
+    probabilities: np.ndarray
+    conflict: np.ndarray
+    estimates: np.ndarray
+    groups: Mapping
+    prior_states: np.ndarray
+    seed: int
+    histories: Callable[[], list]
+    tensor: object = None
+
+    def composition_tensor(self):
+        """The composition tensor of the run (the shipped one unless ``--tensor`` gave one)."""
+        if self.tensor is not None:
+            return self.tensor
+        from qfg.composition import tensor
+
+        return tensor(self.partition.name)
+
+
+@dataclass(frozen=True, eq=False)
+class MapResult:
+    """The rows of one map, every one scored.
+
+    Attributes:
+        triplets: (n, 3) int, landmark indices of each row's ordered triplet (no repeats); it
+            must hold every seen triplet.
+        probabilities: (n, m), each row's state distribution (normalized when scored).
+        seen: (n,) bool, the row is a seen triplet (scored as kind ``"seen"``, else
+            ``"propagated"``).
+        reached: (n,) bool, an unseen row the method could estimate (False: left uniform).
+        info: extras, JSON-able (recorded with the map).
+    """
+
+    triplets: np.ndarray
+    probabilities: np.ndarray
+    seen: np.ndarray
+    reached: np.ndarray
+    info: Mapping = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class MapMethod:
+    """A registered map method: ``fn(seen) -> MapResult`` with a name and one line."""
+
+    name: str
+    fn: Callable[[SeenEstimates], MapResult]
+    description: str
+
+
+#: The map methods by name (``--map``).
+MAP_METHODS: dict[str, MapMethod] = {}
+
+
+def register(name: str, fn: Callable[[SeenEstimates], MapResult], description: str) -> MapMethod:
+    """Register ``fn`` as map method ``name`` (a new name; ValueError if taken)."""
+    if not isinstance(name, str) or not name or name in MAP_METHODS:
+        raise ValueError(f"name: expected a new map method name, got {name!r}")
+    MAP_METHODS[name] = MapMethod(name, fn, description)
+    return MAP_METHODS[name]
+
+
+def get(name: str) -> MapMethod:
+    """The map method called ``name``; ValueError naming ``--map`` and the known ones."""
+    if name not in MAP_METHODS:
+        raise ValueError(f"--map: expected one of {', '.join(MAP_METHODS)}, got {name!r}")
+    return MAP_METHODS[name]
+
+
+# ------------------------------------------------------------------------------- the methods
+def _full_map_propagated(seen: SeenEstimates, rule: str) -> MapResult:
+    from qfg.graph import full_map
+    from qfg.propagation import propagate
+
+    g = full_map(seen.dataset.landmark_ids.size, partition=seen.partition.name,
+                 tensor=seen.composition_tensor(),
+                 priors={tuple(t): p for t, p in zip(seen.triplets.tolist(), seen.probabilities,
+                                                     strict=True)})
+    res = propagate(g, rule=rule)
+    return MapResult(triplets=np.array(g.triplets, dtype=np.intp),
+                     probabilities=np.asarray(res.probabilities, dtype=float),
+                     seen=np.asarray(g.seen, dtype=bool),
+                     reached=np.asarray(res.info["reached"], dtype=bool),
+                     info={"rule": rule, "engine": res.method})
+
+
+def map_pooled(seen: SeenEstimates) -> MapResult:
+    """Every ordered triplet; the unseen ones by pooled composition
+    (:func:`qfg.propagation.propagate_pooled`)."""
+    return _full_map_propagated(seen, "mean")
+
+
+def map_best(seen: SeenEstimates) -> MapResult:
+    """Every ordered triplet; the unseen ones by the paper's Algorithm 2
+    (:func:`qfg.propagation.propagate`, best information score)."""
+    return _full_map_propagated(seen, "best")
+
+
+def map_seen(seen: SeenEstimates) -> MapResult:
+    """The seen triplets alone, as combined."""
+    s = len(seen.triplets)
+    return MapResult(triplets=np.asarray(seen.triplets, dtype=np.intp).reshape(-1, 3),
+                     probabilities=np.asarray(seen.probabilities, dtype=float).reshape(
+                         s, seen.partition.n_states),
+                     seen=np.ones(s, bool), reached=np.zeros(s, bool))
+
+
+register("pooled", map_pooled, "full map, unseen triplets by pooled composition (default; "
+                               "was --propagation mean)")
+register("best", map_best, "full map, unseen triplets by the paper's Algorithm 2 "
+                           "(was --propagation best)")
+register("seen", map_seen, "the seen triplets alone (no map)")
+
+
+# ------------------------------------------------------------------------------- records
+def inputs_digest(name: str, seen: SeenEstimates, tensor_name: str = "") -> str:
+    """A digest of what a map is made from: the method, the seen triplets, their estimates and
+    the tensor's name (a recorded map is used again only under the same digest)."""
+    h = hashlib.sha256()
+    h.update(name.encode())
+    h.update(tensor_name.encode())
+    h.update(np.ascontiguousarray(seen.triplets, dtype=np.int64).tobytes())
+    h.update(np.ascontiguousarray(seen.probabilities, dtype=np.float64).tobytes())
+    h.update(np.ascontiguousarray(seen.estimates, dtype=np.float64).tobytes())
+    return h.hexdigest()
+
+
+def save_map(path, result: MapResult, digest: str) -> Path:
+    """Write ``result`` to ``path`` (.npz) atomically (a temporary file in the folder, renamed)."""
+    import json
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    with open(tmp, "wb") as fh:
+        np.savez(fh, triplets=result.triplets, probabilities=result.probabilities,
+                 seen=result.seen, reached=result.reached, digest=np.array(digest),
+                 info=np.array(json.dumps(dict(result.info), default=str)))
+    os.replace(tmp, path)
+    return path
+
+
+def load_map(path, digest: str) -> MapResult | None:
+    """The map recorded at ``path`` if it was made from inputs with ``digest``, else None (also
+    for a missing or unreadable record: the map is then made again)."""
+    import json
+
+    path = Path(path)
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            if str(z["digest"]) != digest:
+                return None
+            return MapResult(triplets=z["triplets"], probabilities=z["probabilities"],
+                             seen=z["seen"], reached=z["reached"],
+                             info=json.loads(str(z["info"])))
+    except (OSError, ValueError, KeyError):
+        return None
