@@ -49,7 +49,8 @@ __all__ = [
     "GraphTooLargeError", "ZeroMassError", "Marginals", "PropagationResult", "ScoreResult",
     "LevelResult", "BPResult", "exact_marginals", "elimination_estimate", "propagate",
     "topology_scores", "composition_levels", "loopy_bp", "compare_unseen", "propagate_pooled",
-    "PROPAGATION_RULES", "BP_OVERLAP_WARN", "DenseMapWarning", "NotConvergedWarning",
+    "PROPAGATION_RULES", "BP_OVERLAP_WARN", "BP_DEGREE_WARN", "DenseMapWarning",
+    "NotConvergedWarning",
     "loopy_bp_memory",
 ]
 
@@ -411,14 +412,16 @@ def _role_matrices(T: np.ndarray) -> list[np.ndarray]:
 
 
 #: :func:`loopy_bp` warns (:class:`DenseMapWarning`) when at least this share of the composition
-#: factors share two triplets with another factor (:func:`qfg.graph.factor_overlap`); measured in
-#: docs/graph.md ("Loopy BP on dense maps").
-BP_OVERLAP_WARN = 0.5
+#: factors share two triplets with another factor and the triplets are in at least
+#: :data:`BP_DEGREE_WARN` factors on average (:func:`qfg.graph.factor_overlap`). Chosen on
+#: development graphs; measured in docs/graph.md ("Loopy BP on dense maps").
+BP_OVERLAP_WARN = 0.25
+BP_DEGREE_WARN = 2.5
 
 
 class DenseMapWarning(UserWarning):
     """Loopy BP on a graph whose composition factors overlap so much that its marginals are
-    typically worse than uniform (see :data:`BP_OVERLAP_WARN`)."""
+    typically worse than uniform (see :data:`BP_OVERLAP_WARN`, :data:`BP_DEGREE_WARN`)."""
 
 
 class NotConvergedWarning(UserWarning):
@@ -444,9 +447,11 @@ def loopy_bp(g, damping: float = 0.0, max_iters: int = 100, tol: float = 1e-9, *
     below ``tol`` (converged) or after ``max_iters``. Beliefs: ``prior prod r``. Exact on trees
     (once the iterations exceed the tree's diameter).
 
-    Dense maps: when composition factors overlap (:func:`qfg.graph.factor_overlap`, share at least
-    :data:`BP_OVERLAP_WARN`), BP counts evidence around the 4-loops of factor pairs sharing two
-    triplets and its marginals are confidently wrong (docs/graph.md); it warns
+    Dense maps: when composition factors overlap (:func:`qfg.graph.factor_overlap`: a share of at
+    least :data:`BP_OVERLAP_WARN` of the factors share two triplets with another, and triplets are
+    in :data:`BP_DEGREE_WARN` factors or more on average), BP counts evidence around the 4-loops
+    of factor pairs sharing two triplets and its marginals are confidently wrong (docs/graph.md);
+    it warns
     (:class:`DenseMapWarning`), and warns (:class:`NotConvergedWarning`) when it stops unconverged.
     ``warn=False`` silences both (the result's ``info`` still says). ``memory``: budget in bytes
     (:func:`~qfg.inference.memory.memory_budget`); the messages over it ->
@@ -491,7 +496,7 @@ def loopy_bp(g, damping: float = 0.0, max_iters: int = 100, tol: float = 1e-9, *
     check_memory(loopy_bp_memory(n, F, m), budget, "loopy_bp",
                  f"messages of {F} factors x 3 roles x {m} states, twice")
     ov = factor_overlap(g)
-    if warn and ov["overlap"] >= BP_OVERLAP_WARN:
+    if warn and ov["overlap"] >= BP_OVERLAP_WARN and ov["mean_degree"] >= BP_DEGREE_WARN:
         warnings.warn(
             f"loopy_bp: {ov['overlap']:.0%} of the composition factors share two triplets with "
             f"another factor (mean {ov['mean_degree']:.1f} factors per triplet): on maps this "

@@ -520,7 +520,8 @@ out.append(run(lambda: exact_marginals(g10, engine="gtsam", memory=budget)))
 out.append(run(lambda: exact_marginals(g10, engine="contract", memory=budget)))
 from qfg.graph import full_map
 # loopy BP: 11,880 factors' messages (11 MB) under a 5 MB budget
-out.append(run(lambda: loopy_bp(full_map(12, partition=None, tensor=np.ones((20, 20, 20))), memory=5 * 2 ** 20, warn=False)))
+g12 = full_map(12, partition=None, tensor=np.ones((20, 20, 20)))
+out.append(run(lambda: loopy_bp(g12, memory=5 * 2 ** 20, warn=False)))
 print(";".join(out), resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024)
 """
 

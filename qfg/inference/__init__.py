@@ -11,11 +11,11 @@ and return the same :class:`Marginals` type.
 [0.5, 0.5]
 """
 
+from .evidence import clamp, read_evid
 from .exact import ENGINES, elimination_estimate, exact_marginals, k_best, map_assignment
 from .junction import MAX_TABLE, FactorModel, JunctionTree, SizeEstimate, size_estimate
-from .results import Assignment, GraphTooLargeError, Marginals, MissingKeyError, ZeroMassError
-from .evidence import clamp, read_evid
 from .memory import MemoryBudgetError, MemoryEstimate, memory_budget
+from .results import Assignment, GraphTooLargeError, Marginals, MissingKeyError, ZeroMassError
 from .tasks import TaskResult, query, solve_task, write_result
 from .uai import read_uai, read_uai_graph, write_uai
 

@@ -24,7 +24,8 @@ from dataclasses import dataclass, field
 
 from .results import GraphTooLargeError
 
-__all__ = ["MemoryBudgetError", "MemoryEstimate", "memory_budget", "parse_bytes", "DEFAULT_FRACTION", "check_memory"]
+__all__ = ["MemoryBudgetError", "MemoryEstimate", "memory_budget", "parse_bytes",
+           "DEFAULT_FRACTION", "check_memory"]
 
 #: Share of the physical memory the exact engines may use by default.
 DEFAULT_FRACTION = 0.5
