@@ -8,6 +8,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._diagnostics import pareto_k
+
 
 @dataclass(frozen=True, eq=False, repr=False)
 class TripletEstimate:
@@ -21,6 +23,10 @@ class TripletEstimate:
         ess: effective sample size of the landmark weights, ``1 / sum w^2`` (normalized w).
         mc_error: Monte Carlo standard error of ``landmark`` where the method estimates it
             (largest over states), else NaN.
+        pareto_k: Pareto k-hat of the landmark weights' upper tail
+            (:func:`qfg.solvers._diagnostics.pareto_k`; above about 0.7 the weighted answer is
+            unreliable whatever the ESS), NaN where the weights are not importance weights
+            (``fast-paper``'s quadrature, the reference) or too few.
         degenerate: True when the input was degenerate or nothing survived; the distributions are
             then as spread as the geometry allows, uniform wherever nothing is known (never NaN).
         reason: why ``degenerate`` is set ("" otherwise).
@@ -52,6 +58,7 @@ class TripletEstimate:
     n_views: int
     ess: float = float("nan")
     mc_error: float = float("nan")
+    pareto_k: float = float("nan")
     prior: str = ""
     options: dict = field(default_factory=dict)
 
@@ -169,11 +176,15 @@ def make_estimate(method, part, n_views, landmark, cameras, *, hypotheses: Hypot
     a = float(opts.get("mc_shrinkage", 0.0) or 0.0)
     landmark = shrink_to_uniform(landmark, e, a)
     cameras = shrink_to_uniform(cameras, e, a)
+    k = float("nan")
+    if method != "fast-paper":
+        with np.errstate(divide="ignore"):
+            k = pareto_k(np.log(np.asarray(lw, dtype=float)))
     est = TripletEstimate(
         landmark=np.asarray(landmark, dtype=float), cameras=np.asarray(cameras, dtype=float),
         n_hypotheses=int(np.count_nonzero(lw > 0)), degenerate=bool(reasons),
         reason="; ".join(reasons), method=method, partition=part.name, n_views=int(n_views),
-        ess=e, mc_error=float(mc_error), prior=prior_name(opts),
+        ess=e, mc_error=float(mc_error), pareto_k=k, prior=prior_name(opts),
         options=public_options(opts))
     return est, hypotheses
 
