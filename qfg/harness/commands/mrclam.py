@@ -297,9 +297,10 @@ def _main(args):
         say(f"landmark ground truth corrected: swapped "
             f"{';'.join(f'{a}-{b}' for a, b in prep.swaps)} (check_landmarks)")
     k = study.n_pieces(prep, opts["piece"])
-    say(f"histories: {len(prep.histories)} of robots "
-        f"{', '.join(map(str, sorted({r for r, _ in prep.histories})))}, solved in {k} "
-        f"piece{'s' if k > 1 else ''} of up to {opts['piece']}")
+    rs = sorted({r for r, _ in prep.histories})
+    say(f"histories: {len(prep.histories)} of robot{'s' if len(rs) > 1 else ''} "
+        f"{', '.join(map(str, rs))}; solving them in {k} "
+        f"piece{'s' if k > 1 else ''} of up to {opts['piece']}, each recorded as it finishes")
 
     # 3. solving, piece by piece, recorded; 4. combine, map, scores (the runner's summary step)
     shown = {}
@@ -318,8 +319,6 @@ def _main(args):
 
     pieces = runner.Study("mrclam", study.piece_tasks, study.run_piece, summarize,
                           "one MRCLAM dataset, solved in pieces")
-    if not quiet:
-        say("solving:")
     runner.run_study(pieces, params, out, seed=args.seed, resume=args.resume,
                      overwrite=args.overwrite, progress=not quiet,
                      command="qfg " + " ".join(shlex.quote(a) for a in sys.argv[1:]),

@@ -174,10 +174,8 @@ def map_seen(seen: SeenEstimates) -> MapResult:
                      seen=np.ones(s, bool), reached=np.zeros(s, bool))
 
 
-register("pooled", map_pooled, "full map, unseen triplets by pooled composition (default; "
-                               "was --propagation mean)")
-register("best", map_best, "full map, unseen triplets by the paper's Algorithm 2 "
-                           "(was --propagation best)")
+register("pooled", map_pooled, "full map, unseen triplets by pooled composition (default)")
+register("best", map_best, "full map, unseen triplets by the paper's Algorithm 2")
 register("seen", map_seen, "the seen triplets alone (no map)")
 
 
