@@ -321,3 +321,124 @@ def triplet_histories(scenario: Scenario, *, min_views: int = 1, partition="edc"
                                       truth=truth))
     out.sort(key=lambda h: h.landmarks)
     return out
+
+
+# ----------------------------------------------------------------------------- trajectory runs
+__all__ += ["TrajectoryRun", "random_trajectory_run"]
+
+
+@dataclass(frozen=True, eq=False)
+class TrajectoryRun:
+    """One robot driving a trajectory among many landmarks, seeing several per image.
+
+    Attributes:
+        landmarks: (L, 2) world positions; landmark id = row index.
+        poses: (P, 3) true camera poses (the camera looks along the robot's heading).
+        visible: (P, L) bool, landmarks in each image (inside the field of view and range).
+        bearings: (P, L) measured bearings (radians, N(0, sigma_bearing^2) noise); 0 where not
+            visible.
+        odometry: (P - 1, 3) measured relative poses ``X_i^{-1} X_{i+1}``: direction of travel
+            with N(0, sigma_heading^2) noise, length times exp(N(0, sigma_step^2)), turn with
+            N(0, sigma_turn^2) noise.
+        odometry_sigma: (P - 1, 3) the diagonal standard deviations of (dx, dy, dtheta) that
+            noise implies to first order (the (dx, dy) correlation is left out).
+        sigma_bearing, sigma_heading, sigma_step, sigma_turn: the noise levels (radians, and a
+            log-length ratio for ``sigma_step``).
+    """
+
+    landmarks: np.ndarray
+    poses: np.ndarray
+    visible: np.ndarray
+    bearings: np.ndarray
+    odometry: np.ndarray
+    odometry_sigma: np.ndarray
+    sigma_bearing: float
+    sigma_heading: float
+    sigma_step: float
+    sigma_turn: float
+
+    @property
+    def n_landmarks(self) -> int:
+        return self.landmarks.shape[0]
+
+    @property
+    def n_poses(self) -> int:
+        return self.poses.shape[0]
+
+
+def random_trajectory_run(rng, n_landmarks: int = 8, n_poses: int = 40, *,
+                          sigma_bearing: float = float(np.deg2rad(2.0)),
+                          sigma_heading: float = float(np.deg2rad(5.0)), sigma_step: float = 0.05,
+                          sigma_turn: float = float(np.deg2rad(2.0)), step: float = 0.3,
+                          turn_sd: float = float(np.deg2rad(20.0)), fov_deg: float = 120.0,
+                          min_visible: int = 0, config: SimulationConfig = SimulationConfig()
+                          ) -> TrajectoryRun:
+    """A robot driving ``n_poses`` poses among ``n_landmarks`` uniform random landmarks.
+
+    The robot starts at a uniform position with a uniform heading and drives ``step`` per pose,
+    turning by N(0, turn_sd^2) and, once it would leave the config's box, towards the box's
+    centre. Each image sees the landmarks within ``fov_deg`` / 2 of the heading (360: all);
+    ``min_visible`` > 0 redraws the landmarks until every image sees that many (up to
+    ``config.max_tries`` times). Noise defaults are the paper's (bearings 2 deg, direction of
+    travel 5 deg) plus 5% step length and 2 deg turn for the odometry's other components.
+
+    >>> r = random_trajectory_run(np.random.default_rng(0), n_landmarks=6, n_poses=10)
+    >>> r.poses.shape, r.odometry.shape, r.visible.shape
+    ((10, 3), (9, 3), (10, 6))
+    """
+    rng = as_rng(rng)
+    n_landmarks = positive_int("n_landmarks", n_landmarks, minimum=3)
+    n_poses = positive_int("n_poses", n_poses, minimum=2)
+    sb = non_negative("sigma_bearing", sigma_bearing)
+    sh = non_negative("sigma_heading", sigma_heading)
+    ss = non_negative("sigma_step", sigma_step)
+    st = non_negative("sigma_turn", sigma_turn)
+    step = non_negative("step", step)
+    if step <= 0:
+        raise ValueError("step: expected a length > 0")
+    turn_sd = non_negative("turn_sd", turn_sd)
+    fov = non_negative("fov_deg", fov_deg)
+    if not 0 < fov <= 360:
+        raise ValueError(f"fov_deg: expected a field of view in (0, 360], got {fov_deg!r}")
+    min_visible = positive_int("min_visible", min_visible, minimum=0)
+    if min_visible > n_landmarks:
+        raise ValueError(f"min_visible: {min_visible} is more than n_landmarks = {n_landmarks}")
+    lo = np.array([config.xlim[0], config.ylim[0]])
+    hi = np.array([config.xlim[1], config.ylim[1]])
+    centre = (lo + hi) / 2
+    poses = np.empty((n_poses, 3))
+    poses[0] = (*sample_positions(rng, 1, config)[0], rng.uniform(-np.pi, np.pi))
+    for i in range(1, n_poses):
+        x, y, th = poses[i - 1]
+        th = th + rng.normal(0.0, turn_sd)
+        nxt = np.array([x, y]) + step * np.array([np.cos(th), np.sin(th)])
+        if np.any(nxt < lo) or np.any(nxt > hi):
+            to_c = centre - np.array([x, y])
+            th = np.arctan2(to_c[1], to_c[0]) + rng.normal(0.0, turn_sd / 4)
+            nxt = np.array([x, y]) + step * np.array([np.cos(th), np.sin(th)])
+        poses[i] = (*nxt, wrap_angle(th))
+    for _ in range(config.max_tries):
+        L = sample_positions(rng, n_landmarks, config)
+        true_phi = bearing(poses[:, None, :], L[None, :, :])
+        visible = np.abs(true_phi) <= np.deg2rad(fov) / 2 + 1e-12
+        if visible.sum(axis=1).min() >= min_visible:
+            break
+    else:
+        raise ValueError(f"min_visible: no landmark draw gave every image {min_visible} landmarks "
+                         f"in {config.max_tries} tries")
+    phi = wrap_angle(true_phi + rng.normal(0.0, 1.0, size=true_phi.shape) * sb)
+    phi = np.where(visible, phi, 0.0)
+    a, b = poses[:-1], poses[1:]
+    d = np.hypot(*(b[:, :2] - a[:, :2]).T)
+    psi = motion_heading(a, b[:, :2]) + rng.normal(0.0, 1.0, size=d.shape) * sh
+    dm = d * np.exp(rng.normal(0.0, 1.0, size=d.shape) * ss)
+    dth = wrap_angle(b[:, 2] - a[:, 2]) + rng.normal(0.0, 1.0, size=d.shape) * st
+    odo = np.column_stack([dm * np.cos(psi), dm * np.sin(psi), dth])
+    c, s = np.cos(psi), np.sin(psi)
+    sx = np.sqrt((dm * ss * c) ** 2 + (dm * sh * s) ** 2)
+    sy = np.sqrt((dm * ss * s) ** 2 + (dm * sh * c) ** 2)
+    sig = np.column_stack([np.maximum(sx, 1e-6), np.maximum(sy, 1e-6),
+                           np.full(d.shape, max(st, 1e-6))])
+    return TrajectoryRun(landmarks=L, poses=poses, visible=visible, bearings=phi, odometry=odo,
+                         odometry_sigma=sig, sigma_bearing=sb, sigma_heading=sh, sigma_step=ss,
+                         sigma_turn=st)

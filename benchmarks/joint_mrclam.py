@@ -1,0 +1,118 @@
+"""The joint method (qfg.joint) on MRCLAM datasets, scored exactly as the mrclam study scores
+seen and unseen triplets (qfg.harness.studies.mrclam: same histories, same truth states, same
+prior), against uniform and the prior alone.
+
+    QFG_MRCLAM_DIR=../shared/data/mrclam .venv/bin/python -m benchmarks.joint_mrclam 1 2 3 4 5 6
+
+Prints one markdown row per dataset and kind (seen, unseen, camera); ``--json FILE`` writes the
+rows. Dataset 6 is development (options chosen on it), 1-5 are evaluation.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import time
+
+import numpy as np
+
+from qfg import metrics
+from qfg.combine import prior_state_distribution
+from qfg.graph import truth_states
+from qfg.harness.studies import mrclam as study
+from qfg.joint import mrclam_marginals
+from qfg.partitions import get as get_partition
+
+
+def score(P, g):
+    return {"n": int(len(g)), "log_score": float(metrics.log_score(P, g).mean()) if len(g) else np.nan,
+            "brier": float(metrics.brier(P, g).mean()) if len(g) else np.nan,
+            "truth_under_1pct": float(metrics.truth_under(P, g, 0.01).mean()) if len(g) else np.nan}
+
+
+def run(path, *, seed=0, samples=2000, cameras=True, **options):
+    part = get_partition("edc")
+    ds, swaps = study.prepare(path)
+    pr = study.make_prior(ds, "arena")
+    q_c = prior_state_distribution(pr, part, samples=study.PRIOR_SAMPLES, seed=1)
+    q_x = prior_state_distribution(pr, part, point=1, n_cameras=1, samples=study.PRIOR_SAMPLES,
+                                   seed=2)
+    rh = study.histories(ds, None, mode="honest", spread_views=3, partition=part,
+                         min_travel=0.02, max_gap=120.0)
+    hs = [h for _, h in rh]
+    ids = ds.landmark_ids
+    seen_idx = {tuple(ds.landmark_index(h.landmarks).tolist()) for h in hs}
+    trip = np.array(list(itertools.permutations(range(ids.size), 3)), dtype=np.intp)
+    keys = [tuple(int(ids[i]) for i in t) for t in trip.tolist()]
+    has_gt = any(rd.groundtruth is not None for rd in ds.robots.values())
+    cam_h = [h for h in hs if h.truth.camera_states is not None] if (cameras and has_gt) else None
+    t0 = time.perf_counter()
+    res = mrclam_marginals(ds, keys, cam_h, prior_states=q_c, camera_prior_states=q_x,
+                           samples=samples, seed=seed, **options)
+    wall = time.perf_counter() - t0
+    P = np.array([res.triplets[k] for k in keys])
+    g = truth_states(trip, ds.landmark_xy, "edc")
+    seen = np.array([tuple(t) in seen_idx for t in trip.tolist()])
+    out = []
+    for kind, m in (("seen", seen), ("unseen", ~seen)):
+        row = {"dataset": ds.name, "kind": kind, "method": res.method, **score(P[m], g[m])}
+        row["uniform_log_score"] = float(np.log(1 / 20))
+        row["prior_log_score"] = score(np.tile(q_c, (int(m.sum()), 1)), g[m])["log_score"]
+        row["flagged"] = float(np.mean(np.asarray(res.triplets.info["flagged"])[m]))
+        out.append(row)
+    if cam_h:
+        Pc, gc = [], []
+        for h, C in zip(cam_h, res.cameras):
+            ok = np.asarray(h.truth.camera_states) >= 0
+            if h.groundtruth_valid is not None:
+                ok &= np.asarray(h.groundtruth_valid, bool)
+            Pc.append(C[ok]); gc.append(np.asarray(h.truth.camera_states)[ok])
+        Pc, gc = np.concatenate(Pc), np.concatenate(gc).astype(int)
+        row = {"dataset": ds.name, "kind": "camera", "method": res.method, **score(Pc, gc),
+               "uniform_log_score": float(np.log(1 / 20)),
+               "prior_log_score": score(np.tile(q_x, (len(gc), 1)), gc)["log_score"],
+               "flagged": 0.0}
+        out.append(row)
+    for r in out:
+        r["time_s"] = wall
+        r["flags"] = ";".join(res.posterior.flags)
+        r["robots"] = ";".join(f"{k}:{v}" for k, v in res.posterior.robot_flags.items())
+    return out
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("datasets", nargs="*", type=int, default=[6])
+    ap.add_argument("--data", default="")
+    ap.add_argument("--samples", type=int, default=2000)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--inflate", type=float, default=None)
+    ap.add_argument("--starts", type=int, default=None)
+    ap.add_argument("--no-cameras", action="store_true")
+    ap.add_argument("--json", default="")
+    a = ap.parse_args(argv)
+    opts = {}
+    if a.inflate is not None:
+        opts["inflate"] = a.inflate
+    if a.starts is not None:
+        opts["starts"] = a.starts
+    rows = []
+    print("| dataset | kind | method | n | log p(truth) | uniform | prior alone | Brier | "
+          "truth < 1% | flagged | time (s) | flags |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for d in study.dataset_dirs(a.data, a.datasets):
+        for r in run(d, seed=a.seed, samples=a.samples, cameras=not a.no_cameras, **opts):
+            rows.append(r)
+            print(f"| {r['dataset'][14:]} | {r['kind']} | {r['method']} | {r['n']} | "
+                  f"{r['log_score']:.3f} | {r['uniform_log_score']:.2f} | "
+                  f"{r['prior_log_score']:.2f} | {r['brier']:.3f} | "
+                  f"{100 * r['truth_under_1pct']:.1f}% | {r['flagged']:.2f} | "
+                  f"{r['time_s']:.0f} | {r['flags']} {r['robots']} |", flush=True)
+    if a.json:
+        with open(a.json, "w") as f:
+            json.dump(rows, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,1083 @@
+"""The qualitative map from all the measurements at once: a joint metric posterior over landmarks
+and poses on GTSAM's nonlinear factor graph (:mod:`qfg.nonlinear`), turned into qualitative
+states by sampling.
+
+Input (:class:`JointMeasurements`): one :class:`RobotRun` per robot, its poses at the times it
+took images, the bearings of every landmark seen in each image, and (optionally) the odometry
+between consecutive poses with its per-step noise. Output: a :class:`JointPosterior` over the
+landmark positions (and the poses), and from samples of it the state distribution of every
+ordered landmark triplet (:func:`triplet_marginals`, a labelled
+:class:`qfg.inference.results.Marginals` keyed by landmark ids) and of the cameras
+(:func:`camera_marginals`).
+
+The method (docs/joint.md has the math and the measurements behind each default):
+
+1. **Per robot, incremental batches.** A robot's poses start from its odometry chain with the
+   first pose at the origin; every ``chunk`` poses, landmarks with at least ``min_rays`` rays and
+   ``min_parallax_deg`` of parallax (from the current pose estimates) are initialised by
+   reweighted ray intersection (:func:`qfg.nonlinear.intersect_rays`), and Levenberg-Marquardt
+   refines everything so far (Huber kernel on the bearings); the poses ahead are re-chained from
+   the last refined one. No ground truth anywhere.
+2. **All robots.** Each robot's map is aligned to the reference robot (the one with most
+   landmarks) by a rigid fit on the shared landmarks, then one joint solve with only the
+   reference robot's first pose anchored.
+3. **Several starts, residual checks.** The joint solve is repeated from starts with every
+   landmark's depth halved and doubled (from the poses that see it); a start that ends in a
+   different minimum with a cost within ``mode_cost`` of the best becomes a second mode. A
+   robot whose whitened bearing residuals have a median above ``residual_limit`` sits in a wrong
+   local minimum: it is dropped and the rest re-solved (flag ``local_minimum``). A landmark
+   with too few rays is ``unconstrained``; one whose residuals fail the check is
+   ``inconsistent``.
+4. **Posterior.** The Laplace approximation at each mode (``gtsam.Marginals``: joint landmark
+   covariance, scaled by ``inflate``); modes weighted by ``exp(-cost) sqrt(det Sigma)``. Landmarks
+   with few rays (``weak``: fewer than ``sir_rays``) are sampled from their exact conditional
+   given the sampled poses (sampling-importance-resampling against the robust bearing
+   likelihood), because their depth along the rays is not Gaussian.
+5. **States.** Each ordered triplet's EDC state in every sample; triplets touching a flagged or
+   unconstrained landmark are mixed toward ``prior_states`` (weight ``widen``; 1 for
+   unconstrained), every row toward it with weight ``floor``.
+
+Robots without odometry are left out of the metric solve (flag ``no_odometry``); when no robot
+has odometry the posterior has ``method == "none"`` and every triplet is the prior: the
+solver-based pipeline must answer (:func:`mrclam_marginals` says which method answered).
+
+>>> import numpy as np
+>>> from qfg.simulation import random_trajectory_run
+>>> run = random_trajectory_run(np.random.default_rng(0), n_landmarks=5, n_poses=30,
+...                             fov_deg=360)
+>>> post = solve(simulated_measurements(run), seed=0)
+>>> post.method, post.flags
+('joint', ())
+>>> res = triplet_marginals(post, samples=200, seed=0)
+>>> res.probabilities.shape
+(60, 20)
+"""
+
+from __future__ import annotations
+
+import itertools
+import time as _time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import nonlinear as _nl
+from . import partitions as _partitions
+from ._validate import as_float_array, as_rng, non_negative, positive_int
+from .geometry import poses_to_frame, to_frame, wrap_angle
+
+__all__ = ["RobotRun", "JointMeasurements", "Mode", "JointPosterior", "solve",
+           "sample_landmarks", "triplet_marginals", "camera_marginals", "odometry_steps",
+           "mrclam_runs", "mrclam_marginals", "MRCLAMJoint", "simulated_measurements",
+           "reference_samples", "ODOMETRY_NOISE", "FLOOR", "OUTLIER"]
+
+#: Per-step odometry noise model ``sigma = c0 + c_turn |dtheta| + c_dist d`` for (x, y, theta)
+#: of the relative pose (m, m, rad); fitted against motion capture on MRCLAM dataset 6 (robust
+#: spread of keyframe-to-keyframe errors binned by step length, docs/joint.md).
+ODOMETRY_NOISE = {"c0": (0.004, 0.002, 0.010), "c_turn": (0.0, 0.0, 0.10),
+                  "c_dist": (0.15, 0.15, 0.30)}
+#: A landmark farther from the poses that see it than this many times the median such distance
+#: has diverged along its rays (:func:`_diverged`).
+DIVERGED = 10.0
+#: Bearings beyond this many sigmas at a fit are gross errors (MRCLAM dataset 6: dropping them
+#: takes robots 3 and 5's maps from 15-17 cm to 5-6 cm median error, docs/joint.md).
+OUTLIER = 4.0
+#: Weight of the prior's state distribution mixed into every row (chosen on MRCLAM dataset 6
+#: and development simulations: docs/joint.md).
+FLOOR = 1e-3
+
+
+# ----------------------------------------------------------------------------- inputs
+@dataclass(frozen=True, eq=False)
+class RobotRun:
+    """One robot's measurements.
+
+    Attributes:
+        robot: its number (any int, unique within a :class:`JointMeasurements`).
+        times: (P,) increasing time stamps of its poses (one per image kept).
+        bearing_pose: (B,) index into ``times`` of each bearing's image.
+        bearing_landmark: (B,) landmark id of each bearing.
+        bearing: (B,) measured bearings (radians, relative to the camera heading).
+        sigma_bearing: bearing noise (radians).
+        odometry: (P - 1, 3) relative pose ``X_i^{-1} X_{i+1}`` (dx, dy in pose i's frame,
+            dtheta) by odometry, or None without odometry.
+        odometry_sigma: (P - 1, 3) its per-step noise (standard deviations), or None.
+    """
+
+    robot: int
+    times: np.ndarray
+    bearing_pose: np.ndarray
+    bearing_landmark: np.ndarray
+    bearing: np.ndarray
+    sigma_bearing: float
+    odometry: np.ndarray | None = None
+    odometry_sigma: np.ndarray | None = None
+
+    def __post_init__(self):
+        t = as_float_array("times", self.times, ndim=1)
+        if t.size < 1:
+            raise ValueError("times: expected at least one pose")
+        if np.any(np.diff(t) < 0):
+            raise ValueError("times: expected increasing time stamps")
+        bp = _nl._ints("bearing_pose", self.bearing_pose, upper=t.size)
+        bl = _nl._ints("bearing_landmark", self.bearing_landmark, n=bp.size)
+        b = as_float_array("bearing", self.bearing, ndim=1)
+        if b.size != bp.size:
+            raise ValueError(f"bearing: expected {bp.size} values, got {b.size}")
+        sb = non_negative("sigma_bearing", self.sigma_bearing)
+        if sb <= 0:
+            raise ValueError("sigma_bearing: expected a standard deviation > 0")
+        z = s = None
+        if self.odometry is not None:
+            z = as_float_array("odometry", self.odometry, ndim=2, last_dim=3)
+            if z.shape[0] != t.size - 1:
+                raise ValueError(f"odometry: expected {t.size - 1} steps for {t.size} poses, "
+                                 f"got {z.shape[0]}")
+            if self.odometry_sigma is None:
+                raise ValueError("odometry_sigma: required with odometry")
+            s = np.broadcast_to(as_float_array("odometry_sigma", self.odometry_sigma),
+                                z.shape).astype(float)
+            if s.size and s.min() <= 0:
+                raise ValueError("odometry_sigma: expected standard deviations > 0")
+        for k, v in (("times", t), ("bearing_pose", bp), ("bearing_landmark", bl),
+                     ("bearing", b), ("sigma_bearing", sb), ("odometry", z),
+                     ("odometry_sigma", s), ("robot", int(self.robot))):
+            object.__setattr__(self, k, v)
+
+    @property
+    def has_odometry(self) -> bool:
+        return self.odometry is not None
+
+    @property
+    def n_poses(self) -> int:
+        return self.times.size
+
+
+@dataclass(frozen=True, eq=False)
+class JointMeasurements:
+    """The runs of one or more robots among the same landmarks.
+
+    Attributes:
+        runs: tuple of :class:`RobotRun` (distinct robot numbers).
+        landmark_ids: the landmarks of the map (default: every id seen, sorted); triplets are
+            formed over these.
+    """
+
+    runs: tuple
+    landmark_ids: tuple = None
+
+    def __post_init__(self):
+        runs = tuple(self.runs)
+        if not runs or not all(isinstance(r, RobotRun) for r in runs):
+            raise ValueError("runs: expected one or more RobotRun")
+        nums = [r.robot for r in runs]
+        if len(set(nums)) != len(nums):
+            raise ValueError(f"runs: robot numbers must be distinct, got {nums}")
+        seen = sorted({int(x) for r in runs for x in r.bearing_landmark.tolist()})
+        ids = tuple(seen) if self.landmark_ids is None else tuple(int(x) for x in self.landmark_ids)
+        if len(set(ids)) != len(ids):
+            raise ValueError("landmark_ids: expected distinct ids")
+        missing = sorted(set(seen) - set(ids))
+        if missing:
+            raise ValueError(f"landmark_ids: bearings name landmarks {missing} not in the list")
+        if len(ids) < 3:
+            raise ValueError(f"landmark_ids: a qualitative map needs at least 3 landmarks, got "
+                             f"{len(ids)}")
+        object.__setattr__(self, "runs", runs)
+        object.__setattr__(self, "landmark_ids", ids)
+
+    def run(self, robot) -> RobotRun:
+        for r in self.runs:
+            if r.robot == int(robot):
+                return r
+        raise KeyError(f"robot: {robot} is not in these measurements "
+                       f"(has {[r.robot for r in self.runs]})")
+
+
+def odometry_steps(poses, noise=None):
+    """Relative poses ``X_i^{-1} X_{i+1}`` (P - 1, 3) of a dead-reckoned chain ``poses``
+    (P, 3) and their noise from the model ``sigma = c0 + c_turn |dtheta| + c_dist d``
+    (:data:`ODOMETRY_NOISE` by default; ``d`` the step length). Returns ``(steps, sigmas)``.
+
+    >>> z, s = odometry_steps([[0, 0, 0], [1, 0, np.pi / 2]])
+    >>> np.round(z, 3).tolist(), np.round(s, 3).tolist()
+    ([[1.0, 0.0, 1.571]], [[0.154, 0.152, 0.467]])
+    """
+    P = as_float_array("poses", poses, ndim=2, last_dim=3)
+    nm = ODOMETRY_NOISE if noise is None else noise
+    z = _nl._relative(P[:-1], P[1:])
+    d = np.hypot(z[:, 0], z[:, 1])[:, None]
+    s = (np.asarray(nm["c0"], float) + np.asarray(nm["c_turn"], float) * np.abs(z[:, 2:3])
+         + np.asarray(nm["c_dist"], float) * d)
+    return z, s
+
+
+def _chain(start, steps):
+    """Poses from ``start`` (3,) composed with relative ``steps`` (n, 3): (n + 1, 3)."""
+    out = np.empty((len(steps) + 1, 3))
+    out[0] = start
+    x, y, th = (float(v) for v in start)
+    for i, (dx, dy, dt) in enumerate(np.asarray(steps, float)):
+        c, s = np.cos(th), np.sin(th)
+        x, y, th = x + c * dx - s * dy, y + s * dx + c * dy, th + dt
+        out[i + 1] = (x, y, th)
+    out[:, 2] = wrap_angle(out[:, 2])
+    return out
+
+
+# ----------------------------------------------------------------------------- results
+@dataclass(frozen=True, eq=False)
+class Mode:
+    """One Gaussian of the landmark posterior: ``weight``, ``points`` (L, 2) (NaN rows for
+    landmarks not in the solve), ``covariance`` over the constrained landmarks' coordinates
+    (2 n_c square, landmark-major), ``cost`` (robust cost of the fit)."""
+
+    weight: float
+    points: np.ndarray
+    covariance: np.ndarray
+    cost: float
+
+
+@dataclass(frozen=True, eq=False)
+class JointPosterior:
+    """A joint posterior over landmark positions (and poses) from :func:`solve`.
+
+    Attributes:
+        landmark_ids: (L,) tuple, the map's landmarks in order.
+        modes: tuple of :class:`Mode` (best first), weights summing to 1.
+        constrained: (L,) bool, landmarks in the metric solve.
+        landmark_flags: (L,) tuple of ``"ok"``, ``"weak"`` (few rays: sampled from its exact
+            conditional), ``"inconsistent"`` (residual check failed), ``"unconstrained"``.
+        robot_flags: dict robot -> ``"ok"``, ``"no_odometry"``, ``"local_minimum"`` (dropped),
+            ``"unaligned"`` (fewer than 2 landmarks shared with the others: dropped).
+        flags: overall flags (``"local_minimum"``, ``"second_mode"``, ``"no_odometry"``,
+            ``"inconsistent_landmark"``, ``"unconstrained_landmark"``).
+        method: ``"joint"`` (metric posterior) or ``"none"`` (nothing could be solved: no
+            robot with odometry; every triplet is the prior).
+        poses: dict robot -> (P, 3) poses of that run in the map frame (best mode; NaN rows for
+            robots not solved).
+        info: extras (``cost``, ``n_bearings``, ``n_poses``, ``time_s``, ``starts``).
+    """
+
+    landmark_ids: tuple
+    modes: tuple
+    constrained: np.ndarray
+    landmark_flags: tuple
+    robot_flags: dict
+    flags: tuple
+    method: str
+    poses: dict
+    info: dict = field(default_factory=dict)
+    _problem: object = None
+    _fit: object = None
+    _pose_offset: dict = None
+    _weak: dict = None
+
+    @property
+    def points(self) -> np.ndarray:
+        """(L, 2) landmark positions of the best mode (NaN where unconstrained)."""
+        return self.modes[0].points if self.modes else np.full((len(self.landmark_ids), 2), np.nan)
+
+    def index(self, ids) -> np.ndarray:
+        """Positions of landmark ids in :attr:`landmark_ids` (KeyError naming an unknown id)."""
+        pos = {l: i for i, l in enumerate(self.landmark_ids)}
+        try:
+            return np.array([pos[int(x)] for x in np.ravel(ids)], dtype=np.intp)
+        except KeyError as exc:
+            raise KeyError(f"landmark: {exc.args[0]} is not in this map") from None
+
+
+# ----------------------------------------------------------------------------- solve
+def _problem_of(runs, lm_index, points_ok, anchor_robot, *, robust, weak_prior=None):
+    """One BearingProblem over ``runs`` (poses stacked run by run) and the landmarks with
+    ``points_ok``; the first pose of ``anchor_robot`` anchored."""
+    offs, n = {}, 0
+    for r in runs:
+        offs[r.robot] = n
+        n += r.n_poses
+    col = -np.ones(len(lm_index), np.intp)
+    ok = np.flatnonzero(points_ok)
+    col[ok] = np.arange(ok.size)
+    bp, bl, b, sb, ef, et, z, zs = [], [], [], [], [], [], [], []
+    for r in runs:
+        j = col[np.array([lm_index[int(x)] for x in r.bearing_landmark.tolist()], dtype=np.intp)
+                if r.bearing_landmark.size else np.zeros(0, np.intp)]
+        keep = j >= 0
+        bp.append(r.bearing_pose[keep] + offs[r.robot])
+        bl.append(j[keep])
+        b.append(r.bearing[keep])
+        sb.append(np.full(int(keep.sum()), r.sigma_bearing))
+        if r.has_odometry and r.n_poses > 1:
+            ef.append(np.arange(r.n_poses - 1) + offs[r.robot])
+            et.append(np.arange(1, r.n_poses) + offs[r.robot])
+            z.append(r.odometry)
+            zs.append(r.odometry_sigma)
+    cat = (lambda xs, shape: np.concatenate(xs) if xs else np.zeros(shape))
+    kw = {}
+    if weak_prior is not None:
+        kw = dict(point_prior_index=np.arange(ok.size), point_prior=weak_prior[0][ok],
+                  point_prior_sigma=weak_prior[1])
+    pr = _nl.BearingProblem(
+        n_poses=n, n_points=ok.size, bearing_pose=cat(bp, 0), bearing_point=cat(bl, 0),
+        bearing=cat(b, 0), sigma_bearing=cat(sb, 0) if sb else 1.0,
+        between_from=cat(ef, 0), between_to=cat(et, 0), between=cat(z, (0, 3)),
+        between_sigma=cat(zs, (0, 3)) if zs else 1.0,
+        pose_prior_index=[offs[anchor_robot]], pose_prior=[[0.0, 0.0, 0.0]],
+        pose_prior_sigma=1e-6, robust_bearing=robust, **kw)
+    return pr, offs, ok
+
+
+def _init_landmarks(poses, r, lm_index, points, have, *, upto, min_rays, min_par):
+    """Initialise landmarks of run ``r`` not yet in ``have`` from its rays at poses < upto."""
+    sel = r.bearing_pose < upto
+    if not sel.any():
+        return
+    ids = r.bearing_landmark[sel]
+    P = poses[r.bearing_pose[sel]]
+    ang = P[:, 2] + r.bearing[sel]
+    for lid in np.unique(ids).tolist():
+        j = lm_index[lid]
+        if have[j]:
+            continue
+        m = ids == lid
+        if m.sum() < min_rays:
+            continue
+        p, ok, par = _nl.intersect_rays(P[m, :2], ang[m], r.sigma_bearing)
+        if ok and par >= min_par and np.all(np.isfinite(p)):
+            points[j] = p
+            have[j] = True
+
+
+def _solve_run(r, lm_index, *, chunk, min_rays, min_par, robust, max_iterations,
+               outlier=0.0):
+    """Incremental batches for one run with odometry, first pose at the origin."""
+    L = len(lm_index)
+    poses = _chain(np.zeros(3), r.odometry)
+    points = np.zeros((L, 2))
+    have = np.zeros(L, bool)
+    fit = None
+    ends = list(range(chunk, r.n_poses, chunk)) + [r.n_poses]
+    for end in ends:
+        _init_landmarks(poses, r, lm_index, points, have, upto=end, min_rays=min_rays,
+                        min_par=min_par)
+        if not have.any():
+            continue
+        sub = _cut(r, end)
+        while True:
+            pr, _, ok = _problem_of([sub], lm_index, have, r.robot, robust=robust)
+            fit = _nl.fit(pr, poses[:end], points[ok], max_iterations=max_iterations)
+            far = _diverged(pr, fit)
+            if not far.any():
+                break
+            have[ok[far]] = False  # re-initialised later, from more rays
+            if not have.any():
+                fit = None
+                break
+        if fit is None:
+            continue
+        if end == r.n_poses:
+            pr, fit, _ = _drop_outliers(pr, fit, outlier, max_iterations)
+        poses[:end] = fit.poses
+        points[ok] = fit.points
+        if end < r.n_poses:
+            poses[end - 1:] = _chain(fit.poses[-1], r.odometry[end - 1:])
+    return poses, points, have, fit
+
+
+def _drop_outliers(pr, fit, limit, max_iterations):
+    """Bearings whose whitened residual exceeds ``limit`` left out and the fit redone from it
+    (misread barcodes and the like; a point keeps at least 2 rays). Returns (problem, fit,
+    number dropped)."""
+    if not limit:
+        return pr, fit, 0
+    drop = np.abs(fit.bearing_residuals) > limit
+    left = np.bincount(pr.bearing_point[~drop], minlength=pr.n_points)
+    drop &= left[pr.bearing_point] >= 2
+    if not drop.any():
+        return pr, fit, 0
+    pr2 = _nl.without_bearings(pr, drop)
+    return pr2, _nl.fit(pr2, fit.poses, fit.points, max_iterations=max_iterations), int(drop.sum())
+
+
+def _diverged(pr, fit, factor: float = DIVERGED) -> np.ndarray:
+    """Points that ran away along their rays: median distance from the poses that see them
+    above ``factor`` times the median of that distance over all points (a landmark initialised
+    from rays of too little parallax drifts towards infinity, where every bearing fits)."""
+    d = np.hypot(*(fit.points[pr.bearing_point] - fit.poses[pr.bearing_pose, :2]).T)
+    n = pr.n_points
+    med = np.array([np.median(d[pr.bearing_point == c]) if np.any(pr.bearing_point == c)
+                    else 0.0 for c in range(n)])
+    return med > factor * max(float(np.median(med)), 1e-12)
+
+
+def _cut(r: RobotRun, end: int) -> RobotRun:
+    """The first ``end`` poses of a run (bearings of those poses only)."""
+    if end >= r.n_poses:
+        return r
+    m = r.bearing_pose < end
+    return RobotRun(robot=r.robot, times=r.times[:end], bearing_pose=r.bearing_pose[m],
+                    bearing_landmark=r.bearing_landmark[m], bearing=r.bearing[m],
+                    sigma_bearing=r.sigma_bearing,
+                    odometry=None if r.odometry is None else r.odometry[:end - 1],
+                    odometry_sigma=None if r.odometry is None else r.odometry_sigma[:end - 1])
+
+
+def _rigid(src, dst):
+    """Rigid transform (R, t) with ``dst ~ R src + t`` (least squares, no scale)."""
+    ms, md = src.mean(0), dst.mean(0)
+    H = (src - ms).T @ (dst - md)
+    U, _, Vt = np.linalg.svd(H)
+    R = Vt.T @ U.T
+    if np.linalg.det(R) < 0:
+        Vt[-1] *= -1
+        R = Vt.T @ U.T
+    return R, md - R @ ms
+
+
+def _apply(R, t, poses=None, points=None):
+    out = []
+    if poses is not None:
+        xy = poses[:, :2] @ R.T + t
+        out.append(np.column_stack([xy, wrap_angle(poses[:, 2] + np.arctan2(R[1, 0], R[0, 0]))]))
+    if points is not None:
+        out.append(points @ R.T + t)
+    return out
+
+
+def _robot_medians(pr, fit, offs, runs):
+    """Median |whitened bearing residual| of each run in a joint fit."""
+    out = {}
+    for r in runs:
+        m = (pr.bearing_pose >= offs[r.robot]) & (pr.bearing_pose < offs[r.robot] + r.n_poses)
+        out[r.robot] = float(np.median(np.abs(fit.bearing_residuals[m]))) if m.any() else 0.0
+    return out
+
+
+def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 3,
+          min_parallax_deg: float = 10.0, starts: int = 3, robust: float = _nl.HUBER_K,
+          residual_limit: float = 2.0, landmark_limit: float = 3.0, mode_cost: float = 10.0,
+          inflate: float = 1.0, sir_rays: int = 20, max_iterations: int = 100,
+          outlier: float = OUTLIER, seed=0) -> JointPosterior:
+    """The joint posterior of :class:`JointMeasurements` (module docstring, steps 1-4).
+
+    Args:
+        chunk: poses per incremental batch of a run.
+        min_rays, min_parallax_deg: a landmark is initialised once it has this many rays with
+            this much parallax (largest angle between two of its rays, modulo 180 degrees).
+        starts: joint solves (1: the incremental start only; 2 adds every landmark's depth
+            halved, 3 also doubled).
+        robust: Huber threshold on the bearings (sigmas; 0 for plain least squares).
+        outlier: bearings with a whitened residual above it are left out and the fit redone,
+            at the end of each run's batches and after the joint solve (0: keep all).
+        residual_limit: a robot whose median |whitened bearing residual| exceeds it is in a
+            wrong local minimum (a Gaussian gives 0.67).
+        landmark_limit: a landmark whose median |whitened residual| exceeds it is
+            ``inconsistent``.
+        mode_cost: another start's minimum within this much cost of the best is kept as a mode.
+        inflate: factor on every covariance (1: the Laplace approximation as is).
+        sir_rays: landmarks with fewer rays are ``weak`` (sampled from their exact conditional).
+        seed: for the starts' order of tie-breaking (the solve is otherwise deterministic).
+    """
+    if not isinstance(measurements, JointMeasurements):
+        raise ValueError(f"measurements: expected JointMeasurements, got "
+                         f"{type(measurements).__name__}")
+    chunk = positive_int("chunk", chunk, minimum=2)
+    min_rays = positive_int("min_rays", min_rays, minimum=2)
+    min_par = np.deg2rad(non_negative("min_parallax_deg", min_parallax_deg))
+    starts = positive_int("starts", starts)
+    non_negative("robust", robust)
+    non_negative("residual_limit", residual_limit)
+    non_negative("mode_cost", mode_cost)
+    inflate = non_negative("inflate", inflate)
+    as_rng(seed)
+    t0 = _time.perf_counter()
+    ids = measurements.landmark_ids
+    L = len(ids)
+    lm_index = {l: i for i, l in enumerate(ids)}
+    robot_flags = {r.robot: "ok" for r in measurements.runs}
+    flags = []
+    runs = [r for r in measurements.runs if r.has_odometry]
+    for r in measurements.runs:
+        if not r.has_odometry:
+            robot_flags[r.robot] = "no_odometry"
+            flags.append("no_odometry")
+    nan_poses = {r.robot: np.full((r.n_poses, 3), np.nan) for r in measurements.runs}
+    if not runs:
+        return JointPosterior(ids, (), np.zeros(L, bool), ("unconstrained",) * L, robot_flags,
+                              tuple(dict.fromkeys(flags)), "none", nan_poses,
+                              {"time_s": _time.perf_counter() - t0})
+    opts = dict(chunk=chunk, min_rays=min_rays, min_par=min_par, robust=robust,
+                max_iterations=max_iterations, outlier=outlier)
+    # 1. each run alone, in its own frame
+    per = {}
+    for r in runs:
+        # several starts: other batch sizes when a run ends in a wrong minimum
+        for ch in dict.fromkeys((chunk, 2 * chunk, max(chunk // 2, 2))):
+            poses, points, have, fit = _solve_run(r, lm_index, **{**opts, "chunk": ch})
+            if fit is not None and np.median(np.abs(fit.bearing_residuals)) <= residual_limit:
+                per[r.robot] = (poses, points, have)
+                break
+        else:
+            robot_flags[r.robot] = "unconstrained" if fit is None else "local_minimum"
+            flags.append("local_minimum" if fit is not None else "unconstrained_robot")
+    runs = [r for r in runs if r.robot in per]
+    if not runs:
+        flags.append("unconstrained_landmark")
+        return JointPosterior(ids, (), np.zeros(L, bool), ("unconstrained",) * L, robot_flags,
+                              tuple(dict.fromkeys(flags)), "none", nan_poses,
+                              {"time_s": _time.perf_counter() - t0})
+    # 2. align to the reference run; 3. joint solve, dropping runs in wrong minima
+    while True:
+        ref = max(runs, key=lambda r: (per[r.robot][2].sum(), -r.robot)).robot
+        pts = np.where(per[ref][2][:, None], per[ref][1], 0.0)
+        have = per[ref][2].copy()
+        init = {ref: per[ref][0]}
+        for r in runs:
+            if r.robot == ref:
+                continue
+            p, q, h = per[r.robot]
+            common = h & have
+            if common.sum() < 2:
+                robot_flags[r.robot] = "unaligned"
+                continue
+            R, t = _rigid(q[common], pts[common])
+            Xr, Pr = _apply(R, t, p, q)
+            init[r.robot] = Xr
+            new = h & ~have
+            pts[new] = Pr[new]
+            have |= new
+        use = [r for r in runs if r.robot in init]
+        pr, offs, ok = _problem_of(use, lm_index, have, ref, robust=robust)
+        X0 = np.concatenate([init[r.robot] for r in use])
+        starts_list = [(X0, pts[ok])]
+        for f in (0.5, 2.0)[:starts - 1]:
+            starts_list.append((X0, _scale_depths(pr, X0, pts[ok], f)))
+        fits = [_nl.fit(pr, X, P, max_iterations=max_iterations) for X, P in starts_list]
+        best = int(np.argmin([f.cost for f in fits]))
+        fit = fits[best]
+        far = _diverged(pr, fit)
+        if far.any():
+            # a landmark ran away in the joint solve: leave it out (unconstrained) and redo
+            for rr in runs:
+                per[rr.robot][2][ok[far]] = False
+            continue
+        pr, fit, n_out = _drop_outliers(pr, fit, outlier, max_iterations)
+        med = _robot_medians(pr, fit, offs, use)
+        bad = [r for r, v in med.items() if v > residual_limit]
+        if bad and len(use) > 1:
+            worst = max(bad, key=lambda r: med[r])
+            robot_flags[worst] = "local_minimum"
+            flags.append("local_minimum")
+            runs = [r for r in runs if r.robot != worst]
+            continue
+        if bad:
+            flags.append("local_minimum")
+        break
+    runs = use
+    # landmark checks
+    rb = np.abs(fit.bearing_residuals)
+    n_rays = np.bincount(pr.bearing_point, minlength=ok.size)
+    med_l = np.array([np.median(rb[pr.bearing_point == c]) if n_rays[c] else 0.0
+                      for c in range(ok.size)])
+    lflags = ["unconstrained"] * L
+    for c, j in enumerate(ok.tolist()):
+        lflags[j] = ("inconsistent" if med_l[c] > landmark_limit or bad
+                     else "weak" if n_rays[c] < sir_rays else "ok")
+    if "inconsistent" in lflags:
+        flags.append("inconsistent_landmark")
+    if "unconstrained" in lflags:
+        flags.append("unconstrained_landmark")
+    # 4. modes and their covariances
+    marg = _marginals(pr, fit)
+    cov0 = _points_cov(marg, pr, np.arange(ok.size)) * inflate
+    modes = [(fit, cov0)]
+    for k, f in enumerate(fits):
+        if k == best or f.cost - fit.cost > mode_cost:
+            continue
+        if _same_mode(f.points, fit.points, cov0) or any(
+                _same_mode(f.points, m[0].points, cov0) for m in modes):
+            continue
+        modes.append((f, _points_cov(_marginals(pr, f), pr, np.arange(ok.size)) * inflate))
+    if len(modes) > 1:
+        flags.append("second_mode")
+    logw = np.array([-f.cost + 0.5 * np.linalg.slogdet(C)[1] for f, C in modes])
+    w = np.exp(logw - logw.max())
+    w /= w.sum()
+    out_modes = []
+    for (f, C), wk in zip(modes, w):
+        P = np.full((L, 2), np.nan)
+        P[ok] = f.points
+        out_modes.append(Mode(float(wk), P, C, float(f.cost)))
+    poses = dict(nan_poses)
+    for r in runs:
+        poses[r.robot] = fit.poses[offs[r.robot]:offs[r.robot] + r.n_poses]
+    constrained = np.zeros(L, bool)
+    constrained[ok] = True
+    weak = _weak_info(pr, fit, marg, ok, lflags, inflate)
+    info = {"cost": float(fit.cost), "n_bearings": int(pr.bearing.size),
+            "n_poses": int(pr.n_poses), "starts": len(fits), "costs": [f.cost for f in fits],
+            "robot_median_residual": med, "outliers_dropped": n_out, "time_s": _time.perf_counter() - t0,
+            "reference_robot": ref, "marginals": marg}
+    return JointPosterior(ids, tuple(out_modes), constrained, tuple(lflags), robot_flags,
+                          tuple(dict.fromkeys(flags)), "joint", poses, info, pr, fit, offs, weak)
+
+
+def _scale_depths(pr, X, P, f):
+    """Every point moved to ``f`` times its distance from the mean position of the poses that
+    see it (a start for the depth ambiguity of bearings)."""
+    out = P.copy()
+    for c in range(P.shape[0]):
+        m = pr.bearing_point == c
+        if m.any():
+            o = X[pr.bearing_pose[m], :2].mean(0)
+            out[c] = o + f * (P[c] - o)
+    return out
+
+
+def _same_mode(a, b, cov) -> bool:
+    """Two fits are the same minimum when no point moved by more than 3 of its sigmas."""
+    sd = np.sqrt(np.clip(np.diag(cov), 1e-18, None)).reshape(-1, 2).max(axis=1)
+    return bool(np.all(np.hypot(*(a - b).T) <= 3 * sd + 1e-9))
+
+
+def _marginals(pr, fit):
+    import gtsam
+
+    try:
+        return gtsam.Marginals(_nl._graph(pr), _nl._values(pr, fit.poses, fit.points))
+    except RuntimeError as exc:
+        raise ValueError(f"measurements: the posterior covariance is undefined ({exc})") from None
+
+
+def _points_cov(marg, pr, cols, poses=()):
+    import gtsam
+
+    keys = [pr.n_poses + int(c) for c in cols] + [int(p) for p in poses]
+    jm = marg.jointMarginalCovariance(gtsam.KeyVector(keys))
+    dims = [2] * len(cols) + [3] * len(poses)
+    off = np.concatenate([[0], np.cumsum(dims)]).astype(int)
+    C = np.zeros((off[-1], off[-1]))
+    for a, ka in enumerate(keys):
+        for b in range(a, len(keys)):
+            blk = np.asarray(jm.at(ka, keys[b]))
+            C[off[a]:off[a + 1], off[b]:off[b + 1]] = blk
+            C[off[b]:off[b + 1], off[a]:off[a + 1]] = blk.T
+    return C
+
+
+def _weak_info(pr, fit, marg, ok, lflags, inflate):
+    """For weak landmarks: their rays and the joint covariance of (every point, the poses that
+    see a weak landmark), for conditional resampling."""
+    weak = [c for c, j in enumerate(ok.tolist()) if lflags[j] == "weak"]
+    if not weak:
+        return None
+    m = np.isin(pr.bearing_point, weak)
+    pidx = np.unique(pr.bearing_pose[m])
+    C = _points_cov(marg, pr, np.arange(ok.size), pidx) * inflate
+    return {"cols": np.array(weak), "poses": pidx, "cov": C,
+            "ray_pose": pr.bearing_pose[m], "ray_point": pr.bearing_point[m],
+            "ray_bearing": pr.bearing[m], "ray_sigma": pr.sigma_bearing[m],
+            "pose_mean": fit.poses[pidx], "robust": pr.robust_bearing}
+
+
+# ----------------------------------------------------------------------------- sampling
+def _huber(r, k):
+    a = np.abs(r)
+    return np.where(a <= k, 0.5 * r * r, k * a - 0.5 * k * k) if k > 0 else 0.5 * r * r
+
+
+def sample_landmarks(posterior: JointPosterior, n: int = 2000, seed=0, *,
+                     proposals: int = 32) -> np.ndarray:
+    """``n`` joint samples (n, L, 2) of the landmark positions (NaN for unconstrained ones):
+    modes chosen by weight, Gaussian within a mode; weak landmarks of the best mode resampled
+    from their exact conditional given the sampled poses (``proposals`` Student-t draws per
+    sample and landmark, one kept by its importance weight)."""
+    n = positive_int("n", n)
+    rng = as_rng(seed)
+    L = len(posterior.landmark_ids)
+    out = np.full((n, L, 2), np.nan)
+    if posterior.method == "none" or not posterior.modes:
+        return out
+    ok = np.flatnonzero(posterior.constrained)
+    counts = rng.multinomial(n, [m.weight for m in posterior.modes])
+    start = 0
+    for k, (mode, c) in enumerate(zip(posterior.modes, counts)):
+        if c == 0:
+            continue
+        sl = slice(start, start + c)
+        start += c
+        wk = posterior._weak if k == 0 else None
+        if wk is None:
+            z = _nl.sample_gaussian(mode.points[ok].ravel(), mode.covariance, int(c), rng)
+            out[sl, ok] = z.reshape(c, ok.size, 2)
+            continue
+        mu = np.concatenate([mode.points[ok].ravel(), wk["pose_mean"].ravel()])
+        z = _nl.sample_gaussian(mu, wk["cov"], int(c), rng)
+        pts = z[:, :2 * ok.size].reshape(c, ok.size, 2)
+        # GTSAM's pose tangent (x, y in the pose's own axes) -> world perturbation
+        d = z[:, 2 * ok.size:].reshape(c, -1, 3) - wk["pose_mean"][None]
+        th = wk["pose_mean"][None, :, 2]
+        poses = wk["pose_mean"][None] + np.stack(
+            [np.cos(th) * d[..., 0] - np.sin(th) * d[..., 1],
+             np.sin(th) * d[..., 0] + np.cos(th) * d[..., 1], d[..., 2]], -1)
+        pos_of = {int(p): i for i, p in enumerate(wk["poses"].tolist())}
+        for col in wk["cols"].tolist():
+            m = wk["ray_point"] == col
+            pi = np.array([pos_of[int(p)] for p in wk["ray_pose"][m]])
+            # proposal: the Gaussian conditional of this landmark given the sampled poses
+            # (regression on the pose block), widened x2 in sd, Student t with 4 dof
+            jj = np.arange(2 * col, 2 * col + 2)
+            xx = 2 * ok.size + np.arange(3 * wk["poses"].size)
+            Cxx = wk["cov"][np.ix_(xx, xx)]
+            Bm = wk["cov"][np.ix_(jj, xx)] @ np.linalg.pinv(Cxx)
+            Cj = (wk["cov"][np.ix_(jj, jj)] - Bm @ wk["cov"][np.ix_(xx, jj)]) * 4.0
+            Cj = (Cj + Cj.T) / 2 + np.eye(2) * 1e-12
+            mu_j = mode.points[ok][col] + d.reshape(c, -1) @ Bm.T      # (c, 2)
+            prop = mu_j[:, None, :] + _nl.sample_gaussian(
+                np.zeros(2), Cj, int(c) * proposals, rng, df=4).reshape(c, proposals, 2)
+            X = poses[:, pi]                                       # (c, R, 3)
+            dxy = prop[:, :, None, :] - X[:, None, :, :2]          # (c, K, R, 2)
+            pred = np.arctan2(dxy[..., 1], dxy[..., 0]) - X[:, None, :, 2]
+            r = wrap_angle(wk["ray_bearing"][m] - pred) / wk["ray_sigma"][m]
+            # a point behind a camera has a residual near pi / sigma: ruled out by the likelihood
+            loglik = -_huber(r, wk["robust"]).sum(-1)
+            logq = _t_logpdf(prop, mu_j[:, None, :], Cj, 4)
+            lw = loglik - logq
+            lw -= lw.max(axis=1, keepdims=True)
+            w = np.exp(lw)
+            w /= w.sum(axis=1, keepdims=True)
+            u = rng.random((c, 1))
+            pick = np.minimum((np.cumsum(w, axis=1) < u).sum(axis=1), proposals - 1)
+            pts[:, col] = prop[np.arange(c), pick]
+        out[sl, ok] = pts
+    return out
+
+
+def reference_samples(posterior: JointPosterior, n: int = 1000, *, steps: int = 2000,
+                      seed=0) -> np.ndarray:
+    """Long-run sampling of the exact (robust, nonlinear) posterior of a solved problem, to check
+    the approximations against: ``n`` random-walk Metropolis chains over every pose and
+    landmark, started from the Laplace approximation, proposals ``N(0, 2.38^2 / d Sigma)``
+    (Sigma the Laplace covariance of everything, poses turned to world coordinates), ``steps``
+    steps each; returns the chains' last states' landmarks (n, L, 2) (NaN where unconstrained).
+    Cost grows with the number of variables: meant for small problems (tests, development)."""
+    n = positive_int("n", n)
+    steps = positive_int("steps", steps)
+    rng = as_rng(seed)
+    L = len(posterior.landmark_ids)
+    out = np.full((n, L, 2), np.nan)
+    if posterior.method == "none":
+        return out
+    pr, fit = posterior._problem, posterior._fit
+    C = _points_cov(posterior.info["marginals"], pr, np.arange(pr.n_points),
+                    np.arange(pr.n_poses))
+    J = np.eye(C.shape[0])
+    for i, th in enumerate(fit.poses[:, 2]):
+        a = 2 * pr.n_points + 3 * i
+        J[a:a + 2, a:a + 2] = [[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]]
+    C = J @ C @ J.T
+    x0 = np.concatenate([fit.points.ravel(), fit.poses.ravel()])
+    dim = x0.size
+    cut = 2 * pr.n_points
+
+    def logp(x):
+        return -_nl.robust_cost(pr, x[:, cut:].reshape(len(x), -1, 3),
+                                x[:, :cut].reshape(len(x), -1, 2))
+
+    x = _nl.sample_gaussian(x0, C, n, rng)
+    lp = logp(x)
+    scale = 2.38 ** 2 / dim
+    for _ in range(steps):
+        y = x + _nl.sample_gaussian(np.zeros(dim), C * scale, n, rng)
+        ly = logp(y)
+        acc = np.log(rng.random(n)) < ly - lp
+        x[acc], lp[acc] = y[acc], ly[acc]
+    out[:, posterior.constrained] = x[:, :cut].reshape(n, -1, 2)
+    return out
+
+
+def _t_logpdf(x, mu, C, df):
+    """Log density (up to a constant) of a 2-D Student t with scale ``C``."""
+    Ci = np.linalg.inv(C)
+    d = x - mu
+    q = np.einsum("...i,ij,...j->...", d, Ci, d)
+    return -0.5 * (df + 2) * np.log1p(q / df)
+
+
+# ----------------------------------------------------------------------------- states
+def _all_triplets(L):
+    return [t for t in itertools.permutations(range(L), 3)]
+
+
+def _mix(P, q, w):
+    return (1.0 - w)[:, None] * P + w[:, None] * q[None, :]
+
+
+def triplet_marginals(posterior: JointPosterior, triplets=None, *, partition="edc",
+                      samples: int = 2000, seed=0, prior_states=None, floor: float = FLOOR,
+                      widen: float = 0.5) -> "Marginals":
+    """State distribution of every ordered triplet (landmark ids ``(A, B, C)``) from samples of
+    the posterior: ``P(S) = (1 - w) #{samples in S} / n + w q`` with ``q`` = ``prior_states``
+    (m,) (default uniform) and ``w`` = ``floor``, or ``widen`` for triplets with an
+    inconsistent landmark (or when a robot sat in a wrong minimum that could not be dropped), or
+    1 for triplets with an unconstrained landmark.
+
+    Returns a :class:`qfg.inference.results.Marginals` keyed by landmark-id triplets, method
+    ``"joint"`` (or ``"joint:none"`` when nothing was solved), ``info["flagged"]`` (n,) bool,
+    ``info["widen"]`` (n,) the weight given to the prior, ``info["flags"]``.
+    """
+    from .inference.results import Marginals
+
+    part = _partitions.get(partition)
+    m = part.n_states
+    ids = posterior.landmark_ids
+    if triplets is None:
+        tri_idx = np.array(_all_triplets(len(ids)), dtype=np.intp).reshape(-1, 3)
+    else:
+        tl = [tuple(t) for t in triplets]
+        if any(len(t) != 3 or len(set(t)) != 3 for t in tl):
+            raise ValueError("triplets: expected (A, B, C) triplets of three distinct ids")
+        tri_idx = posterior.index([x for t in tl for x in t]).reshape(-1, 3)
+    q = (np.full(m, 1.0 / m) if prior_states is None
+         else as_float_array("prior_states", prior_states, ndim=1))
+    if q.size != m or q.min() < 0 or not np.isclose(q.sum(), 1.0):
+        raise ValueError(f"prior_states: expected {m} probabilities summing to 1")
+    floor = non_negative("floor", floor)
+    widen = non_negative("widen", widen)
+    if floor > 1 or widen > 1:
+        raise ValueError("floor, widen: expected weights in [0, 1]")
+    n = len(tri_idx)
+    P = np.tile(q, (n, 1))
+    lf = np.array(posterior.landmark_flags)
+    w = np.full(n, floor)
+    if posterior.method != "none" and n:
+        S = sample_landmarks(posterior, samples, seed)
+        solvable = posterior.constrained[tri_idx].all(axis=1)
+        idx = np.flatnonzero(solvable)
+        P[idx] = _state_counts(S, tri_idx[idx], part) / samples
+        bad = (lf[tri_idx] == "inconsistent").any(axis=1)
+        if "local_minimum" in posterior.flags and all(
+                v != "local_minimum" for v in posterior.robot_flags.values()):
+            bad[:] = True  # the only run sits in a wrong minimum: nothing is trustworthy
+        w = np.where(bad, np.maximum(widen, floor), w)
+        w = np.where(solvable, w, 1.0)
+    else:
+        w[:] = 1.0
+    P = _mix(P, q, w)
+    keys = tuple(tuple(int(ids[i]) for i in t) for t in tri_idx.tolist())
+    return Marginals(keys, part.name, P, "joint" if posterior.method != "none" else "joint:none",
+                     {"flagged": w > floor, "widen": w, "flags": posterior.flags})
+
+
+def _state_counts(S, tri, part, chunk: int = 256):
+    """Counts (T, m) of each triplet's state over the samples S (n, L, 2)."""
+    m = part.n_states
+    out = np.zeros((len(tri), m))
+    for a in range(0, len(tri), chunk):
+        t = tri[a:a + chunk]
+        A, B, C = S[:, t[:, 0]], S[:, t[:, 1]], S[:, t[:, 2]]
+        s = part.state_of(_safe_frame(C, A, B))                     # (n, T')
+        k = np.arange(len(t))[None, :] * m + np.where(s >= 0, s, 0)
+        out[a:a + chunk] = np.bincount(k.ravel(), minlength=len(t) * m).reshape(len(t), m)
+    return out
+
+
+def _safe_frame(C, A, B):
+    """to_frame, with a sample where A and B coincide moved by a hair (measure zero)."""
+    d = B - A
+    near = np.sum(d * d, axis=-1) <= 1e-24
+    if near.any():
+        B = np.where(near[..., None], B + 1e-9, B)
+    return to_frame(C, A, B)
+
+
+def camera_marginals(posterior: JointPosterior, robot, pose_index, triplets, *,
+                     partition="edc", samples: int = 500, seed=0, prior_states=None,
+                     floor: float = FLOOR) -> np.ndarray:
+    """State distributions (n, m) of camera poses in triplet frames: row i is the state of pose
+    ``pose_index[i]`` of ``robot`` in the AB frame of ``triplets[i]`` (landmark ids), from
+    samples of the joint Gaussian of that pose and the landmarks (best mode). Rows whose robot
+    was not solved, or whose A or B is unconstrained, are ``prior_states`` (default uniform);
+    every row is mixed with it by ``floor``."""
+    part = _partitions.get(partition)
+    m = part.n_states
+    pose_index = np.asarray(pose_index, dtype=np.intp).reshape(-1)
+    tl = [tuple(t) for t in triplets]
+    if len(tl) != pose_index.size:
+        raise ValueError(f"triplets: expected {pose_index.size} triplets (one per pose), "
+                         f"got {len(tl)}")
+    q = np.full(m, 1.0 / m) if prior_states is None else np.asarray(prior_states, float)
+    out = np.tile(q, (pose_index.size, 1))
+    if robot not in posterior.robot_flags:
+        raise KeyError(f"robot: {robot} is not in this posterior")
+    if (posterior.method == "none" or posterior._pose_offset is None
+            or robot not in posterior._pose_offset or not pose_index.size):
+        return _mix(out, q, np.full(len(out), 1.0))
+    rng = as_rng(seed)
+    pr, fit = posterior._problem, posterior._fit
+    ok = np.flatnonzero(posterior.constrained)
+    col = -np.ones(len(posterior.landmark_ids), np.intp)
+    col[ok] = np.arange(ok.size)
+    marg = posterior.info["marginals"]
+    off = posterior._pose_offset[robot]
+    AB = posterior.index([x for t in tl for x in t[:2]]).reshape(-1, 2)
+    for p in np.unique(pose_index).tolist():
+        rows = np.flatnonzero(pose_index == p)
+        need = np.unique(col[AB[rows]])
+        if (need < 0).any():
+            continue
+        C = _points_cov(marg, pr, need, [off + p])
+        mu = np.concatenate([fit.points[need].ravel(), fit.poses[off + p]])
+        z = _nl.sample_gaussian(mu, C, samples, rng)
+        d = z[:, -3:] - fit.poses[off + p]
+        th = fit.poses[off + p, 2]
+        X = fit.poses[off + p] + np.stack([np.cos(th) * d[:, 0] - np.sin(th) * d[:, 1],
+                                           np.sin(th) * d[:, 0] + np.cos(th) * d[:, 1],
+                                           d[:, 2]], -1)
+        pos = {int(c): i for i, c in enumerate(need.tolist())}
+        for i in rows.tolist():
+            a, b = pos[int(col[AB[i, 0]])], pos[int(col[AB[i, 1]])]
+            A, B = z[:, 2 * a:2 * a + 2], z[:, 2 * b:2 * b + 2]
+            s = part.state_of(poses_to_frame(X, A, B)[:, :2])
+            out[i] = np.bincount(s[s >= 0], minlength=m)[:m] / samples
+    return _mix(out, q, np.full(len(out), non_negative("floor", floor)))
+
+
+def simulated_measurements(run, *, odometry: bool = True, robot: int = 0) -> JointMeasurements:
+    """:class:`JointMeasurements` of a :class:`qfg.simulation.TrajectoryRun` (one robot; every
+    image a pose; ``odometry=False`` leaves the odometry out). Landmark ids are row indices."""
+    vi, col = np.nonzero(run.visible)
+    r = RobotRun(robot=robot, times=np.arange(run.n_poses, dtype=float), bearing_pose=vi,
+                 bearing_landmark=col, bearing=run.bearings[vi, col],
+                 sigma_bearing=max(run.sigma_bearing, 1e-6),
+                 odometry=run.odometry if odometry else None,
+                 odometry_sigma=run.odometry_sigma if odometry else None)
+    return JointMeasurements((r,), tuple(range(run.n_landmarks)))
+
+
+# ----------------------------------------------------------------------------- MRCLAM
+def mrclam_runs(dataset, robots=None, *, min_move: float = 0.02, min_turn_deg: float = 1.0,
+                sigma_bearing: float | None = None, odometry_noise=None, keep_times=None,
+                odometry_lead: float | None = None) -> JointMeasurements:
+    """:class:`JointMeasurements` of an :class:`qfg.datasets.mrclam.MRCLAMDataset`.
+
+    Per robot: the views with at least one landmark (inside the odometry's span; repeated views
+    left out) kept as keyframes when the dead-reckoned pose moved ``min_move`` m or turned
+    ``min_turn_deg`` since the last keyframe (robots without odometry: every view), plus every
+    view whose time is in ``keep_times[robot]`` (views to be scored as cameras); the odometry
+    between keyframes from the dead-reckoned poses (:func:`odometry_steps`, noise
+    ``odometry_noise``, default :data:`ODOMETRY_NOISE`); bearings with
+    ``sigma_bearing`` (default the loader's ``DEFAULT_SIGMA_BEARING``)."""
+    from .datasets import mrclam as _m
+
+    sb = _m.DEFAULT_SIGMA_BEARING if sigma_bearing is None else non_negative(
+        "sigma_bearing", sigma_bearing)
+    lead = _m.DEFAULT_ODOMETRY_LEAD if odometry_lead is None else float(odometry_lead)
+    robots = sorted(dataset.robots) if not robots else [int(r) for r in robots]
+    min_turn = np.deg2rad(non_negative("min_turn_deg", min_turn_deg))
+    min_move = non_negative("min_move", min_move)
+    runs = []
+    for rn in robots:
+        rd = dataset.robot(rn)
+        P, covered = _m.view_poses(rd, lead)
+        usable = rd.visible.any(axis=1) & covered & ~_m.repeated_views(rd)
+        idx = np.flatnonzero(usable)
+        if idx.size == 0:
+            continue
+        forced = np.zeros(rd.n_views, bool)
+        if keep_times and rn in keep_times:
+            kt = np.asarray(sorted(keep_times[rn]), float)
+            pos = np.searchsorted(rd.view_times, kt)
+            pos = pos[(pos < rd.n_views)]
+            pos = pos[np.isclose(rd.view_times[pos], kt[:pos.size]) if pos.size == kt.size
+                      else np.isin(rd.view_times[pos], kt)]
+            forced[pos] = True
+        if P is not None:
+            kf = [idx[0]]
+            for i in idx[1:]:
+                a = P[kf[-1]]
+                if (forced[i] or np.hypot(*(P[i, :2] - a[:2])) >= min_move
+                        or abs(wrap_angle(P[i, 2] - a[2])) >= min_turn):
+                    kf.append(i)
+            kf = np.array(kf)
+            z, s = odometry_steps(P[kf], odometry_noise)
+        else:
+            kf, z, s = idx, None, None
+        vis = rd.visible[kf]
+        vi, col = np.nonzero(vis)
+        runs.append(RobotRun(robot=rn, times=rd.view_times[kf], bearing_pose=vi,
+                             bearing_landmark=dataset.landmark_ids[col],
+                             bearing=rd.view_bearings[kf][vi, col], sigma_bearing=sb,
+                             odometry=z, odometry_sigma=s))
+    if not runs:
+        raise ValueError(f"dataset: {dataset.name} has no robot with landmark views")
+    return JointMeasurements(tuple(runs), tuple(int(x) for x in dataset.landmark_ids))
+
+
+@dataclass(frozen=True, eq=False)
+class MRCLAMJoint:
+    """:func:`mrclam_marginals`' answer.
+
+    Attributes:
+        triplets: :class:`~qfg.inference.results.Marginals` keyed by subject-number triplets.
+        cameras: list of (n_views, m) arrays, one per requested history (or None when none
+            were requested).
+        method: which method answered (``"joint"``, or ``"none"``: no robot has odometry, the
+            solver-based pipeline must answer).
+        posterior: the :class:`JointPosterior`; time_s: wall time.
+    """
+
+    triplets: object
+    cameras: list | None
+    method: str
+    posterior: JointPosterior
+    time_s: float
+
+
+def mrclam_marginals(dataset, triplets=None, histories=None, *, robots=None, prior_states=None,
+                     camera_prior_states=None, samples: int = 2000, camera_samples: int = 300,
+                     seed=0, partition="edc", floor: float = FLOOR, widen: float = 0.5,
+                     run_options=None, **solve_options) -> MRCLAMJoint:
+    """The joint method on one MRCLAM dataset: triplet state distributions (every ordered
+    triplet of the dataset's landmarks, or ``triplets`` of subject numbers) and, for each
+    history in ``histories`` (objects with ``robot``, ``views`` (time stamps) and ``landmarks``,
+    e.g. :class:`qfg.datasets.mrclam.MRCLAMHistory`), the camera state of each of its views.
+
+    ``prior_states`` / ``camera_prior_states``: the state distributions of the prior alone (for
+    the floor and for what cannot be solved); ``run_options`` go to :func:`mrclam_runs`, the
+    rest to :func:`solve`. When no robot has odometry, ``method`` is ``"none"`` and every row is
+    the prior: answer with the solver pipeline instead (``qfg mrclam --method full``).
+    """
+    t0 = _time.perf_counter()
+    keep = None
+    if histories:
+        keep = {}
+        for h in histories:
+            keep.setdefault(int(h.robot), set()).update(float(t) for t in np.asarray(h.views))
+    meas = mrclam_runs(dataset, robots, keep_times=keep, **(run_options or {}))
+    post = solve(meas, seed=seed, **solve_options)
+    res = triplet_marginals(post, triplets, partition=partition, samples=samples, seed=seed,
+                            prior_states=prior_states, floor=floor, widen=widen)
+    cams = None
+    if histories:
+        cams = []
+        rng = as_rng(seed)
+        for h in histories:
+            rn = int(h.robot)
+            try:
+                run = meas.run(rn)
+            except KeyError:
+                run = None
+            m = _partitions.get(partition).n_states
+            if run is None:
+                q = (np.full(m, 1 / m) if camera_prior_states is None
+                     else np.asarray(camera_prior_states, float))
+                cams.append(np.tile(q, (len(h.views), 1)))
+                continue
+            pi = np.searchsorted(run.times, np.asarray(h.views, float))
+            pi = np.clip(pi, 0, run.n_poses - 1)
+            cams.append(camera_marginals(post, rn, pi, [tuple(h.landmarks)] * len(pi),
+                                         partition=partition, samples=camera_samples,
+                                         seed=rng, prior_states=camera_prior_states,
+                                         floor=floor))
+    return MRCLAMJoint(res, cams, post.method, post, _time.perf_counter() - t0)
