@@ -179,11 +179,19 @@ class QualitativeFactorGraph:
         self._triplets: list[tuple[int, int, int]] = []
         self._index: dict[tuple[int, int, int], int] = {}
         self._priors: list[np.ndarray | None] = []
-        self._factors: list[tuple[int, int, int, int]] = []
-        self._factor_set: set[tuple[int, int, int, int]] = set()
-        self._factor_vars: list[tuple[int, int, int]] = []
-        # pair (a, b) -> third ids c of triplets (a, b, c): the index behind discovery.
-        self._pair: dict[tuple[int, int], list[int]] = {}
+        # Factors in numpy blocks (a full 50-landmark map has 5.5 million): landmark ids (k, 4)
+        # and variable indices (k, 3), consolidated on first use. A factor (i, j, k, s) is keyed
+        # by (index of (i, j, k)) << KEY_BITS | s; keys of factors added one at a time live in a
+        # dict, those added by discovery in a sorted array.
+        self._fl_parts: list[np.ndarray] = []
+        self._fv_parts: list[np.ndarray] = []
+        self._pending: list[tuple] = []          # (key, ids, vars) added one at a time
+        self._single: dict[int, int] = {}
+        self._bulk_keys = np.zeros(0, dtype=np.int64)
+        self._bulk_idx = np.zeros(0, dtype=np.int64)
+        self._F = 0
+        self._cache = None                       # (fl (F, 4), fv (F, 3)) read-only, or None
+        self._csr = None                         # incidence (indptr, indices), or None
 
     # ----------------------------------------------------------------- tensor
     @property
@@ -217,7 +225,6 @@ class QualitativeFactorGraph:
         self._triplets.append(t)
         self._index[t] = v
         self._priors.append(p)
-        self._pair.setdefault((t[0], t[1]), []).append(t[2])
         return v
 
     def add_composition(self, ijks) -> int:
@@ -230,41 +237,113 @@ class QualitativeFactorGraph:
         except (TypeError, ValueError):
             raise ValueError(f"ijks: expected four landmark ids (i, j, k, s), got {ijks!r}") from None
         key = (i, j, k, s)
-        if key in self._factor_set:
-            return self._factors.index(key)
         vs = []
         for t in ((i, j, k), (j, k, s), (i, j, s)):
             if t not in self._index:
                 raise ValueError(f"ijks: triplet {t} of factor {key} is not in the map")
             vs.append(self._index[t])
-        self._factors.append(key)
-        self._factor_set.add(key)
-        self._factor_vars.append(tuple(vs))
-        return len(self._factors) - 1
+        fk = (vs[0] << KEY_BITS) | s
+        f = self._find(fk)
+        if f >= 0:
+            return f
+        f = self._F
+        self._pending.append((key, tuple(vs)))
+        self._single[fk] = f
+        self._F += 1
+        self._cache = None
+        self._csr = None
+        return f
+
+    def _find(self, fk: int) -> int:
+        """Index of the factor with key ``fk``, or -1."""
+        f = self._single.get(fk)
+        if f is not None:
+            return f
+        if len(self._bulk_keys):
+            p = int(np.searchsorted(self._bulk_keys, fk))
+            if p < len(self._bulk_keys) and int(self._bulk_keys[p]) == fk:
+                return int(self._bulk_idx[p])
+        return -1
+
+    def _flush(self):
+        if self._pending:
+            self._fl_parts.append(np.array([k for k, _ in self._pending], dtype=np.int64))
+            self._fv_parts.append(np.array([v for _, v in self._pending], dtype=np.intp))
+            self._pending = []
+
+    def _arrays(self):
+        """(landmark ids (F, 4) int64, variable indices (F, 3) intp), read-only."""
+        if self._cache is None:
+            self._flush()
+            fl = (np.concatenate(self._fl_parts) if self._fl_parts
+                  else np.zeros((0, 4), dtype=np.int64)).reshape(-1, 4)
+            fv = (np.concatenate(self._fv_parts) if self._fv_parts
+                  else np.zeros((0, 3), dtype=np.intp)).reshape(-1, 3)
+            self._fl_parts, self._fv_parts = [fl], [fv]
+            fl.setflags(write=False)
+            fv.setflags(write=False)
+            self._cache = (fl, fv)
+        return self._cache
 
     def discover_compositions(self) -> int:
         """Add every composition factor ``(i j:k, j k:s, i j:s)`` whose triplets are all in the map.
 
-        Indexed by landmark pairs: for each triplet (i, j, k), the candidates s are the third ids
-        of the triplets (j, k, s), kept when (i, j, s) is in the map -- cost O(sum over triplets of
-        the triplets sharing their last pair), not a scan of all triples of triplets.
-        Returns the number of factors added.
+        Vectorized join on landmark pairs: for each triplet (i, j, k), the candidates s are the
+        third ids of the triplets (j, k, s) (a sorted pair index and one ``searchsorted``), kept
+        when (i, j, s) is in the map (a sorted triplet index) -- cost O(sum over triplets of the
+        triplets sharing their last pair), not a scan of all triples of triplets. New factors
+        are added in lexicographic ``(i, j, k, s)`` order. Returns the number of factors added.
         """
-        found = []
-        index = self._index
-        for (i, j, k) in self._triplets:
-            for s in self._pair.get((j, k), ()):
-                if s != i and (i, j, s) in index:
-                    key = (i, j, k, s)
-                    if key not in self._factor_set:
-                        found.append(key)
-        found.sort()
-        for key in found:
-            i, j, k, s = key
-            self._factors.append(key)
-            self._factor_set.add(key)
-            self._factor_vars.append((index[(i, j, k)], index[(j, k, s)], index[(i, j, s)]))
-        return len(found)
+        n = len(self._triplets)
+        if n == 0:
+            return 0
+        T = np.array(self._triplets, dtype=np.int64).reshape(-1, 3)
+        B = np.int64(KEY_BITS)
+        pair = (T[:, 0] << B) | T[:, 1]                      # (a, b) of every triplet
+        po = np.argsort(pair, kind="stable")
+        ps = pair[po]
+        want = (T[:, 1] << B) | T[:, 2]                      # (j, k) of every triplet (i, j, k)
+        lo = np.searchsorted(ps, want, side="left")
+        hi = np.searchsorted(ps, want, side="right")
+        cnt = hi - lo
+        a = np.repeat(np.arange(n, dtype=np.int64), cnt)     # candidate t1 = (i, j, k)
+        start = np.repeat(lo - np.cumsum(cnt) + cnt, cnt)
+        b = po[start + np.arange(len(a), dtype=np.int64)]    # candidate t2 = (j, k, s)
+        i, j, k, sx = T[a, 0], T[a, 1], T[a, 2], T[b, 2]
+        ok = sx != i
+        a, b, i, j, k, sx = a[ok], b[ok], i[ok], j[ok], k[ok], sx[ok]
+        tkey = (T[:, 0] << (2 * B)) | (T[:, 1] << B) | T[:, 2]
+        to = np.argsort(tkey)
+        tk = tkey[to]
+        ckey = (i << (2 * B)) | (j << B) | sx
+        p = np.minimum(np.searchsorted(tk, ckey), n - 1)
+        ok = tk[p] == ckey
+        a, b, c = a[ok], b[ok], to[p[ok]]
+        i, j, k, sx = i[ok], j[ok], k[ok], sx[ok]
+        fk = (a << B) | sx
+        if self._F:
+            old = np.fromiter(self._single.keys(), dtype=np.int64, count=len(self._single))
+            known = np.isin(fk, old) | np.isin(fk, self._bulk_keys)
+            keep = ~known
+            a, b, c, i, j, k, sx, fk = (x[keep] for x in (a, b, c, i, j, k, sx, fk))
+        if len(a) == 0:
+            return 0
+        order = np.lexsort((sx, k, j, i))
+        fl = np.stack([i, j, k, sx], axis=1)[order]
+        fv = np.stack([a, b, c], axis=1)[order].astype(np.intp)
+        fk = fk[order]
+        self._arrays()
+        self._fl_parts.append(fl)
+        self._fv_parts.append(fv)
+        idx = np.arange(self._F, self._F + len(fk), dtype=np.int64)
+        keys = np.concatenate([self._bulk_keys, fk])
+        ko = np.argsort(keys, kind="stable")
+        self._bulk_keys = keys[ko]
+        self._bulk_idx = np.concatenate([self._bulk_idx, idx])[ko]
+        self._F += len(fk)
+        self._cache = None
+        self._csr = None
+        return int(len(fk))
 
     # ------------------------------------------------------------ accessors
     @property
@@ -277,12 +356,12 @@ class QualitativeFactorGraph:
 
     @property
     def factors(self) -> list[tuple[int, int, int, int]]:
-        return list(self._factors)
+        return [tuple(r) for r in self._arrays()[0].tolist()]
 
     @property
     def factor_vars(self) -> np.ndarray:
-        """(F, 3) int variable indices of each composition factor (t1, t2, t3)."""
-        return np.asarray(self._factor_vars, dtype=np.intp).reshape(-1, 3)
+        """(F, 3) int variable indices of each composition factor (t1, t2, t3) (read-only)."""
+        return self._arrays()[1]
 
     @property
     def n_triplets(self) -> int:
@@ -290,7 +369,7 @@ class QualitativeFactorGraph:
 
     @property
     def n_factors(self) -> int:
-        return len(self._factors)
+        return self._F
 
     @property
     def seen(self) -> np.ndarray:
@@ -319,11 +398,29 @@ class QualitativeFactorGraph:
 
     def incidence(self) -> list[list[int]]:
         """For each variable, the factor indices that touch it (ascending)."""
-        inc: list[list[int]] = [[] for _ in range(self.n_triplets)]
-        for f, vs in enumerate(self._factor_vars):
-            for v in set(vs):
-                inc[v].append(f)
-        return inc
+        indptr, indices = self.incidence_csr()
+        flat = indices.tolist()
+        return [flat[indptr[v]:indptr[v + 1]] for v in range(self.n_triplets)]
+
+    def incidence_csr(self) -> tuple[np.ndarray, np.ndarray]:
+        """The incidence as arrays: the factors of variable v are
+        ``indices[indptr[v]:indptr[v + 1]]`` (ascending, each once)."""
+        if self._csr is None:
+            fv = self._arrays()[1]
+            F = len(fv)
+            var = fv.ravel().astype(np.int64)
+            fac = np.repeat(np.arange(F, dtype=np.int64), 3)
+            o = np.lexsort((fac, var))
+            var, fac = var[o], fac[o]
+            keep = np.ones(len(var), dtype=bool)
+            keep[1:] = (var[1:] != var[:-1]) | (fac[1:] != fac[:-1])
+            var, fac = var[keep], fac[keep]
+            indptr = np.zeros(self.n_triplets + 1, dtype=np.int64)
+            np.cumsum(np.bincount(var, minlength=self.n_triplets), out=indptr[1:])
+            fac.setflags(write=False)
+            indptr.setflags(write=False)
+            self._csr = (indptr, fac)
+        return self._csr
 
     # ------------------------------------------------------------ exports
     def to_gtsam(self):
@@ -341,7 +438,7 @@ class QualitativeFactorGraph:
             if p is not None:
                 graph.push_back(gtsam.DecisionTreeFactor([dkeys[v]], p.tolist()))
         flat = self.table.ravel().tolist()
-        for (a, b, c) in self._factor_vars:
+        for (a, b, c) in self._arrays()[1].tolist():
             graph.push_back(gtsam.DecisionTreeFactor([dkeys[a], dkeys[b], dkeys[c]], flat))
         return graph
 
@@ -369,7 +466,7 @@ class QualitativeFactorGraph:
             if p is not None:
                 G.add_node(("u",) + t, bipartite=1, kind="unary")
                 G.add_edge(("u",) + t, ("v",) + t)
-        for key, vs in zip(self._factors, self._factor_vars, strict=True):
+        for key, vs in zip(self.factors, self._arrays()[1].tolist(), strict=True):
             G.add_node(("c",) + key, bipartite=1, kind="composition")
             for role, v in enumerate(vs, start=1):
                 G.add_edge(("c",) + key, ("v",) + self._triplets[v], role=role)

@@ -227,7 +227,157 @@ def propagate_pooled(g) -> Marginals:
                       "seen": g.seen, "isc": information_score(values)})
 
 
-def propagate(g, close_used: bool = False, rule: str = "best") -> Marginals:
+def _best_first(g, close_used: bool):
+    """Algorithm 2's label-correcting loop with one best proposal per target triplet.
+
+    The same choices as :func:`_label_correcting` (highest ISC, ties: smaller triplet, then
+    smaller factor), with memory in O(F): the ISC of every open factor's proposal for each of its
+    non-updated triplets is kept in an (F, 3) array, each non-updated triplet keeps its best
+    (score, factor), and the heap holds one entry per change of a triplet's best. Proposals are
+    not stored: the accepted one is composed again when popped (its factor has not changed since:
+    the entry is valid only while it is its target's best). After an update, only the factors of
+    the updated triplet are recomposed, in one batch per role (``(V_x outer V_y) @ T_r``), and a
+    target whose best came from one of them and got worse is re-scanned over its own factors.
+    """
+    T = g.table
+    m = g.m
+    n = g.n_triplets
+    fv = np.asarray(g.factor_vars, dtype=np.int64)
+    F = len(fv)
+    Ts = T / T.max()
+    others = ((1, 2), (0, 2), (0, 1))
+    cubes = [np.moveaxis(Ts, r, -1) for r in range(3)]        # (x, y, target) per role
+    mats = [np.ascontiguousarray(c.reshape(m * m, m)) for c in cubes]
+    # one known triplet, the other uniform: the cube summed over the uniform axis, (m, m)
+    sum_y = [np.ascontiguousarray(c.sum(axis=1)) for c in cubes]
+    sum_x = [np.ascontiguousarray(c.sum(axis=0)) for c in cubes]
+    seen = g.seen
+    values = g.prior_matrix()
+    unit = values / values.max(axis=1, keepdims=True)       # the composition's unit-max inputs
+    updated = seen.copy()
+    order: list[int] = []
+    updated_by = np.full(n, -1, dtype=np.intp)
+    if F == 0:
+        return values, np.array(order, dtype=np.intp), updated_by, updated
+    indptr, indices = g.incidence_csr()
+    count = updated[fv].sum(axis=1).astype(np.int8)
+    closed = np.zeros(F, dtype=bool)
+    S = np.full((F, 3), -np.inf)
+    best_s = np.full(n, -np.inf)
+    best_f = np.full(n, -1, dtype=np.int64)
+    tiny = np.finfo(float).tiny
+
+    def compose(ff, role):
+        """(k, m) proposals of factors ``ff`` for their triplet in ``role``."""
+        x, y = others[role]
+        vx, vy = fv[ff, x], fv[ff, y]
+        kx, ky = updated[vx], updated[vy]
+        p = np.empty((len(ff), m))
+        both = kx & ky
+        if both.any():
+            Vx, Vy = unit[vx[both]], unit[vy[both]]
+            p[both] = (Vx[:, :, None] * Vy[:, None, :]).reshape(len(Vx), m * m) @ mats[role]
+        one = kx & ~ky
+        if one.any():
+            p[one] = unit[vx[one]] @ sum_y[role]
+        one = ky & ~kx
+        if one.any():
+            p[one] = unit[vy[one]] @ sum_x[role]
+        tot = p.sum(axis=1, keepdims=True)
+        zero = tot[:, 0] <= tiny
+        p = p / np.where(zero[:, None], 1.0, tot)
+        if zero.any():
+            p[zero] = 1.0 / m
+        return p
+
+    def rescore(fs):
+        """Recompute S for factors ``fs``; returns (targets, factors, scores) of open ones."""
+        S[fs] = -np.inf
+        live = fs[(count[fs] > 0) & (count[fs] < 3) & ~closed[fs]]
+        tv, tf, tr, ps = [], [], [], []
+        for role in range(3):
+            ff = live[~updated[fv[live, role]]]
+            if len(ff):
+                ps.append(compose(ff, role))
+                tv.append(fv[ff, role])
+                tf.append(ff)
+                tr.append(np.full(len(ff), role))
+        if not tv:
+            return None
+        tf, tr = np.concatenate(tf), np.concatenate(tr)
+        sc = information_score(np.concatenate(ps))          # one call for all roles
+        S[tf, tr] = sc
+        return np.concatenate(tv), tf, sc
+
+    heap: list = []
+
+    def offer(tv, tf, ts):
+        """Candidates (target, factor, score): keep each target's best, push improvements."""
+        o = np.lexsort((tf, -ts, tv))                       # per target: best score, then factor
+        tv, tf, ts = tv[o], tf[o], ts[o]
+        first = np.ones(len(tv), dtype=bool)
+        first[1:] = tv[1:] != tv[:-1]
+        tv, tf, ts = tv[first], tf[first], ts[first]
+        bs, bf = best_s[tv], best_f[tv]
+        better = (ts > bs) | ((ts == bs) & ((tf < bf) | (bf < 0)))
+        better &= ts > -np.inf
+        for v, f, sc in zip(tv[better].tolist(), tf[better].tolist(), ts[better].tolist()):
+            best_s[v], best_f[v] = sc, f
+            heapq.heappush(heap, (-sc, v, f))
+
+    def rescan(w):
+        fs = indices[indptr[w]:indptr[w + 1]]
+        sc = S[fs, np.argmax(fv[fs] == w, axis=1)]
+        mx = sc.max() if len(sc) else -np.inf
+        if mx == -np.inf:
+            best_s[w], best_f[w] = -np.inf, -1
+            return
+        f = int(fs[sc == mx].min())
+        best_s[w], best_f[w] = float(mx), f
+        heapq.heappush(heap, (-float(mx), w, f))
+
+    # every open factor at the start, in chunks that bound the (chunk, m^2) products
+    chunk = max(1, (1 << 22) // (m * m))
+    for lo in range(0, F, chunk):
+        got = rescore(np.arange(lo, min(F, lo + chunk), dtype=np.int64))
+        if got is not None:
+            offer(*got)
+    while heap:
+        negs, v, f = heapq.heappop(heap)
+        if updated[v] or best_f[v] != f or best_s[v] != -negs:
+            continue                                        # stale
+        role = int(np.flatnonzero(fv[f] == v)[0])
+        p = compose(np.array([f]), role)[0]
+        values[v] = p
+        unit[v] = p / p.max()
+        updated[v] = True
+        order.append(v)
+        updated_by[v] = f
+        if close_used:
+            closed[f] = True
+        fs = indices[indptr[v]:indptr[v + 1]]
+        count[fs] += 1
+        # targets whose best came from a factor of v: its proposal changed (or closed)
+        tw = fv[fs].ravel()
+        tf_ = np.repeat(fs, 3)
+        lost = ~updated[tw] & (best_f[tw] == tf_)
+        lost_w = np.unique(tw[lost])
+        got = rescore(fs)
+        for w in lost_w.tolist():
+            best_s[w], best_f[w] = -np.inf, -1
+        if got is not None:
+            tv, tf, ts = got
+            # a target that lost its best is re-scanned over all of its factors instead
+            keep = ~np.isin(tv, lost_w)
+            if keep.any():
+                offer(tv[keep], tf[keep], ts[keep])
+        for w in lost_w.tolist():
+            rescan(w)
+    return values, np.array(order, dtype=np.intp), updated_by, updated
+
+
+def propagate(g, close_used: bool = False, rule: str = "best", *, _reference: bool = False
+              ) -> Marginals:
     """Algorithm 2 (label-correcting propagation by composition).
 
     ``rule="mean"`` returns :func:`propagate_pooled` instead (breadth-first rounds: no factor is
@@ -294,8 +444,11 @@ def propagate(g, close_used: bool = False, rule: str = "best") -> Marginals:
             pay.extend(p)
         return (np.concatenate(rows_f), np.concatenate(rows_r), np.concatenate(rows_s), pay)
 
-    values, order, updated_by, reached = _label_correcting(g, priors, propose, close_used)
-    marg = np.array([np.full(m, 1.0 / m) if v is None else v for v in values]).reshape(-1, m)
+    if _reference:
+        values, order, updated_by, reached = _label_correcting(g, priors, propose, close_used)
+        marg = np.array([np.full(m, 1.0 / m) if v is None else v for v in values]).reshape(-1, m)
+    else:
+        marg, order, updated_by, reached = _best_first(g, close_used)
     return Marginals(tuple(g.triplets), g.partition, marg, "label_correcting",
                      {"isc": information_score(marg), "order": order, "updated_by": updated_by,
                       "reached": reached, "seen": g.seen, "close_used": bool(close_used)})

@@ -406,3 +406,20 @@ def test_close_used_reading_closes_the_factor_after_one_update():
     np.testing.assert_allclose(t.scores, [1.0, 0.5, 0.0, 0.25, 0.0])
     c = composition_levels(g, close_used=True)
     np.testing.assert_array_equal(c.levels, [0, 1, np.inf, 2, np.inf])
+
+
+@pytest.mark.parametrize("seed", range(30))
+def test_best_first_engine_makes_the_choices_of_the_proposal_heap(seed):
+    """Issue 19: Algorithm 2 keeps one best proposal per triplet (memory O(F)); it must pick
+    the same triplet, factor and value at every step as the engine that heaps every proposal."""
+    rng = np.random.default_rng(seed)
+    m = int(rng.integers(2, 6))
+    g = random_graph(rng, rand_T(rng, m), n_land=int(rng.integers(4, 8)),
+                     frac=float(rng.uniform(0.1, 0.7)))
+    for close_used in (False, True):
+        a = propagate(g, close_used=close_used)
+        b = propagate(g, close_used=close_used, _reference=True)
+        np.testing.assert_array_equal(a.order, b.order)
+        np.testing.assert_array_equal(a.updated_by, b.updated_by)
+        np.testing.assert_array_equal(a.reached, b.reached)
+        np.testing.assert_allclose(a.probabilities, b.probabilities, atol=1e-12)
