@@ -321,7 +321,7 @@ def _best_first(g, close_used: bool):
         bs, bf = best_s[tv], best_f[tv]
         better = (ts > bs) | ((ts == bs) & ((tf < bf) | (bf < 0)))
         better &= ts > -np.inf
-        for v, f, sc in zip(tv[better].tolist(), tf[better].tolist(), ts[better].tolist()):
+        for v, f, sc in zip(tv[better].tolist(), tf[better].tolist(), ts[better].tolist(), strict=True):
             best_s[v], best_f[v] = sc, f
             heapq.heappush(heap, (-sc, v, f))
 
