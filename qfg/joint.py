@@ -82,6 +82,9 @@ DIVERGED = 10.0
 #: Bearings beyond this many sigmas at a fit are gross errors (MRCLAM dataset 6: dropping them
 #: takes robots 3 and 5's maps from 15-17 cm to 5-6 cm median error, docs/joint.md).
 OUTLIER = 4.0
+#: A run with more than this share of its bearings beyond :data:`OUTLIER` disagrees with the
+#: map (MRCLAM dataset 6: at most 1.4 % of the bearings are gross errors, docs/mrclam.md).
+OUTLIER_SHARE = 0.1
 #: Weight of the prior's state distribution mixed into every row (chosen on MRCLAM dataset 6
 #: and development simulations: docs/joint.md).
 FLOOR = 1e-3
@@ -444,13 +447,23 @@ def _apply(R, t, poses=None, points=None):
     return out
 
 
-def _robot_medians(pr, fit, offs, runs):
-    """Median |whitened bearing residual| of each run in a joint fit."""
+def _robot_checks(pr, fit, offs, runs, outlier):
+    """Per run of a fit: (median |whitened bearing residual|, share of bearings beyond
+    ``outlier``), over every bearing of ``pr`` (the problem before outliers were dropped, so
+    that dropping cannot hide a run that disagrees with the map)."""
+    rb, _ = _nl.residuals(pr, fit.poses, fit.points)
+    rb = np.abs(rb)
     out = {}
     for r in runs:
         m = (pr.bearing_pose >= offs[r.robot]) & (pr.bearing_pose < offs[r.robot] + r.n_poses)
-        out[r.robot] = float(np.median(np.abs(fit.bearing_residuals[m]))) if m.any() else 0.0
+        out[r.robot] = ((float(np.median(rb[m])), float(np.mean(rb[m] > outlier)))
+                        if m.any() else (0.0, 0.0))
     return out
+
+
+def _failed(check, residual_limit, outlier) -> bool:
+    med, frac = check
+    return med > residual_limit or (outlier > 0 and frac > OUTLIER_SHARE)
 
 
 def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 3,
@@ -469,8 +482,9 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
         robust: Huber threshold on the bearings (sigmas; 0 for plain least squares).
         outlier: bearings with a whitened residual above it are left out and the fit redone,
             at the end of each run's batches and after the joint solve (0: keep all).
-        residual_limit: a robot whose median |whitened bearing residual| exceeds it is in a
-            wrong local minimum (a Gaussian gives 0.67).
+        residual_limit: a robot whose median |whitened bearing residual| exceeds it, or with
+            more than :data:`OUTLIER_SHARE` of its bearings beyond ``outlier``, is in a wrong
+            local minimum (a Gaussian gives a median of 0.67).
         landmark_limit: a landmark whose median |whitened residual| exceeds it is
             ``inconsistent``.
         mode_cost: another start's minimum within this much cost of the best is kept as a mode.
@@ -514,7 +528,12 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
         # several starts: other batch sizes when a run ends in a wrong minimum
         for ch in dict.fromkeys((chunk, 2 * chunk, max(chunk // 2, 2))):
             poses, points, have, fit = _solve_run(r, lm_index, **{**opts, "chunk": ch})
-            if fit is not None and np.median(np.abs(fit.bearing_residuals)) <= residual_limit:
+            if fit is None:
+                continue
+            pr1, offs1, ok1 = _problem_of([r], lm_index, have, r.robot, robust=robust)
+            chk = _robot_checks(pr1, _nl.Fit(poses, points[ok1], 0.0, 0, True, None, None),
+                                offs1, [r], outlier)[r.robot]
+            if not _failed(chk, residual_limit, outlier):
                 per[r.robot] = (poses, points, have)
                 break
         else:
@@ -561,11 +580,13 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
             for rr in runs:
                 per[rr.robot][2][ok[far]] = False
             continue
+        pr_all = pr
         pr, fit, n_out = _drop_outliers(pr, fit, outlier, max_iterations)
-        med = _robot_medians(pr, fit, offs, use)
-        bad = [r for r, v in med.items() if v > residual_limit]
+        chk = _robot_checks(pr_all, fit, offs, use, outlier)
+        med = {r: c[0] for r, c in chk.items()}
+        bad = [r for r, c in chk.items() if _failed(c, residual_limit, outlier)]
         if bad and len(use) > 1:
-            worst = max(bad, key=lambda r: med[r])
+            worst = max(bad, key=lambda r: (chk[r][1], chk[r][0]))
             robot_flags[worst] = "local_minimum"
             flags.append("local_minimum")
             runs = [r for r in runs if r.robot != worst]
@@ -687,7 +708,7 @@ def _huber(r, k):
 
 
 def sample_landmarks(posterior: JointPosterior, n: int = 2000, seed=0, *,
-                     proposals: int = 32) -> np.ndarray:
+                     proposals: int = 64) -> np.ndarray:
     """``n`` joint samples (n, L, 2) of the landmark positions (NaN for unconstrained ones):
     modes chosen by weight, Gaussian within a mode; weak landmarks of the best mode resampled
     from their exact conditional given the sampled poses (``proposals`` Student-t draws per
@@ -726,13 +747,17 @@ def sample_landmarks(posterior: JointPosterior, n: int = 2000, seed=0, *,
             pi = np.array([pos_of[int(p)] for p in wk["ray_pose"][m]])
             # proposal: the Gaussian conditional of this landmark given the sampled poses
             # (regression on the pose block), widened x2 in sd, Student t with 4 dof
+            # (a landmark is tied to the other poses only through the ones that see it, so
+            # conditioning on those is conditioning on all)
             jj = np.arange(2 * col, 2 * col + 2)
-            xx = 2 * ok.size + np.arange(3 * wk["poses"].size)
+            up = np.unique(pi)
+            xx = (2 * ok.size + 3 * up[:, None] + np.arange(3)[None, :]).ravel()
             Cxx = wk["cov"][np.ix_(xx, xx)]
-            Bm = wk["cov"][np.ix_(jj, xx)] @ np.linalg.pinv(Cxx)
+            Cxx = (Cxx + Cxx.T) / 2 + np.eye(xx.size) * 1e-12 * max(np.trace(Cxx), 1e-30)
+            Bm = np.linalg.solve(Cxx, wk["cov"][np.ix_(xx, jj)]).T          # (2, 3 |up|)
             Cj = (wk["cov"][np.ix_(jj, jj)] - Bm @ wk["cov"][np.ix_(xx, jj)]) * 4.0
             Cj = (Cj + Cj.T) / 2 + np.eye(2) * 1e-12
-            mu_j = mode.points[ok][col] + d.reshape(c, -1) @ Bm.T      # (c, 2)
+            mu_j = mode.points[ok][col] + d[:, up].reshape(c, -1) @ Bm.T   # (c, 2)
             prop = mu_j[:, None, :] + _nl.sample_gaussian(
                 np.zeros(2), Cj, int(c) * proposals, rng, df=4).reshape(c, proposals, 2)
             X = poses[:, pi]                                       # (c, R, 3)
@@ -786,9 +811,9 @@ def reference_samples(posterior: JointPosterior, n: int = 1000, *, steps: int = 
 
     x = _nl.sample_gaussian(x0, C, n, rng)
     lp = logp(x)
-    scale = 2.38 ** 2 / dim
+    F = _nl.gaussian_factor(C) * (2.38 / np.sqrt(dim))
     for _ in range(steps):
-        y = x + _nl.sample_gaussian(np.zeros(dim), C * scale, n, rng)
+        y = x + rng.standard_normal((n, dim)) @ F.T
         ly = logp(y)
         acc = np.log(rng.random(n)) < ly - lp
         x[acc], lp[acc] = y[acc], ly[acc]

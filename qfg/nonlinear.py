@@ -38,7 +38,8 @@ from ._validate import as_float_array, as_rng, non_negative, positive_int
 from .geometry import wrap_angle
 
 __all__ = ["BearingProblem", "Fit", "fit", "fit_best", "residuals", "covariance",
-           "sample_gaussian", "intersect_rays", "without_bearings", "robust_cost", "HUBER_K"]
+           "sample_gaussian", "gaussian_factor", "intersect_rays", "without_bearings",
+           "robust_cost", "HUBER_K"]
 
 #: Huber threshold in sigmas: 95% efficiency at the normal (the usual choice).
 HUBER_K = 1.345
@@ -388,6 +389,14 @@ def covariance(problem: BearingProblem, result: Fit, points=(), poses=()) -> np.
     return C
 
 
+def gaussian_factor(cov) -> np.ndarray:
+    """``F`` with ``F F^T = cov`` (symmetric eigen factorisation, negative eigenvalues from
+    round-off clipped to 0): ``mean + z F^T`` with standard normal ``z`` draws N(mean, cov)."""
+    C = np.asarray(cov, float)
+    w, V = np.linalg.eigh((C + C.T) / 2)
+    return V * np.sqrt(np.clip(w, 0.0, None))
+
+
 def sample_gaussian(mean, cov, n: int, seed=None, *, df: float = 0.0) -> np.ndarray:
     """``n`` draws (n, d) of N(mean, cov) (``df`` > 0: multivariate Student t with ``df``
     degrees of freedom and scale ``cov``, a heavier-tailed proposal). Symmetric eigen
@@ -398,9 +407,7 @@ def sample_gaussian(mean, cov, n: int, seed=None, *, df: float = 0.0) -> np.ndar
         raise ValueError(f"cov: expected shape {(mu.size, mu.size)}, got {C.shape}")
     n = positive_int("n", n, minimum=0)
     rng = as_rng(seed)
-    w, V = np.linalg.eigh((C + C.T) / 2)
-    F = V * np.sqrt(np.clip(w, 0.0, None))
-    z = rng.standard_normal((n, mu.size)) @ F.T
+    z = rng.standard_normal((n, mu.size)) @ gaussian_factor(C).T
     if df > 0:
         z = z / np.sqrt(rng.chisquare(df, size=(n, 1)) / df)
     return mu + z

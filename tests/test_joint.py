@@ -1,0 +1,314 @@
+"""The joint map method (qfg.joint) and the nonlinear module under it (qfg.nonlinear).
+
+Checked against things computed independently: a long-run Metropolis sampler of the exact robust
+posterior (numpy, not GTSAM's linearisation), geometry (ray intersections, noise-free
+configurations), GTSAM's own graph error against the numpy cost, and data corrupted on purpose.
+"""
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from qfg import joint
+from qfg import nonlinear as nl
+from qfg.inference.results import Marginals
+from qfg.partitions import get as get_partition
+from qfg.simulation import random_trajectory_run
+
+EDC = get_partition("edc")
+
+
+def _truth(run, triplets):
+    t = np.array(triplets)
+    L = run.landmarks
+    return joint._safe_frame(L[t[:, 2]], L[t[:, 0]], L[t[:, 1]])
+
+
+def _run(seed, **kw):
+    opts = dict(n_landmarks=6, n_poses=14, fov_deg=360.0)
+    opts.update(kw)
+    return random_trajectory_run(np.random.default_rng(seed), **opts)
+
+
+# ----------------------------------------------------------------------------- nonlinear
+def test_intersect_rays_is_the_exact_intersection_and_measures_parallax():
+    rng = np.random.default_rng(0)
+    p = np.array([0.3, 1.7])
+    o = rng.uniform(-3, 3, size=(5, 2))
+    ang = np.arctan2(p[1] - o[:, 1], p[0] - o[:, 0])
+    q, ok, par = nl.intersect_rays(o, ang, 0.01)
+    assert ok and np.allclose(q, p, atol=1e-9)
+    d = np.abs(joint.wrap_angle(ang[:, None] - ang[None, :]))
+    assert par == pytest.approx(np.max(np.minimum(d, np.pi - d)))
+    _, ok, par = nl.intersect_rays([[0, 0], [1, 0]], [0.0, 0.0], 0.01)  # collinear rays
+    assert not ok
+
+
+def test_robust_cost_equals_gtsams_graph_error():
+    run = _run(1)
+    meas = joint.simulated_measurements(run)
+    post = joint.solve(meas, starts=1)
+    pr, fit = post._problem, post._fit
+    rng = np.random.default_rng(2)
+    for scale in (0.0, 0.01, 0.05):
+        X = fit.poses + rng.normal(0, scale, fit.poses.shape)
+        L = fit.points + rng.normal(0, scale, fit.points.shape)
+        g = nl._graph(pr).error(nl._values(pr, X, L))
+        assert float(nl.robust_cost(pr, X, L)) == pytest.approx(g, rel=1e-3, abs=1e-6)
+
+
+def test_covariance_without_a_gauge_is_a_clear_error():
+    pr = nl.BearingProblem(n_poses=2, n_points=1, bearing_pose=[0, 1], bearing_point=[0, 0],
+                           bearing=[0.5, 2.0], sigma_bearing=0.01)
+    f = nl.fit(pr, [[0, 0, 0], [2, 0, 0]], [[1, 1]])
+    with pytest.raises(ValueError, match="problem"):
+        nl.covariance(pr, f, points=[0])
+
+
+@pytest.mark.parametrize("kw, name", [
+    (dict(bearing_pose=[0, 5], bearing_point=[0, 0], bearing=[0, 0]), "bearing_pose"),
+    (dict(bearing_pose=[0], bearing_point=[0], bearing=[np.nan]), "bearing"),
+    (dict(bearing_pose=[0], bearing_point=[0], bearing=[0.1], sigma_bearing=0.0),
+     "sigma_bearing"),
+    (dict(between_from=[0], between_to=[1], between=[[1, 0]]), "between"),
+])
+def test_bearing_problem_bad_input_names_the_argument(kw, name):
+    with pytest.raises(ValueError, match=name):
+        nl.BearingProblem(n_poses=2, n_points=1, **kw)
+
+
+# ----------------------------------------------------------------------------- simulator
+def test_trajectory_run_noise_free_odometry_is_the_true_motion():
+    r = random_trajectory_run(np.random.default_rng(3), n_landmarks=7, n_poses=12,
+                              sigma_bearing=0, sigma_heading=0, sigma_step=0, sigma_turn=0,
+                              fov_deg=90)
+    rel = nl._relative(r.poses[:-1], r.poses[1:])
+    assert np.allclose(r.odometry, rel, atol=1e-12)
+    true = joint.wrap_angle(np.arctan2(r.landmarks[None, :, 1] - r.poses[:, None, 1],
+                                       r.landmarks[None, :, 0] - r.poses[:, None, 0])
+                            - r.poses[:, None, 2])
+    assert np.all(np.abs(true[r.visible]) <= np.deg2rad(45) + 1e-12)
+    assert np.allclose(r.bearings[r.visible], true[r.visible])
+    assert np.all(r.bearings[~r.visible] == 0)
+
+
+# ----------------------------------------------------------------------------- joint
+def test_states_of_a_known_configuration():
+    """Nearly noise-free measurements: every triplet's most likely state is the true one, with
+    near certainty wherever C is not within 2 cm of a state boundary."""
+    run = _run(4, sigma_bearing=np.deg2rad(0.02), sigma_heading=np.deg2rad(0.05),
+               sigma_step=0.001, sigma_turn=np.deg2rad(0.05), n_poses=16)
+    post = joint.solve(joint.simulated_measurements(run))
+    assert post.method == "joint" and all(f in ("ok", "weak") for f in post.landmark_flags)
+    res = joint.triplet_marginals(post, samples=400, seed=0)
+    assert isinstance(res, Marginals) and res.partition == "edc"
+    c = _truth(run, res.triplets)
+    g = EDC.state_of(c)
+    P = res.probabilities
+    assert np.all(P.argmax(1) == g)
+    # distance of C (AB frame) to the nearest boundary, by perturbation
+    eps = 0.02
+    stable = np.ones(len(g), bool)
+    for d in ([eps, 0], [-eps, 0], [0, eps], [0, -eps]):
+        stable &= EDC.state_of(c + np.array(d)) == g
+    assert np.all(P[np.arange(len(g)), g][stable] > 0.98)
+    assert res[res.triplets[0]].shape == (20,)
+
+
+def test_joint_matches_long_run_sampling_of_the_exact_posterior():
+    """The state distributions from the joint method's samples against those of a long
+    Metropolis run on the exact robust posterior (few views, paper's noise)."""
+    run = _run(5, n_poses=8, n_landmarks=5)
+    meas = joint.simulated_measurements(run)
+    post = joint.solve(meas)
+    ok = post.constrained
+    assert ok.all() and set(post.landmark_flags) == {"weak"}
+    tri = np.array(joint._all_triplets(5))
+    n = 300
+
+    def states(S):
+        return joint._state_counts(S, tri, EDC) / len(S)
+
+    def tv(a, b):
+        return 0.5 * np.abs(a - b).sum(1).mean()
+
+    ref = states(joint.reference_samples(post, n, steps=800, seed=1))
+    sir = states(joint.sample_landmarks(post, n, seed=2))
+    gauss = states(joint.sample_landmarks(joint.solve(meas, sir_rays=0), n, seed=2))
+    # the posterior is far from Gaussian here (8 views): the conditional resampling of the weak
+    # landmarks is much closer to the exact posterior than one Laplace approximation
+    assert tv(sir, ref) < 0.25 and tv(sir, ref) < tv(gauss, ref) - 0.1, (tv(sir, ref),
+                                                                         tv(gauss, ref))
+    # and both are far from what an uninformed answer gives
+    assert tv(np.full_like(ref, 1 / 20), ref) > 0.5
+
+
+def test_a_robot_in_a_wrong_minimum_is_flagged_and_dropped():
+    """Three runs of one world; the third's barcodes are misassigned (landmark ids permuted),
+    so that its map cannot agree with the others: it must be flagged, left out, and the answer
+    stay right."""
+    rng = np.random.default_rng(6)
+    L = rng.uniform([-3, -3], [3, 4], size=(6, 2))
+    runs = []
+    for k in range(3):
+        r = random_trajectory_run(np.random.default_rng(60 + k), n_landmarks=6, n_poses=16,
+                                  fov_deg=360)
+        # same landmarks for every robot: recompute the bearings
+        phi = joint.wrap_angle(np.arctan2(L[None, :, 1] - r.poses[:, None, 1],
+                                          L[None, :, 0] - r.poses[:, None, 0])
+                               - r.poses[:, None, 2])
+        phi = phi + np.random.default_rng(70 + k).normal(0, r.sigma_bearing, phi.shape)
+        vi, col = np.nonzero(r.visible)
+        ids = col if k < 2 else np.array([1, 0, 3, 2, 5, 4])[col]
+        runs.append(joint.RobotRun(k, np.arange(r.n_poses, dtype=float), vi, ids, phi[vi, col],
+                                   r.sigma_bearing, r.odometry, r.odometry_sigma))
+    post = joint.solve(joint.JointMeasurements(tuple(runs)))
+    assert post.robot_flags[2] == "local_minimum"
+    assert "local_minimum" in post.flags
+    assert post.robot_flags[0] == post.robot_flags[1] == "ok"
+    res = joint.triplet_marginals(post, samples=400, seed=0)
+    g = EDC.state_of(joint._safe_frame(*(L[np.array(res.triplets)[:, i]] for i in (2, 0, 1))))
+    assert np.mean(res.probabilities[np.arange(len(g)), g] > 0.5) > 0.8
+
+
+def test_a_fit_that_fails_its_residual_check_is_widened_not_confident():
+    """One robot whose bearings are far noisier than it claims (5 deg told 0.1 deg): no start
+    passes the residual check, the answer is flagged and every triplet is the prior."""
+    run = _run(7, sigma_bearing=np.deg2rad(5.0))
+    meas = joint.simulated_measurements(run)
+    r = meas.runs[0]
+    bad = joint.JointMeasurements((joint.RobotRun(0, r.times, r.bearing_pose, r.bearing_landmark,
+                                                  r.bearing, np.deg2rad(0.1), r.odometry,
+                                                  r.odometry_sigma),))
+    post = joint.solve(bad)
+    assert "local_minimum" in post.flags and post.robot_flags[0] == "local_minimum"
+    q = np.linspace(1, 2, 20)
+    q /= q.sum()
+    res = joint.triplet_marginals(post, samples=200, prior_states=q)
+    assert np.allclose(res.probabilities, q) and np.all(res.info["flagged"])
+
+
+def test_unconstrained_landmark_gets_the_prior():
+    run = _run(8, n_landmarks=6)
+    meas = joint.simulated_measurements(run)
+    r = meas.runs[0]
+    keep = ~((r.bearing_landmark == 5) & (r.bearing_pose > 0))  # landmark 5: one ray
+    r2 = joint.RobotRun(0, r.times, r.bearing_pose[keep], r.bearing_landmark[keep],
+                        r.bearing[keep], r.sigma_bearing, r.odometry, r.odometry_sigma)
+    post = joint.solve(joint.JointMeasurements((r2,), meas.landmark_ids))
+    assert post.landmark_flags[5] == "unconstrained" and "unconstrained_landmark" in post.flags
+    q = np.full(20, 0.05)
+    res = joint.triplet_marginals(post, [(0, 1, 5), (5, 0, 1), (0, 1, 2)], samples=200,
+                                  prior_states=q)
+    assert np.allclose(res[(0, 1, 5)], q) and np.allclose(res[(5, 0, 1)], q)
+    assert list(res.info["flagged"]) == [True, True, False]
+    assert res[(0, 1, 2)].max() > 0.5
+
+
+def test_no_odometry_falls_back_with_a_flag():
+    run = _run(9)
+    post = joint.solve(joint.simulated_measurements(run, odometry=False))
+    assert post.method == "none" and "no_odometry" in post.flags
+    assert post.robot_flags[0] == "no_odometry"
+    res = joint.triplet_marginals(post, samples=100)
+    assert res.method == "joint:none" and np.allclose(res.probabilities, 1 / 20)
+    # with another robot that has odometry, the one without is left out and flagged
+    m1 = joint.simulated_measurements(run, odometry=False, robot=1).runs[0]
+    m0 = joint.simulated_measurements(run).runs[0]
+    post = joint.solve(joint.JointMeasurements((m0, m1)))
+    assert post.method == "joint" and post.robot_flags == {0: "ok", 1: "no_odometry"}
+
+
+def test_floor_mixes_every_row_toward_the_prior():
+    run = _run(10)
+    post = joint.solve(joint.simulated_measurements(run))
+    a = joint.triplet_marginals(post, samples=300, seed=0, floor=0.0)
+    b = joint.triplet_marginals(post, samples=300, seed=0, floor=0.01)
+    assert np.allclose(b.probabilities, 0.99 * a.probabilities + 0.01 / 20)
+    assert np.allclose(a.probabilities.sum(1), 1)
+
+
+def test_same_seed_same_answer():
+    run = _run(11)
+    meas = joint.simulated_measurements(run)
+    a = joint.triplet_marginals(joint.solve(meas), samples=200, seed=5)
+    b = joint.triplet_marginals(joint.solve(meas), samples=200, seed=5)
+    assert np.array_equal(a.probabilities, b.probabilities)
+
+
+@pytest.mark.parametrize("kw, err, name", [
+    (dict(times=[1.0, 0.0]), ValueError, "times"),
+    (dict(bearing_pose=[0, 3]), ValueError, "bearing_pose"),
+    (dict(bearing=[0.1]), ValueError, "bearing"),
+    (dict(odometry=[[0.1, 0, 0], [0, 0, 0]]), ValueError, "odometry"),
+    (dict(odometry_sigma=None), ValueError, "odometry_sigma"),
+    (dict(sigma_bearing=0.0), ValueError, "sigma_bearing"),
+])
+def test_robot_run_bad_input(kw, err, name):
+    base = dict(robot=0, times=[0.0, 1.0], bearing_pose=[0, 1], bearing_landmark=[3, 4],
+                bearing=[0.1, 0.2], sigma_bearing=0.01, odometry=[[0.1, 0, 0]],
+                odometry_sigma=[[0.01, 0.01, 0.01]])
+    base.update(kw)
+    with pytest.raises(err, match=name):
+        joint.RobotRun(**base)
+
+
+def test_bad_measurements_and_queries():
+    r = joint.RobotRun(0, [0.0, 1.0], [0, 1], [3, 4], [0.1, 0.2], 0.01)
+    with pytest.raises(ValueError, match="at least 3 landmarks"):
+        joint.JointMeasurements((r,))
+    with pytest.raises(ValueError, match="distinct"):
+        joint.JointMeasurements((r, r), (3, 4, 5))
+    with pytest.raises(ValueError, match="not in the list"):
+        joint.JointMeasurements((r,), (3, 5, 6))
+    with pytest.raises(ValueError, match="measurements"):
+        joint.solve([r])
+    post = joint.solve(joint.simulated_measurements(_run(12)))
+    with pytest.raises(KeyError, match="99"):
+        joint.triplet_marginals(post, [(0, 1, 99)])
+    with pytest.raises(ValueError, match="triplets"):
+        joint.triplet_marginals(post, [(0, 0, 1)])
+    with pytest.raises(ValueError, match="prior_states"):
+        joint.triplet_marginals(post, prior_states=np.ones(20))
+    with pytest.raises(KeyError, match="robot"):
+        joint.camera_marginals(post, 7, [0], [(0, 1, 2)])
+
+
+def test_camera_states_of_a_known_configuration():
+    run = _run(13, sigma_bearing=np.deg2rad(0.02), sigma_heading=np.deg2rad(0.05),
+               sigma_step=0.001, sigma_turn=np.deg2rad(0.05))
+    post = joint.solve(joint.simulated_measurements(run))
+    tri = [(0, 1, 2)] * run.n_poses
+    P = joint.camera_marginals(post, 0, np.arange(run.n_poses), tri, samples=200, seed=0)
+    A, B = run.landmarks[0], run.landmarks[1]
+    g = EDC.state_of(joint._safe_frame(run.poses[:, :2], A, B))
+    assert np.mean(P.argmax(1) == g) >= 0.9
+
+
+# ----------------------------------------------------------------------------- MRCLAM
+def _mrclam_dir():
+    root = os.environ.get("QFG_MRCLAM_DIR") or str(Path(__file__).resolve().parents[2]
+                                                     / "shared" / "data" / "mrclam")
+    d = Path(root) / "MRCLAM_Dataset6"
+    return d if d.is_dir() else None
+
+
+@pytest.mark.skipif(_mrclam_dir() is None, reason="MRCLAM dataset 6 not present")
+def test_mrclam_runs_keep_requested_views_and_odometry_matches_dead_reckoning():
+    from qfg.datasets import mrclam
+
+    ds = mrclam.load(_mrclam_dir())
+    rd = ds.robot(2)
+    want = rd.view_times[np.flatnonzero(rd.visible.any(1))[[10, 11, 12]]]
+    meas = joint.mrclam_runs(ds, [2, 3], keep_times={2: set(want.tolist())})
+    run = meas.run(2)
+    assert set(want.tolist()) <= set(run.times.tolist())
+    P, _ = mrclam.view_poses(rd)
+    idx = np.searchsorted(rd.view_times, run.times)
+    chain = joint._chain(P[idx[0]], run.odometry)
+    assert np.allclose(chain[:, :2], P[idx, :2], atol=1e-9)
+    assert meas.landmark_ids == tuple(int(x) for x in ds.landmark_ids)
+    with pytest.raises(KeyError, match="robot"):
+        meas.run(9)
