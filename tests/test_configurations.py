@@ -8,8 +8,10 @@ import json
 import numpy as np
 import pytest
 
-from qfg.configurations import (ConfigurationPosterior, PositionSummary, configuration_marginals,
-                                infer_configurations, prior_states, summarize_position)
+from qfg.combine import temper
+from qfg.configurations import (TEMPER, ConfigurationPosterior, PositionSummary,
+                                configuration_marginals, infer_configurations, prior_states,
+                                summarize_position)
 from qfg.geometry import to_frame
 from qfg.graph import QualitativeFactorGraph
 from qfg.priors import WorldBoxPrior
@@ -33,8 +35,10 @@ def _all_triplets(n):
             if len({a, b, c}) == 3]
 
 
-def _brute_force(evidence, triplets, n, draws, floor=FLOOR, seed=0):
-    """Importance sampling from the prior: weights prod_t ((1 - eps) P_t(s_t) / q(s_t) + eps)."""
+def _brute_force(evidence, triplets, n, draws, floor=FLOOR, seed=0, tau=TEMPER["state"]):
+    """Importance sampling from the prior: weights prod_t ((1 - eps) P'_t(s_t) / q(s_t) + eps),
+    P'_t = q (P_t / q)^tau normalized (the default tempering of state likelihoods)."""
+    from qfg.combine import temper
     from qfg.partitions import get
 
     pr, part = WorldBoxPrior(), get("edc")
@@ -48,7 +52,8 @@ def _brute_force(evidence, triplets, n, draws, floor=FLOOR, seed=0):
     logw = np.zeros(draws)
     for t, v in evidence.items():
         s = states([t])[:, 0]
-        logw += np.log((1 - floor) * v[s] / q[s] + floor)
+        vt = temper(v, q, tau)
+        logw += np.log((1 - floor) * vt[s] / q[s] + floor)
     w = np.exp(logw - logw.max())
     w /= w.sum()
     S = states(triplets)
@@ -73,16 +78,18 @@ def test_no_evidence_gives_the_prior_state_marginals():
     assert np.all(np.abs(P.mean(axis=0) - q) < 5 * se + 1e-3)
 
 
-def test_one_seen_triplet_closed_form():
-    # with one seen triplet its marginal is q (L / E_q L) = (1 - eps) P + eps q exactly: the floor
-    # keeps eps q(s) for the states the estimate rules out (it cannot veto the truth)
+@pytest.mark.parametrize("tau", [1.0, 0.6])
+def test_one_seen_triplet_closed_form(tau):
+    # with one seen triplet its marginal is q (L / E_q L) = (1 - eps) P' + eps q exactly (P' the
+    # tempered estimate, P itself at tau = 1): the floor keeps eps q(s) for the states the
+    # estimate rules out (it cannot veto the truth)
     v = np.zeros(M)
     v[[1, 3]] = [0.8, 0.2]
     post = infer_configurations({(0, 1, 2): v}, seed=1, n_particles=4000, n_groups=8,
-                                floor=0.05, pseudo_count=0.0)
+                                floor=0.05, pseudo_count=0.0, temper=tau)
     res = post.marginals([(0, 1, 2)])
     q = prior_states("world", "edc")
-    want = 0.95 * v + 0.05 * q
+    want = 0.95 * (v if tau == 1 else temper(v, q, tau)) + 0.05 * q
     se = res.info["mc_error"][0]
     assert np.all(np.abs(res[(0, 1, 2)] - want) < 5 * se + 0.01)
     assert np.all(res[(0, 1, 2)][v == 0] > 0)      # ruled-out states keep mass
