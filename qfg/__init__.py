@@ -24,7 +24,7 @@ import importlib as _importlib
 from ._version import __version__
 
 _MODULES = ("geometry", "partitions", "simulation", "datasets", "solvers", "composition", "graph",
-            "inference", "propagation", "configurations", "metrics")
+            "inference", "propagation", "configurations", "metrics", "nonlinear", "joint")
 
 #: top-level name -> module that defines it
 _NAMES = {
@@ -58,6 +58,9 @@ _NAMES = {
     "random_triplet_history": "simulation",
     "random_scenario": "simulation",
     "triplet_histories": "simulation",
+    "random_trajectory_run": "simulation",
+    "JointMeasurements": "joint",
+    "RobotRun": "joint",
 }
 
 #: harness modules that lived at the top level before 0.2: a clear pointer instead of a bare miss

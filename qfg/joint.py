@@ -389,13 +389,13 @@ def _solve_run(r, lm_index, *, chunk, min_rays, min_par, robust, max_iterations,
 
 def _drop_outliers(pr, fit, limit, max_iterations):
     """Bearings whose whitened residual exceeds ``limit`` left out and the fit redone from it
-    (misread barcodes and the like; a point keeps at least 2 rays). Returns (problem, fit,
+    (misread barcodes and the like; a point keeps at least 3 rays). Returns (problem, fit,
     number dropped)."""
     if not limit:
         return pr, fit, 0
     drop = np.abs(fit.bearing_residuals) > limit
     left = np.bincount(pr.bearing_point[~drop], minlength=pr.n_points)
-    drop &= left[pr.bearing_point] >= 2
+    drop &= left[pr.bearing_point] >= 3
     if not drop.any():
         return pr, fit, 0
     pr2 = _nl.without_bearings(pr, drop)
@@ -593,6 +593,17 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
             continue
         if bad:
             flags.append("local_minimum")
+        try:
+            marg = _marginals(pr, fit)
+        except _Indeterminate as exc:
+            # a landmark whose rays leave it undetermined (nearly parallel after outliers were
+            # dropped): leave it out, flagged unconstrained, and solve again
+            if exc.key is None or exc.key < pr.n_poses:
+                raise ValueError(f"measurements: the posterior covariance is undefined "
+                                 f"({exc})") from None
+            for rr in runs:
+                per[rr.robot][2][ok[exc.key - pr.n_poses]] = False
+            continue
         break
     runs = use
     # landmark checks
@@ -609,7 +620,6 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
     if "unconstrained" in lflags:
         flags.append("unconstrained_landmark")
     # 4. modes and their covariances
-    marg = _marginals(pr, fit)
     cov0 = _points_cov(marg, pr, np.arange(ok.size)) * inflate
     modes = [(fit, cov0)]
     for k, f in enumerate(fits):
@@ -618,7 +628,10 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
         if _same_mode(f.points, fit.points, cov0) or any(
                 _same_mode(f.points, m[0].points, cov0) for m in modes):
             continue
-        modes.append((f, _points_cov(_marginals(pr, f), pr, np.arange(ok.size)) * inflate))
+        try:
+            modes.append((f, _points_cov(_marginals(pr, f), pr, np.arange(ok.size)) * inflate))
+        except _Indeterminate:  # a degenerate second minimum is no mode
+            continue
     if len(modes) > 1:
         flags.append("second_mode")
     logw = np.array([-f.cost + 0.5 * np.linalg.slogdet(C)[1] for f, C in modes])
@@ -661,13 +674,25 @@ def _same_mode(a, b, cov) -> bool:
     return bool(np.all(np.hypot(*(a - b).T) <= 3 * sd + 1e-9))
 
 
+class _Indeterminate(ValueError):
+    """GTSAM found the linear system indeterminate near variable ``key`` (None if unnamed)."""
+
+    def __init__(self, message, key):
+        super().__init__(message)
+        self.key = key
+
+
 def _marginals(pr, fit):
+    import re
+
     import gtsam
 
     try:
         return gtsam.Marginals(_nl._graph(pr), _nl._values(pr, fit.poses, fit.points))
     except RuntimeError as exc:
-        raise ValueError(f"measurements: the posterior covariance is undefined ({exc})") from None
+        m = re.search(r"near variable\s+(\d+)", str(exc))
+        raise _Indeterminate(" ".join(str(exc).split())[:200],
+                             int(m.group(1)) if m else None) from None
 
 
 def _points_cov(marg, pr, cols, poses=()):

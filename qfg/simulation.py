@@ -371,8 +371,8 @@ def random_trajectory_run(rng, n_landmarks: int = 8, n_poses: int = 40, *,
                           sigma_heading: float = float(np.deg2rad(5.0)), sigma_step: float = 0.05,
                           sigma_turn: float = float(np.deg2rad(2.0)), step: float = 0.3,
                           turn_sd: float = float(np.deg2rad(20.0)), fov_deg: float = 120.0,
-                          min_visible: int = 0, config: SimulationConfig = SimulationConfig()
-                          ) -> TrajectoryRun:
+                          min_visible: int = 0, config: SimulationConfig = SimulationConfig(),
+                          landmarks=None) -> TrajectoryRun:
     """A robot driving ``n_poses`` poses among ``n_landmarks`` uniform random landmarks.
 
     The robot starts at a uniform position with a uniform heading and drives ``step`` per pose,
@@ -381,6 +381,8 @@ def random_trajectory_run(rng, n_landmarks: int = 8, n_poses: int = 40, *,
     ``min_visible`` > 0 redraws the landmarks until every image sees that many (up to
     ``config.max_tries`` times). Noise defaults are the paper's (bearings 2 deg, direction of
     travel 5 deg) plus 5% step length and 2 deg turn for the odometry's other components.
+    ``landmarks`` (L, 2) places the landmarks instead of drawing them (several robots in one
+    world; ``n_landmarks`` is then ignored).
 
     >>> r = random_trajectory_run(np.random.default_rng(0), n_landmarks=6, n_poses=10)
     >>> r.poses.shape, r.odometry.shape, r.visible.shape
@@ -417,12 +419,19 @@ def random_trajectory_run(rng, n_landmarks: int = 8, n_poses: int = 40, *,
             th = np.arctan2(to_c[1], to_c[0]) + rng.normal(0.0, turn_sd / 4)
             nxt = np.array([x, y]) + step * np.array([np.cos(th), np.sin(th)])
         poses[i] = (*nxt, wrap_angle(th))
+    fixed = None if landmarks is None else as_float_array("landmarks", landmarks, ndim=2,
+                                                              last_dim=2)
+    if fixed is not None and fixed.shape[0] < 3:
+        raise ValueError(f"landmarks: expected at least 3, got {fixed.shape[0]}")
     for _ in range(config.max_tries):
-        L = sample_positions(rng, n_landmarks, config)
+        L = sample_positions(rng, n_landmarks, config) if fixed is None else fixed
         true_phi = bearing(poses[:, None, :], L[None, :, :])
         visible = np.abs(true_phi) <= np.deg2rad(fov) / 2 + 1e-12
         if visible.sum(axis=1).min() >= min_visible:
             break
+        if fixed is not None:
+            raise ValueError(f"min_visible: the given landmarks leave an image with fewer "
+                             f"than {min_visible} in view")
     else:
         raise ValueError(f"min_visible: no landmark draw gave every image {min_visible} landmarks "
                          f"in {config.max_tries} tries")
