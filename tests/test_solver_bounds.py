@@ -70,3 +70,18 @@ def test_ess_flags_a_deliberately_failed_sampler(method, histories):
     assert all(e.degenerate and e.ess < DEFAULTS[method]["min_ess"] for e in flagged)
     good = solve_triplets(histories, method=method, seed=1)
     assert sum("effective sample size" in e.reason for e in good) <= 1
+
+
+def test_quadratic_time_of_the_sis_methods_is_capped():
+    """full and fast spend time quadratic in the views (docs/solvers.md): refused above the work
+    budget (full: 100 views; fast: its smaller budgets take it to about 480), before any work."""
+    assert _budget.work_units("full", DEFAULTS["full"], 100) <= _budget.WORK_BUDGET
+    for method, n in (("full", 101), ("fast", 500)):
+        b, h = _views(n)
+        with pytest.raises(ValueError, match="time budget"):
+            solve_triplet(b, h, method=method, sigma_bearing=0.02, sigma_heading=0.05, seed=0)
+    # quadratic for the SIS methods, linear for the others
+    for method, power in (("full", 2), ("fast", 2), ("fast-paper", 1), ("baseline", 1)):
+        r = _budget.work_units(method, DEFAULTS[method], 80) / _budget.work_units(
+            method, DEFAULTS[method], 40)
+        assert r == pytest.approx(2.0**power, rel=0.03)

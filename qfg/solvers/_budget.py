@@ -1,11 +1,16 @@
-"""Time and memory bounds of the solvers for any number of views: a working-memory estimate
-checked up front (a ValueError naming the way out instead of a machine out of memory), and a
-cap on the reference solver's views (its time grows much faster than linearly).
+"""Time and memory bounds of the solvers for any number of views, checked up front (a
+ValueError naming the way out instead of a machine out of memory or a call that never returns).
 
 Every method keeps at most a fixed number of hypotheses per triplet (``max_hypotheses``,
-``n_landmark_samples``, the reference's draws), each holding one pose per view: time and memory
-grow linearly with the number of views, and :func:`check` refuses a call whose estimate exceeds
-:data:`MEMORY_BUDGET`.
+``n_landmark_samples``, the reference's draws), each holding one pose per view: memory grows
+linearly with the number of views (:func:`working_bytes`, refused above
+:data:`MEMORY_BUDGET`). Time grows linearly for ``fast-paper`` and ``baseline`` but
+quadratically for the SIS methods (every view integrates C over all views so far and copies the
+trajectories: docs/solvers.md, "More views"), so :func:`work_units` counts pose-views processed
+and :data:`WORK_BUDGET` caps them at what full takes for 100 views (measured under a load of 11:
+full 0.42, 0.90, 3.15, 9.9 s per triplet at 10, 20, 40, 80 views; fast 0.10, 0.39, 1.46 s at 40,
+80, 160 views, so about 15 s for full at 100 views and 9 s for fast at its cap of about 480).
+The reference solver takes at most :data:`REFERENCE_MAX_VIEWS` views.
 """
 
 from __future__ import annotations
@@ -16,6 +21,9 @@ MEMORY_BUDGET = 2 * 2**30
 #: Most views the reference solver takes: at 20 views it answered in 46-157 s with an ESS of
 #: 5-7 and gave no answer within 10 minutes at 50 (issue 20).
 REFERENCE_MAX_VIEWS = 20
+
+#: Most pose-views one triplet may process (:func:`work_units`): full's at 100 views.
+WORK_BUDGET = 3000 * 8 * 100 * 101 // 2
 
 #: Copies of the hypotheses' poses alive at once (children, resampling, the C weights), a
 #: generous multiple.
@@ -31,21 +39,37 @@ def working_bytes(method: str, opts: dict, n_triplets: int, n_views: int) -> int
     >>> working_bytes("full", DEFAULTS["full"], 1, 3) < 2**24
     True
     """
-    per_view = 3 * 8 * _COPIES
+    return int(n_triplets) * _rows(method, opts, n_views) * int(n_views) * 3 * 8 * _COPIES
+
+
+def work_units(method: str, opts: dict, n_views: int) -> int:
+    """Pose-views one triplet of ``n_views`` views processes: hypotheses x views summed over the
+    views for the SIS methods (quadratic), hypotheses x views for the others (linear).
+
+    >>> from qfg.solvers import DEFAULTS
+    >>> work_units("full", DEFAULTS["full"], 100) == WORK_BUDGET
+    True
+    """
+    n = int(n_views)
+    if method in ("full", "fast"):
+        return _rows("full" if method == "full" else "fast", opts, n) * n * (n + 1) // 2
+    return _rows(method, opts, n) * n
+
+
+def _rows(method, opts, n_views) -> int:
+    """Hypotheses (rows) alive per triplet at once."""
     if method in ("full", "fast"):
         # hypotheses alive: the first view's samples times the motion draws of every later view,
         # capped at max_hypotheses; each draws motion_samples children
         ms = opts["motion_samples"]
         alive = min(opts["max_hypotheses"], opts["n_samples"] * ms ** min(max(n_views - 1, 0), 60))
-        rows = alive * ms
-    elif method == "fast-paper":
-        rows = 2 * opts["max_hypotheses"]
-    elif method == "baseline":
+        return alive * ms
+    if method == "fast-paper":
+        return 2 * opts["max_hypotheses"]
+    if method == "baseline":
         # candidates x resected poses per view, plus the (candidates, states) camera shares
-        rows = opts["n_landmark_samples"] * (opts["noise_samples"] + 8)
-    else:
-        rows = opts.get("n_samples", 10_000) * opts.get("grow", 4)
-    return int(n_triplets) * int(rows) * int(n_views) * per_view
+        return opts["n_landmark_samples"] * (opts["noise_samples"] + 8)
+    return opts.get("n_samples", 10_000) * opts.get("grow", 4)
 
 
 def check(method: str, opts: dict, n_triplets: int, n_views: int) -> None:
@@ -54,6 +78,13 @@ def check(method: str, opts: dict, n_triplets: int, n_views: int) -> None:
         raise ValueError(f"bearings: the reference solver takes at most {REFERENCE_MAX_VIEWS} "
                          f"views (got {n_views}): its time grows much faster than linearly; "
                          "use method='full' or fewer views")
+    work = work_units(method, opts, n_views)
+    if work > WORK_BUDGET:
+        raise ValueError(f"bearings: {n_views} views would take method {method!r} about "
+                         f"{work / WORK_BUDGET:.1f}x the time budget (what full takes for 100 "
+                         "views, qfg.solvers._budget.WORK_BUDGET): its time grows with the square "
+                         "of the views; solve fewer views (e.g. the latest ones) or smaller "
+                         "budgets (max_hypotheses, n_samples)")
     need = working_bytes(method, opts, n_triplets, n_views)
     if need > MEMORY_BUDGET:
         raise ValueError(f"bearings: {n_triplets} triplet(s) of {n_views} views would need about "
