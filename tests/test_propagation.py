@@ -423,3 +423,16 @@ def test_best_first_engine_makes_the_choices_of_the_proposal_heap(seed):
         np.testing.assert_array_equal(a.updated_by, b.updated_by)
         np.testing.assert_array_equal(a.reached, b.reached)
         np.testing.assert_allclose(a.probabilities, b.probabilities, atol=1e-12)
+
+
+def test_unchecked_information_score_is_the_metric():
+    from qfg.metrics import information_score
+    from qfg.propagation import _isc
+
+    rng = np.random.default_rng(3)
+    p = rng.dirichlet(np.full(20, 0.3), size=200)
+    p[:5, :10] = 0.0
+    p[:5] /= p[:5].sum(axis=1, keepdims=True)
+    p[5] = np.eye(20)[3]
+    p[6] = 1 / 20
+    np.testing.assert_array_equal(_isc(p, np.log(20)), information_score(p))
