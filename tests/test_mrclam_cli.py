@@ -257,6 +257,13 @@ def test_map_method_is_pluggable_recorded_and_resume_reuses_the_pieces(root, tmp
     assert rows and {r["map"] for r in rows} == {"flat"}
     assert all(np.isclose(float(r["log_score"]), float(r["uniform_log_score"])) for r in rows)
     assert (out / "maps" / "flat.npz").exists() and (out / "maps" / "pooled.npz").exists()
+    # the seen estimates, for work outside the pipeline: each seen triplet's estimate
+    with np.load(out / "seen.npz") as z:
+        seen_rows = {tuple(t): p for t, p in zip(z["triplet_ids"].tolist(), z["probabilities"])}
+        assert (z["history_row"] >= 0).all() and len(z["estimates"]) == len(z["history_row"])
+    with open(out / "triplets.csv") as fh:
+        pooled_free = [r for r in csv.DictReader(fh) if r["kind"] == "seen"]
+    assert set(seen_rows) == {(int(r["A"]), int(r["B"]), int(r["C"])) for r in pooled_free}
     # the recorded map is used again while its inputs are the same
     n = len(made)
     assert main(["mrclam", str(d), "--output", str(out), "--piece-size", "8", "--seed", "4",

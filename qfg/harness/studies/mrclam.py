@@ -401,14 +401,16 @@ def estimates_from_rows(prep: Prepared, rows: list[dict]) -> list[_Light]:
     by = {int(r["history"]): r for r in rows}
     n = len(prep.histories)
     if sorted(by) != list(range(n)):
-        raise ValueError(f"records: {len(by)} solved histories recorded, the run has {n}")
+        raise ValueError(f"records: {len(by)} solved histories recorded, the data give {n}: "
+                         "the data changed since the run was recorded; pass --overwrite")
     m = prep.partition.n_states
     out = []
     for k in range(n):
         r = by[k]
         h = prep.histories[k][1]
         if (int(r["A"]), int(r["B"]), int(r["C"])) != tuple(int(x) for x in h.landmarks):
-            raise ValueError(f"records: history {k} is of another triplet than the data give")
+            raise ValueError(f"records: history {k} is of another triplet than the data give: "
+                             "the data changed since the run was recorded; pass --overwrite")
         cams = (_unexact(r["cameras"], (h.n_views, m)) if r.get("cameras")
                 else np.full((h.n_views, m), 1.0 / m))
         out.append(_Light(_unexact(r["landmark"]), cams, str(r["method"]),
@@ -520,6 +522,8 @@ def finish(prep: Prepared, ests: list[_Light], *, combine: str = "geometric",
     result = None
     rec = None
     if record_dir is not None:
+        mrclam_maps.save_seen(Path(record_dir) / "seen.npz", seen, combine=combine,
+                              temper=float(temper))
         digest = mrclam_maps.inputs_digest(method.name, seen, tensor_name)
         rec = Path(record_dir) / "maps" / f"{method.name}.npz"
         result = mrclam_maps.load_map(rec, digest)

@@ -41,7 +41,8 @@ from typing import Callable, Mapping
 import numpy as np
 
 __all__ = ["SeenEstimates", "MapResult", "MapMethod", "MAP_METHODS", "register", "get",
-           "inputs_digest", "save_map", "load_map", "map_pooled", "map_best", "map_seen"]
+           "inputs_digest", "save_map", "load_map", "save_seen", "map_pooled", "map_best",
+           "map_seen"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -203,6 +204,30 @@ def save_map(path, result: MapResult, digest: str) -> Path:
         np.savez(fh, triplets=result.triplets, probabilities=result.probabilities,
                  seen=result.seen, reached=result.reached, digest=np.array(digest),
                  info=np.array(json.dumps(dict(result.info), default=str)))
+    os.replace(tmp, path)
+    return path
+
+
+def save_seen(path, seen: SeenEstimates, **extra) -> Path:
+    """Write the seen estimates to ``path`` (.npz, atomically), for work outside the pipeline:
+    ``triplets`` (s, 3) landmark indices and ``triplet_ids`` (s, 3) their subject numbers,
+    ``probabilities`` (s, m), ``conflict`` (s,), ``estimates`` (H, m) with ``history_row`` (H,)
+    (the row of each history's triplet), ``prior_states`` (m,), ``landmark_ids``, and ``extra``
+    (scalars: e.g. ``combine``, ``temper``)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    row = {tuple(t): i for i, t in enumerate(seen.triplets.tolist())}
+    hist_row = np.full(len(seen.estimates), -1, dtype=np.int64)
+    for t, ks in seen.groups.items():
+        hist_row[list(ks)] = row[tuple(t)]
+    ids = np.asarray(seen.dataset.landmark_ids)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    with open(tmp, "wb") as fh:
+        np.savez(fh, triplets=seen.triplets, triplet_ids=ids[seen.triplets].reshape(-1, 3),
+                 probabilities=seen.probabilities, conflict=seen.conflict,
+                 estimates=seen.estimates, history_row=hist_row,
+                 prior_states=seen.prior_states, landmark_ids=ids,
+                 **{k: np.array(v) for k, v in extra.items()})
     os.replace(tmp, path)
     return path
 
