@@ -259,7 +259,8 @@ def test_map_method_is_pluggable_recorded_and_resume_reuses_the_pieces(root, tmp
     assert (out / "maps" / "flat.npz").exists() and (out / "maps" / "pooled.npz").exists()
     # the seen estimates, for work outside the pipeline: each seen triplet's estimate
     with np.load(out / "seen.npz") as z:
-        seen_rows = {tuple(t): p for t, p in zip(z["triplet_ids"].tolist(), z["probabilities"])}
+        seen_rows = {tuple(t): p for t, p in zip(z["triplet_ids"].tolist(), z["probabilities"],
+                                                 strict=True)}
         assert (z["history_row"] >= 0).all() and len(z["estimates"]) == len(z["history_row"])
     with open(out / "triplets.csv") as fh:
         pooled_free = [r for r in csv.DictReader(fh) if r["kind"] == "seen"]
