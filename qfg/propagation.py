@@ -611,7 +611,7 @@ def loopy_bp_memory(n: int, F: int, m: int) -> float:
     """Peak bytes of :func:`loopy_bp`: the messages and their update ((F, 3, m) each), the
     per-chunk temporaries and the (n, m) beliefs (twice: the log and the exponent)."""
     chunk = max(1, (1 << 22) // (m * m))
-    per_chunk = min(F, chunk) * (m * m + 12 * m)
+    per_chunk = min(F, chunk) * (3 * m * m + 12 * m)   # outer products: a new one and the last
     return 8.0 * (2 * 3 * F * m + 3 * n * m + per_chunk) + 64.0 * F
 
 
@@ -691,12 +691,17 @@ def loopy_bp(g, damping: float = 0.0, max_iters: int = 100, tol: float = 1e-9, *
     # incidence (n, 3F): beliefs sum the log messages into their variables with one sparse product
     from scipy import sparse
 
-    inc = sparse.csr_matrix((np.ones(3 * F), (fv.ravel(), np.arange(3 * F))), shape=(n, 3 * F))
+    # CSC: the columns of one chunk of factors are one cheap slice
+    inc = sparse.csc_matrix((np.ones(3 * F), (fv.ravel(), np.arange(3 * F))), shape=(n, 3 * F))
     others = ((1, 2), (0, 2), (0, 1))
     chunk = max(1, (1 << 22) // (m * m))     # bound the (chunk, m^2) outer products (32 MiB)
 
     def beliefs(rr):
-        return logp + inc @ np.log(np.maximum(rr, tiny)).reshape(-1, m)
+        B = logp.copy()
+        for lo in range(0, F, chunk):         # in chunks: no (F, 3, m) temporary of logs
+            hi = min(F, lo + chunk)
+            B += inc[:, 3 * lo:3 * hi] @ np.log(np.maximum(rr[lo:hi], tiny)).reshape(-1, m)
+        return B
 
     new = np.empty_like(r)
     while not converged and it < max_iters:

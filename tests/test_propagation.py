@@ -436,3 +436,21 @@ def test_unchecked_information_score_is_the_metric():
     p[5] = np.eye(20)[3]
     p[6] = 1 / 20
     np.testing.assert_array_equal(_isc(p, np.log(20)), information_score(p))
+
+
+def test_loopy_bp_memory_estimate_bounds_its_allocations():
+    import tracemalloc
+
+    from qfg.propagation import loopy_bp_memory
+
+    rng = np.random.default_rng(0)
+    for L, m in ((9, 20), (8, 6)):
+        g = full_map(L, partition=None, tensor=rng.random((m, m, m)))
+        for t in g.triplets[::7]:
+            g.add_triplet(t, rng.random(m))
+        tracemalloc.start()
+        loopy_bp(g, max_iters=2, warn=False)
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        est = loopy_bp_memory(g.n_triplets, g.n_factors, m)
+        assert peak <= est <= 3 * peak + 1e6
