@@ -289,3 +289,51 @@ def test_table_has_a_key_and_no_camera_view_says_why(root, tmp_path, capsys):
     assert "Key:" in (out / "table.md").read_text()
     summ = json.loads((out / "summary.json").read_text())
     assert summ["options"]["map"] == "pooled" and summ["options"]["robots"] == [2]
+
+
+def test_ctrl_c_in_a_real_process_keeps_the_pieces_and_resume_finishes(root, tmp_path):
+    """A ``qfg mrclam`` process sent SIGINT (to its group, as a terminal's Ctrl-C) once its first
+    piece is recorded: one line, exit 130, the piece kept; resumed, the outputs of a run that
+    went through. The child's second piece waits (a sleep the signal interrupts), so the signal
+    always lands mid-run."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    d = root / "MRCLAM_Dataset1"
+    part = tmp_path / "part"
+    args = ["mrclam", str(d), "--output", str(part), "--piece-size", "8", "--seed", "4", *FAST]
+    code = ("import signal, sys, time\n"
+            "signal.signal(signal.SIGINT, signal.default_int_handler)\n"
+            "from qfg.harness.studies import mrclam as study\n"
+            "real = study.run_piece\n"
+            "def slow(task, rng):\n"
+            "    if task['index'] >= 1:\n"
+            "        time.sleep(120)\n"
+            "    return real(task, rng)\n"
+            "study.run_piece = slow\n"
+            "from qfg.harness.cli import main\n"
+            f"sys.exit(main({args!r}))\n")
+    here = str(Path(__file__).parent)
+    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True,
+                            env={**os.environ, "PYTHONPATH": here})
+    rec = part / "records.jsonl"
+    deadline = time.time() + 120
+    while time.time() < deadline and not (rec.exists() and rec.read_bytes().count(b"\n") >= 1):
+        if proc.poll() is not None:
+            break
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130, stderr
+    last = stderr.strip().splitlines()[-1]
+    assert "interrupted after 1 of" in last and "--resume" in last, stderr
+    assert rec.read_bytes().count(b"\n") == 1 and not (part / "run.lock").exists()
+    assert _run(d, part, "--resume", "--no-progress") == 0
+    whole = tmp_path / "whole"
+    assert _run(d, whole, "--no-progress") == 0
+    assert (part / "triplets.csv").read_bytes() == (whole / "triplets.csv").read_bytes()
