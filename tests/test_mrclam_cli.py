@@ -19,7 +19,6 @@ from test_mrclam import write_dataset
 
 from qfg.harness.cli import main
 from qfg.harness.studies import mrclam as study
-from qfg.harness.studies import mrclam_maps
 
 FAST = ["--method", "fast", "--no-figures", "--max-gap", "10", "--spread-views", "0"]
 
@@ -227,6 +226,8 @@ def test_pieces_give_the_in_memory_run(root, tmp_path):
 # ------------------------------------------------------------------------------ the map step
 def test_map_method_is_pluggable_recorded_and_resume_reuses_the_pieces(root, tmp_path,
                                                                        monkeypatch, capsys):
+    from qfg.harness.studies import mrclam_maps
+
     made = []
 
     def flat(seen):
