@@ -41,7 +41,6 @@ import numpy as np
 
 from .composition import marginal as compose_marginal
 from .inference.exact import elimination_estimate, exact_marginals
-from .inference.junction import MAX_TABLE
 from .inference.results import GraphTooLargeError, Marginals, ZeroMassError
 from .metrics import information_score
 
@@ -735,7 +734,7 @@ def loopy_bp(g, damping: float = 0.0, max_iters: int = 100, tol: float = 1e-9, *
 
 
 # ----------------------------------------------------------------------------- reporting
-def compare_unseen(g, truth=None, engine: str = "junction", max_table: int = MAX_TABLE
+def compare_unseen(g, truth=None, engine: str = "junction", max_table: int | None = None
                    ) -> list[dict]:
     """For each unseen triplet: the Algorithm 2 estimate, the exact marginal and the truth.
 

@@ -1,0 +1,69 @@
+"""How close the exact engines' memory estimates come to what numpy allocates (issue 19).
+
+For each shipped UAI 2014 instance (``../shared/data/uai2014``, skipped when absent) and for band
+maps (triplets i < j < k of landmarks within a window, compositions among them, random tensors
+of 4-14 states): ``JunctionTree.memory_estimate(task)`` beside the tracemalloc peak of the call
+(numpy reports its buffers to tracemalloc), for MAR (linear and log domain), MAP and K-best (k=20).
+
+Run: ``OPENBLAS_NUM_THREADS=1 .venv/bin/python -m benchmarks.memory_estimates``
+"""
+
+from __future__ import annotations
+
+import itertools
+import tracemalloc
+from pathlib import Path
+
+import numpy as np
+
+
+def band(L, w, m=20, seed=0):
+    from qfg.graph import QualitativeFactorGraph
+
+    rng = np.random.default_rng(seed)
+    g = QualitativeFactorGraph(None, tensor=rng.random((m, m, m)) + 0.01)
+    for t in itertools.combinations(range(L), 3):
+        if max(t) - min(t) < w:
+            g.add_triplet(t, rng.random(m) if rng.random() < 0.5 else None)
+    g.discover_compositions()
+    return g
+
+
+def traced(fn):
+    tracemalloc.start()
+    fn()
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    return peak
+
+
+def main():
+    from qfg.inference import JunctionTree, read_evid, read_uai
+
+    data = Path(__file__).resolve().parents[2] / "shared" / "data" / "uai2014"
+    files = sorted(data.glob("PR/*.uai")) + sorted(data.glob("MAR/ObjectDetection_*.uai"))
+    for f in files:
+        ev = f.with_name(f.name + ".evid")
+        jt = JunctionTree(read_uai(f), evidence=read_evid(ev) if ev.exists() else None)
+        est = jt.memory_estimate("MAR").bytes
+        peak = traced(jt.calibrate)
+        print(f"{f.stem}: MAR estimate {est:.3g} B, traced {peak:.3g} B, ratio {est / peak:.2f}"
+              f"{' (contracted cliques)' if any(jt._big) else ''}", flush=True)
+    for L, w, m in ((7, 4, 4), (8, 5, 5), (10, 5, 7), (12, 5, 8), (10, 5, 12), (30, 4, 20),
+                    (10, 5, 14)):
+        g = band(L, w, m)
+        row = []
+        for task, k, log in (("MAR", 1, False), ("MAR", 1, True), ("MAP", 1, False),
+                             ("KBEST", 20, False)):
+            jt = JunctionTree(g)
+            est = jt.memory_estimate(task, k=k, log_domain=log).bytes
+            if task == "MAR":
+                peak = traced(lambda jt=jt, log=log: jt.marginals(log_domain=log))
+            else:
+                peak = traced(lambda jt=jt, k=k: jt.k_best(k))
+            row.append(f"{task}{' log' if log else ''} {est / peak:.2f}")
+        print(f"band L={L} w={w} m={m}: estimate / traced: {', '.join(row)}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
