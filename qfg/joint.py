@@ -593,34 +593,39 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
             continue
         if bad:
             flags.append("local_minimum")
+        # landmark checks
+        rb = np.abs(fit.bearing_residuals)
+        n_rays = np.bincount(pr.bearing_point, minlength=ok.size)
+        med_l = np.array([np.median(rb[pr.bearing_point == c]) if n_rays[c] else 0.0
+                          for c in range(ok.size)])
+        lflags = ["unconstrained"] * L
+        for c, j in enumerate(ok.tolist()):
+            lflags[j] = ("inconsistent" if med_l[c] > landmark_limit or bad
+                         else "weak" if n_rays[c] < sir_rays else "ok")
         try:
             marg = _marginals(pr, fit)
+            cov0 = _points_cov(marg, pr, np.arange(ok.size)) * inflate
+            weak = _weak_info(pr, fit, marg, ok, lflags, inflate)
         except _Indeterminate as exc:
+            if exc.key is None or exc.key < pr.n_poses:
+                # no covariance at all: an honest "cannot say", flagged
+                flags.append("indeterminate")
+                return JointPosterior(ids, (), np.zeros(L, bool), ("unconstrained",) * L,
+                                      robot_flags, tuple(dict.fromkeys(flags)), "none",
+                                      nan_poses, {"time_s": _time.perf_counter() - t0,
+                                                  "error": str(exc)})
             # a landmark whose rays leave it undetermined (nearly parallel after outliers were
             # dropped): leave it out, flagged unconstrained, and solve again
-            if exc.key is None or exc.key < pr.n_poses:
-                raise ValueError(f"measurements: the posterior covariance is undefined "
-                                 f"({exc})") from None
             for rr in runs:
                 per[rr.robot][2][ok[exc.key - pr.n_poses]] = False
             continue
         break
     runs = use
-    # landmark checks
-    rb = np.abs(fit.bearing_residuals)
-    n_rays = np.bincount(pr.bearing_point, minlength=ok.size)
-    med_l = np.array([np.median(rb[pr.bearing_point == c]) if n_rays[c] else 0.0
-                      for c in range(ok.size)])
-    lflags = ["unconstrained"] * L
-    for c, j in enumerate(ok.tolist()):
-        lflags[j] = ("inconsistent" if med_l[c] > landmark_limit or bad
-                     else "weak" if n_rays[c] < sir_rays else "ok")
     if "inconsistent" in lflags:
         flags.append("inconsistent_landmark")
     if "unconstrained" in lflags:
         flags.append("unconstrained_landmark")
     # 4. modes and their covariances
-    cov0 = _points_cov(marg, pr, np.arange(ok.size)) * inflate
     modes = [(fit, cov0)]
     for k, f in enumerate(fits):
         if k == best or f.cost - fit.cost > mode_cost:
@@ -647,7 +652,6 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
         poses[r.robot] = fit.poses[offs[r.robot]:offs[r.robot] + r.n_poses]
     constrained = np.zeros(L, bool)
     constrained[ok] = True
-    weak = _weak_info(pr, fit, marg, ok, lflags, inflate)
     info = {"cost": float(fit.cost), "n_bearings": int(pr.bearing.size),
             "n_poses": int(pr.n_poses), "starts": len(fits), "costs": [f.cost for f in fits],
             "robot_median_residual": med, "outliers_dropped": n_out, "time_s": _time.perf_counter() - t0,
@@ -683,23 +687,29 @@ class _Indeterminate(ValueError):
 
 
 def _marginals(pr, fit):
-    import re
-
     import gtsam
 
     try:
         return gtsam.Marginals(_nl._graph(pr), _nl._values(pr, fit.poses, fit.points))
     except RuntimeError as exc:
-        m = re.search(r"near variable\s+(\d+)", str(exc))
-        raise _Indeterminate(" ".join(str(exc).split())[:200],
-                             int(m.group(1)) if m else None) from None
+        raise _indeterminate(exc) from None
+
+
+def _indeterminate(exc) -> _Indeterminate:
+    import re
+
+    m = re.search(r"near variable\s+(\d+)", str(exc))
+    return _Indeterminate(" ".join(str(exc).split())[:200], int(m.group(1)) if m else None)
 
 
 def _points_cov(marg, pr, cols, poses=()):
     import gtsam
 
     keys = [pr.n_poses + int(c) for c in cols] + [int(p) for p in poses]
-    jm = marg.jointMarginalCovariance(gtsam.KeyVector(keys))
+    try:
+        jm = marg.jointMarginalCovariance(gtsam.KeyVector(keys))
+    except RuntimeError as exc:
+        raise _indeterminate(exc) from None
     dims = [2] * len(cols) + [3] * len(poses)
     off = np.concatenate([[0], np.cumsum(dims)]).astype(int)
     C = np.zeros((off[-1], off[-1]))
@@ -976,7 +986,10 @@ def camera_marginals(posterior: JointPosterior, robot, pose_index, triplets, *,
         need = np.unique(col[AB[rows]])
         if (need < 0).any():
             continue
-        C = _points_cov(marg, pr, need, [off + p])
+        try:
+            C = _points_cov(marg, pr, need, [off + p])
+        except _Indeterminate:  # this pose cannot be placed: its rows stay the prior
+            continue
         mu = np.concatenate([fit.points[need].ravel(), fit.poses[off + p]])
         z = _nl.sample_gaussian(mu, C, samples, rng)
         d = z[:, -3:] - fit.poses[off + p]
