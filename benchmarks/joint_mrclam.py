@@ -26,9 +26,34 @@ from qfg.partitions import get as get_partition
 
 
 def score(P, g):
-    return {"n": int(len(g)), "log_score": float(metrics.log_score(P, g).mean()) if len(g) else np.nan,
-            "brier": float(metrics.brier(P, g).mean()) if len(g) else np.nan,
-            "truth_under_1pct": float(metrics.truth_under(P, g, 0.01).mean()) if len(g) else np.nan}
+    if not len(g):
+        return {"n": 0, "log_score": np.nan, "brier": np.nan, "truth_under_1pct": np.nan,
+                "ece": np.nan}
+    return {"n": int(len(g)), "log_score": float(metrics.log_score(P, g).mean()),
+            "brier": float(metrics.brier(P, g).mean()),
+            "truth_under_1pct": float(metrics.truth_under(P, g, 0.01).mean()),
+            "ece": float(metrics.expected_calibration_error(P, g))}
+
+
+def pipeline(path, seed=0):
+    """The fallback when the joint method cannot answer (no robot with odometry): the mrclam
+    study's own pipeline with its defaults (robots without odometry: the baseline model), its
+    seen and propagated rows scored as it scores them."""
+    t0 = time.perf_counter()
+    rows = study.run_dataset(path, seed=seed)
+    wall = time.perf_counter() - t0
+    out = []
+    for kind, k in (("seen", "seen"), ("unseen", "propagated")):
+        sel = [r for r in rows if r["kind"] == k]
+        P = np.array([study.decode(r["probabilities"]) for r in sel])
+        g = np.array([int(r["truth_state"]) for r in sel])
+        out.append({"dataset": rows[0]["dataset"], "kind": kind,
+                    "method": "pipeline (" + ";".join(sorted({r["method"] for r in sel})) + ")",
+                    **score(P, g), "uniform_log_score": float(np.log(1 / 20)),
+                    "prior_log_score": float(np.mean([r["prior_log_score"] for r in sel])),
+                    "flagged": float(np.mean([float(r["flagged"]) for r in sel])),
+                    "time_s": wall, "flags": "fallback", "robots": ""})
+    return out
 
 
 def run(path, *, seed=0, samples=2000, cameras=True, **options):
@@ -48,9 +73,11 @@ def run(path, *, seed=0, samples=2000, cameras=True, **options):
     has_gt = any(rd.groundtruth is not None for rd in ds.robots.values())
     cam_h = [h for h in hs if h.truth.camera_states is not None] if (cameras and has_gt) else None
     t0 = time.perf_counter()
+    c0 = time.process_time()
     res = mrclam_marginals(ds, keys, cam_h, prior_states=q_c, camera_prior_states=q_x,
                            samples=samples, seed=seed, **options)
     wall = time.perf_counter() - t0
+    cpu = time.process_time() - c0
     P = np.array([res.triplets[k] for k in keys])
     g = truth_states(trip, ds.landmark_xy, "edc")
     seen = np.array([tuple(t) in seen_idx for t in trip.tolist()])
@@ -76,9 +103,48 @@ def run(path, *, seed=0, samples=2000, cameras=True, **options):
         out.append(row)
     for r in out:
         r["time_s"] = wall
+        r["cpu_s"] = cpu
         r["flags"] = ";".join(res.posterior.flags)
         r["robots"] = ";".join(f"{k}:{v}" for k, v in res.posterior.robot_flags.items())
     return out
+
+
+def sweep(path, *, seed=0, samples=2000, inflates=(1, 2, 4, 9), floors=(0.0, 1e-4, 1e-3, 1e-2)):
+    """Development table: one solve of a dataset, its seen and unseen triplets scored with the
+    covariances scaled by each of ``inflates`` (floor 1e-3) and each of ``floors`` (inflate 1)."""
+    import dataclasses
+
+    from qfg import joint
+
+    part = get_partition("edc")
+    ds, _ = study.prepare(path)
+    q = prior_state_distribution(study.make_prior(ds, "arena"), part,
+                                 samples=study.PRIOR_SAMPLES, seed=1)
+    rh = study.histories(ds, None, mode="honest", spread_views=3, partition=part,
+                         min_travel=0.02, max_gap=120.0)
+    ids = ds.landmark_ids
+    seen_idx = {tuple(ds.landmark_index(h.landmarks).tolist()) for _, h in rh}
+    trip = np.array(list(itertools.permutations(range(ids.size), 3)), dtype=np.intp)
+    keys = [tuple(int(ids[i]) for i in t) for t in trip.tolist()]
+    seen = np.array([tuple(t) in seen_idx for t in trip.tolist()])
+    g = truth_states(trip, ds.landmark_xy, "edc")
+    post = joint.solve(joint.mrclam_runs(ds), seed=seed)
+    print(f"{ds.name}: flags {post.flags}, robots {post.robot_flags}, bearings dropped "
+          f"{post.info['outliers_dropped']}")
+    print("| inflate | floor | seen log p | seen truth < 1% | seen ECE | unseen log p | "
+          "unseen truth < 1% | unseen ECE |")
+    print("|---|---|---|---|---|---|---|---|")
+    combos = [(1, f) for f in floors] + [(i, 1e-3) for i in inflates if i != 1]
+    for infl, fl in combos:
+        modes = tuple(dataclasses.replace(m, covariance=m.covariance * infl) for m in post.modes)
+        P = joint.triplet_marginals(dataclasses.replace(post, modes=modes), keys, prior_states=q,
+                                    samples=samples, seed=seed, floor=fl).probabilities
+        cells = []
+        for m in (seen, ~seen):
+            s = score(P[m], g[m])
+            cells += [f"{s['log_score']:.3f}", f"{100 * s['truth_under_1pct']:.1f}%",
+                      f"{s['ece']:.3f}"]
+        print(f"| {infl:g} | {fl:g} | " + " | ".join(cells) + " |", flush=True)
 
 
 def main(argv=None):
@@ -90,6 +156,12 @@ def main(argv=None):
     ap.add_argument("--inflate", type=float, default=None)
     ap.add_argument("--starts", type=int, default=None)
     ap.add_argument("--no-cameras", action="store_true")
+    ap.add_argument("--no-fallback", action="store_true",
+                    help="do not run the solver pipeline where the joint method cannot answer")
+    ap.add_argument("--outlier", type=float, default=None,
+                    help="bearings beyond this many sigmas dropped (qfg.joint.solve; 0: none)")
+    ap.add_argument("--sweep", action="store_true",
+                    help="development table instead: covariance scale and floor from one solve")
     ap.add_argument("--json", default="")
     a = ap.parse_args(argv)
     opts = {}
@@ -97,18 +169,28 @@ def main(argv=None):
         opts["inflate"] = a.inflate
     if a.starts is not None:
         opts["starts"] = a.starts
+    if a.outlier is not None:
+        opts["outlier"] = a.outlier
+    if a.sweep:
+        for d in study.dataset_dirs(a.data, a.datasets):
+            sweep(d, seed=a.seed, samples=a.samples)
+        return
     rows = []
     print("| dataset | kind | method | n | log p(truth) | uniform | prior alone | Brier | "
-          "truth < 1% | flagged | time (s) | flags |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "truth < 1% | ECE | flagged | wall (s) | CPU (s) | flags |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for d in study.dataset_dirs(a.data, a.datasets):
-        for r in run(d, seed=a.seed, samples=a.samples, cameras=not a.no_cameras, **opts):
+        got = run(d, seed=a.seed, samples=a.samples, cameras=not a.no_cameras, **opts)
+        if got[0]["method"] == "none" and not a.no_fallback:
+            got += pipeline(d, seed=a.seed)
+        for r in got:
             rows.append(r)
             print(f"| {r['dataset'][14:]} | {r['kind']} | {r['method']} | {r['n']} | "
                   f"{r['log_score']:.3f} | {r['uniform_log_score']:.2f} | "
                   f"{r['prior_log_score']:.2f} | {r['brier']:.3f} | "
-                  f"{100 * r['truth_under_1pct']:.1f}% | {r['flagged']:.2f} | "
-                  f"{r['time_s']:.0f} | {r['flags']} {r['robots']} |", flush=True)
+                  f"{100 * r['truth_under_1pct']:.1f}% | {r['ece']:.3f} | {r['flagged']:.2f} | "
+                  f"{r['time_s']:.0f} | {r.get('cpu_s', float('nan')):.0f} | "
+                  f"{r['flags']} {r['robots']} |", flush=True)
     if a.json:
         with open(a.json, "w") as f:
             json.dump(rows, f, indent=1)
