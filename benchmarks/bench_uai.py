@@ -40,7 +40,9 @@ import json, sys, time, warnings, numpy as np
 from qfg.inference import read_uai, read_evid, JunctionTree
 from qfg.inference.evidence import clamp
 path, evid, engine = sys.argv[1], sys.argv[2], sys.argv[3]
-model = clamp(read_uai(path), read_evid(evid) if evid else {})
+source = read_uai(path)
+ev = read_evid(evid) if evid else {}
+model = clamp(source, ev)
 out = {}
 t_start, c_start = time.perf_counter(), time.process_time()
 if engine == "qfg":
@@ -110,7 +112,9 @@ else:
         P[v, :c] = p / p.sum()
 out["seconds"] = time.process_time() - c_start       # CPU: the machine is shared
 out["wall"] = time.perf_counter() - t_start
-out["P"] = [P[v, :c].tolist() for v, c in enumerate(model.cards)]
+from qfg.inference.evidence import expand_marginals
+P = expand_marginals(P, source, ev)          # observed rows one-hot over their own states
+out["P"] = [P[v, :c].tolist() for v, c in enumerate(source.cards)]
 print(json.dumps(out))
 """
 
