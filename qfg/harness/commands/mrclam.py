@@ -63,11 +63,16 @@ def register(sub):
     p.error = _one_line_error(p)
     p.add_argument("path", help="an MRCLAM_DatasetN directory")
     p.add_argument("--robots", default="", help="comma-separated robot numbers (default: all)")
-    p.add_argument("--method", default="full", choices=("fast", "full", "baseline"),
-                   help="single-triplet solver (robots without odometry: baseline; default full)")
+    p.add_argument("--method", default=None, choices=("fast", "full", "baseline", "none"),
+                   help="single-triplet solver (robots without odometry: baseline); none: no "
+                        "solver (for a map from the raw measurements). Default: none for such a "
+                        "map (--map joint) when a robot has odometry, else full")
+    from qfg.harness.studies.mrclam_maps import DEFAULT_MAP
+
     p.add_argument("--map", default=None, choices=tuple(MAP_METHODS),
-                   help="map method: " + "; ".join(f"{m.name}: {m.description}"
-                                                   for m in MAP_METHODS.values()))
+                   help=f"map method (default {DEFAULT_MAP}: the best mean log score over the "
+                        "seen and unseen triplets of datasets 1-6, docs/results/mrclam.md): "
+                        + "; ".join(f"{m.name}: {m.description}" for m in MAP_METHODS.values()))
     p.add_argument("--propagation", default=None, choices=tuple(_PROPAGATION_MAP),
                    help="former name of --map: mean = --map pooled, best = --map best")
     p.add_argument("--mode", default="honest", choices=("honest", "paper"),
@@ -170,8 +175,18 @@ def check_options(args) -> dict:
         if not t.is_file():
             raise ValueError(f"--tensor: {t} is not a file")
         tensor = str(t.resolve())
+    from qfg.harness.studies import mrclam_maps
+
+    map_name = map_name or mrclam_maps.DEFAULT_MAP
+    method = args.method
+    if method is None:
+        method = "full" if mrclam_maps.get(map_name).needs_estimates else "none"
+    elif method == "none" and mrclam_maps.get(map_name).needs_estimates:
+        raise ValueError(f"--method none: the map {map_name!r} is made from the solvers' "
+                         "estimates; give a solver (full, fast, baseline) or a map from the raw "
+                         "measurements (--map joint)")
     return {
-        "robots": robots, "method": args.method, "mode": args.mode, "prior": args.prior,
+        "robots": robots, "method": method, "mode": args.mode, "prior": args.prior,
         "partition": "edc", "fix_landmarks": not args.no_fix_landmarks,
         "min_travel": _number(args, "--min-travel", lo=0.0),
         "max_gap": _number(args, "--max-gap", lo=0.0, lo_open=True),
@@ -183,7 +198,8 @@ def check_options(args) -> dict:
         "piece": int(args.piece_size), "seed": int(args.seed),
         # the phases after solving: not part of the run's identity
         "_after": {"combine": args.combine, "temper": _number(args, "--temper", lo=0.0, hi=1.0),
-                   "map": map_name or "pooled", "tensor": tensor, "curve": caps},
+                   "map": map_name, "tensor": tensor, "curve": caps,
+                   "method_given": args.method is not None},
     }
 
 
@@ -276,6 +292,17 @@ def _main(args):
                                            for r in (opts["robots"] or ds.robots)):
         raise ValueError(f"--mode paper: needs motion capture (RobotN_Groundtruth); "
                          f"{_no_camera_reason(ds, opts['robots'])}")
+    rs_run = opts["robots"] or sorted(ds.robots)
+    if opts["method"] == "none" and not any(ds.robot(r).has_odometry for r in rs_run):
+        # the joint map needs odometry: without it the solvers answer, and the map falls back
+        if after["method_given"]:
+            raise ValueError(f"--method none: no robot of {ds.name} has odometry, so the map "
+                             f"{after['map']!r} falls back to the solvers' estimates; give "
+                             "--method full (or fast, baseline)")
+        opts["method"] = params["method"] = "full"
+        check_output(out, params, args.seed, args.resume, args.overwrite)
+        say(f"no robot of {ds.name} has odometry: solving with full; the {after['map']} map "
+            f"falls back to {mrclam_maps.JOINT_FALLBACK}")
     T = None
     if after["tensor"]:
         try:

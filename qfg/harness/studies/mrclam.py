@@ -67,7 +67,9 @@ from qfg.priors import WorldBoxPrior
 from qfg.priors import get as get_prior
 
 COMBINE = ("prior-once", "geometric", "product")
-METHODS = ("fast", "full", "baseline")
+#: single-triplet solvers; ``"none"``: no solver, every history's estimate the prior alone (for
+#: map methods that work from the raw measurements, e.g. ``--map joint``)
+METHODS = ("fast", "full", "baseline", "none")
 MODES = ("honest", "paper")
 PRIORS = ("arena", "world")
 KINDS = ("seen", "propagated", "camera")
@@ -347,6 +349,9 @@ def solve_piece(prep: Prepared, index: int, *, method: str = "full", seed=0, pie
     if method not in METHODS:
         raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
     hs = [h for _, h in prep.histories[index * piece:(index + 1) * piece]]
+    if method == "none":
+        return [_Light(prep.prior_states.copy(), np.tile(prep.prior_camera_states, (h.n_views, 1)),
+                       "none", False) for h in hs]
     ss = np.random.SeedSequence(int(seed), spawn_key=(int(index),))
     ests = solve_triplets(hs, method=method, partition=prep.partition, seed=ss,
                           **dict(solver_options, prior=prep.prior))
@@ -418,6 +423,11 @@ def estimates_from_rows(prep: Prepared, rows: list[dict]) -> list[_Light]:
     return out
 
 
+def _solver_of(ests) -> str:
+    names = sorted({e.method for e in ests})
+    return "none" if names == ["none"] else ",".join(n for n in names if n != "none")
+
+
 def seen_estimates(prep: Prepared, ests: list[_Light], *, combine: str = "geometric",
                    temper: float = 1.0, seed: int = 0, tensor=None) -> tuple:
     """Temper each history's estimate, combine those of each ordered triplet (module docstring,
@@ -445,7 +455,8 @@ def seen_estimates(prep: Prepared, ests: list[_Light], *, combine: str = "geomet
         conflict=np.array([bool(combined[tuple(t)].conflict) for t in trip.tolist()], bool),
         estimates=np.array([e.landmark for e in ests], dtype=float).reshape(-1, m),
         groups=groups, prior_states=q_c, seed=int(seed),
-        histories=lambda: list(prep.histories), tensor=tensor)
+        histories=lambda: list(prep.histories), tensor=tensor, prior=prep.prior,
+        prior_camera_states=prep.prior_camera_states, solver=_solver_of(ests))
     return seen, ests, combined
 
 
@@ -540,6 +551,10 @@ def finish(prep: Prepared, ests: list[_Light], *, combine: str = "geometric",
             f"{time.perf_counter() - t0:.1f} s")
     t_map = time.perf_counter() - t0
     rows = score_map(prep, seen, result, ests, common)
+    if result.cameras is not None:  # the map answered the cameras too (e.g. the joint map)
+        answered = str(result.info.get("camera_method", method.name))
+        ests = [_Light(e.landmark, np.asarray(c, dtype=float), answered, e.degenerate)
+                for e, c in zip(ests, result.cameras, strict=True)]
     rows += _camera_rows([h for _, h in prep.histories], prep.histories, ests,
                          prep.prior_camera_states, prep.partition, common)
     say(f"scores: {sum(r['kind'] == 'seen' for r in rows)} seen, "

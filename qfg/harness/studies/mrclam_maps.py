@@ -42,7 +42,7 @@ import numpy as np
 
 __all__ = ["SeenEstimates", "MapResult", "MapMethod", "MAP_METHODS", "register", "get",
            "inputs_digest", "save_map", "load_map", "save_seen", "map_pooled", "map_best",
-           "map_seen"]
+           "map_seen", "map_configurations", "map_joint", "JOINT_FALLBACK", "DEFAULT_MAP"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,6 +65,11 @@ class SeenEstimates:
         histories: ``() -> list[(robot, history)]``, the solved histories in history order.
         tensor: the composition tensor to use (an array or CompositionTensor), or None for the
             shipped tensor of the partition (:meth:`composition_tensor`).
+        prior: the world prior the solvers were given (a :class:`qfg.priors.WorldBoxPrior` or a
+            name); ``prior_states`` is its state distribution.
+        prior_camera_states: (m,) the state distribution of a camera the prior alone gives.
+        solver: the single-triplet solver(s) behind the estimates (``"none"``: no solver ran, every
+            estimate is the prior alone).
     """
 
     dataset: object
@@ -78,6 +83,9 @@ class SeenEstimates:
     seed: int
     histories: Callable[[], list]
     tensor: object = None
+    prior: object = "world"
+    prior_camera_states: np.ndarray | None = None
+    solver: str = ""
 
     def composition_tensor(self):
         """The composition tensor of the run (the shipped one unless ``--tensor`` gave one)."""
@@ -100,6 +108,8 @@ class MapResult:
             ``"propagated"``).
         reached: (n,) bool, an unseen row the method could estimate (False: left uniform).
         info: extras, JSON-able (recorded with the map).
+        cameras: None, or one (n_views, m) array per history (history order): the camera states
+            of the views, when the map answers them (they then replace the solvers' cameras).
     """
 
     triplets: np.ndarray
@@ -107,26 +117,37 @@ class MapResult:
     seen: np.ndarray
     reached: np.ndarray
     info: Mapping = field(default_factory=dict)
+    cameras: tuple | None = None
 
 
 @dataclass(frozen=True)
 class MapMethod:
-    """A registered map method: ``fn(seen) -> MapResult`` with a name and one line."""
+    """A registered map method: ``fn(seen) -> MapResult`` with a name and one line.
+    ``needs_estimates``: False for a method that works from the raw measurements alone, so that
+    ``qfg mrclam`` need not run the single-triplet solvers for it (``--method none``)."""
 
     name: str
     fn: Callable[[SeenEstimates], MapResult]
     description: str
+    needs_estimates: bool = True
 
 
 #: The map methods by name (``--map``).
 MAP_METHODS: dict[str, MapMethod] = {}
 
+#: ``qfg mrclam``'s map method when ``--map`` is not given. The rule: the map method with the
+#: best mean log score over the seen and unseen triplets of MRCLAM datasets 1-6, as recorded in
+#: docs/results/mrclam_maps.csv (``tests/test_mrclam_maps.py`` checks the two agree).
+DEFAULT_MAP = "pooled"
 
-def register(name: str, fn: Callable[[SeenEstimates], MapResult], description: str) -> MapMethod:
+
+
+def register(name: str, fn: Callable[[SeenEstimates], MapResult], description: str, *,
+             needs_estimates: bool = True) -> MapMethod:
     """Register ``fn`` as map method ``name`` (a new name; ValueError if taken)."""
     if not isinstance(name, str) or not name or name in MAP_METHODS:
         raise ValueError(f"name: expected a new map method name, got {name!r}")
-    MAP_METHODS[name] = MapMethod(name, fn, description)
+    MAP_METHODS[name] = MapMethod(name, fn, description, bool(needs_estimates))
     return MAP_METHODS[name]
 
 
@@ -166,6 +187,81 @@ def map_best(seen: SeenEstimates) -> MapResult:
     return _full_map_propagated(seen, "best")
 
 
+def _all_ordered_triplets(n: int) -> np.ndarray:
+    import itertools
+
+    return np.array(list(itertools.permutations(range(n), 3)), dtype=np.intp).reshape(-1, 3)
+
+
+def map_configurations(seen: SeenEstimates, likelihood: str = "state") -> MapResult:
+    """Every ordered triplet by configuration inference (:func:`qfg.configurations.
+    configuration_marginals`): landmark configurations sampled from the solvers' prior, each seen
+    triplet weighting them by its combined estimate over the prior's state distribution; every
+    triplet, seen or not, is then read off the same samples."""
+    from qfg.configurations import configuration_marginals
+
+    evidence = {tuple(t): p for t, p in zip(seen.triplets.tolist(), seen.probabilities,
+                                             strict=True)}
+    wanted = _all_ordered_triplets(seen.dataset.landmark_ids.size)
+    res = configuration_marginals(evidence, prior=seen.prior, triplets=[tuple(t) for t in
+                                                                        wanted.tolist()],
+                                  partition=seen.partition.name, likelihood=likelihood,
+                                  seed=seen.seed)
+    is_seen = np.array([tuple(t) in evidence for t in wanted.tolist()], bool)
+    info = {k: v for k, v in res.info.items() if isinstance(v, (int, float, str, bool))}
+    err = res.info.get("mc_error")
+    if err is not None:
+        info["mc_error_max"] = float(np.max(err))
+    return MapResult(triplets=wanted, probabilities=np.asarray(res.probabilities, dtype=float),
+                     seen=is_seen, reached=~is_seen, info={"likelihood": likelihood, **info})
+
+
+#: The map method that answers for the joint map when no robot of the run has odometry.
+JOINT_FALLBACK = "pooled"
+
+
+def map_joint(seen: SeenEstimates) -> MapResult:
+    """Every ordered triplet and every history's cameras from one joint posterior over the
+    landmark positions and robot poses, fitted on GTSAM to every bearing and the odometry of all
+    robots (:func:`qfg.joint.mrclam_marginals`); the seen estimates are not used. Without
+    odometry in any robot the joint method cannot answer: the map is then
+    :data:`JOINT_FALLBACK` over the solvers' estimates, and ``info["answered_by"]`` says so."""
+    from qfg.joint import mrclam_marginals
+
+    ds = seen.dataset
+    ids = np.asarray(ds.landmark_ids)
+    wanted = _all_ordered_triplets(ids.size)
+    hs = [h for _, h in seen.histories()]
+    robots = sorted({int(r) for r, _ in seen.histories()})
+    subjects = [tuple(int(x) for x in ids[t]) for t in wanted.tolist()]
+    j = mrclam_marginals(ds, triplets=subjects,
+                         histories=hs, robots=robots, prior_states=seen.prior_states,
+                         camera_prior_states=seen.prior_camera_states,
+                         partition=seen.partition.name, seed=seen.seed)
+    if j.method == "none":
+        if seen.solver == "none":
+            raise ValueError(f"--map joint: no robot of {ds.name} has odometry, so the joint map "
+                             f"falls back to {JOINT_FALLBACK} over the solvers' estimates: run "
+                             "with --method full (or fast, baseline)")
+        res = MAP_METHODS[JOINT_FALLBACK].fn(seen)
+        return MapResult(res.triplets, res.probabilities, res.seen, res.reached,
+                         {**dict(res.info), "answered_by": JOINT_FALLBACK,
+                          "why": "no robot has odometry"})
+    is_seen = np.zeros(len(wanted), bool)
+    rows = {tuple(t): v for v, t in enumerate(wanted.tolist())}
+    is_seen[[rows[tuple(t)] for t in seen.triplets.tolist()]] = True
+    post = j.posterior
+    info = {"answered_by": "joint", "time_s": float(j.time_s), "camera_method": "joint",
+            "flags": list(post.flags), "modes": len(post.modes),
+            "robot_flags": {str(r): str(f) for r, f in post.robot_flags.items()},
+            "landmark_flags": dict(zip(map(str, post.landmark_ids), post.landmark_flags,
+                                          strict=True))}
+    P = np.array([j.triplets[t] for t in subjects], dtype=float).reshape(len(wanted), -1)
+    return MapResult(triplets=wanted, probabilities=P,
+                     seen=is_seen, reached=~is_seen, info=info,
+                     cameras=tuple(np.asarray(c, dtype=float) for c in j.cameras))
+
+
 def map_seen(seen: SeenEstimates) -> MapResult:
     """The seen triplets alone, as combined."""
     s = len(seen.triplets)
@@ -178,6 +274,11 @@ def map_seen(seen: SeenEstimates) -> MapResult:
 register("pooled", map_pooled, "full map, unseen triplets by pooled composition (default)")
 register("best", map_best, "full map, unseen triplets by the paper's Algorithm 2")
 register("seen", map_seen, "the seen triplets alone (no map)")
+register("config-state", map_configurations,
+         "every triplet by configuration inference over the seen estimates (qfg.configurations)")
+register("joint", map_joint, "every triplet and camera from one joint posterior over landmarks "
+         "and poses, fitted on GTSAM to all bearings and odometry (qfg.joint)",
+         needs_estimates=False)
 
 
 # ------------------------------------------------------------------------------- records
@@ -200,10 +301,15 @@ def save_map(path, result: MapResult, digest: str) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    cams = {}
+    if result.cameras is not None:  # ragged: stacked rows and each history's row count
+        cams = {"camera_rows": np.array([len(c) for c in result.cameras], dtype=np.int64),
+                "cameras": np.concatenate([np.asarray(c, float) for c in result.cameras])
+                if len(result.cameras) else np.zeros((0, result.probabilities.shape[1]))}
     with open(tmp, "wb") as fh:
         np.savez(fh, triplets=result.triplets, probabilities=result.probabilities,
                  seen=result.seen, reached=result.reached, digest=np.array(digest),
-                 info=np.array(json.dumps(dict(result.info), default=str)))
+                 info=np.array(json.dumps(dict(result.info), default=str)), **cams)
     os.replace(tmp, path)
     return path
 
@@ -244,8 +350,12 @@ def load_map(path, digest: str) -> MapResult | None:
         with np.load(path, allow_pickle=False) as z:
             if str(z["digest"]) != digest:
                 return None
+            cameras = None
+            if "camera_rows" in z.files:
+                n = z["camera_rows"]
+                cameras = tuple(np.split(z["cameras"], np.cumsum(n)[:-1])) if n.size else ()
             return MapResult(triplets=z["triplets"], probabilities=z["probabilities"],
-                             seen=z["seen"], reached=z["reached"],
+                             seen=z["seen"], reached=z["reached"], cameras=cameras,
                              info=json.loads(str(z["info"])))
     except (OSError, ValueError, KeyError):
         return None

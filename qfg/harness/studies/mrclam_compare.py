@@ -1,0 +1,151 @@
+"""Every map method of ``qfg mrclam`` on MRCLAM datasets 1-6, side by side, and the rule that picks
+``qfg mrclam``'s default map (:data:`qfg.harness.studies.mrclam_maps.DEFAULT_MAP`).
+
+Each (dataset, map) is one ``qfg mrclam`` run in ``<output>/<dataset>-<solver>``: the maps made
+from the single-triplet solvers' estimates share one solved run per dataset (``--resume`` with
+another ``--map`` reuses the solved pieces), the joint map runs without a solver
+(``--method none``; a dataset without odometry falls back, and its rows say which map answered).
+The table has one row per (dataset, map, kind): the mean log p(truth) (clip 1e-4), Brier, truth
+under 1%, beside uniform and the prior alone, and the wall time of the run.
+
+The rule: the default map is the one with the best mean log score over every seen and unseen
+(propagated) ordered triplet of the six datasets (:func:`best_map`).
+
+Run (about 15 minutes on 2 cores; ``--update-docs`` writes docs/results/mrclam_maps.csv)::
+
+    python -m qfg.harness.studies.mrclam_compare $QFG_MRCLAM_DIR --output out/mrclam-maps
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+#: the maps compared, and the solver each is made from (``none``: no single-triplet solver)
+MAPS = (("joint", "none"), ("config-state", "fast"), ("pooled", "fast"), ("best", "fast"))
+
+COLUMNS = ("dataset", "map", "solver", "answered_by", "kind", "n", "log_score", "brier",
+           "truth_under_1pct", "uniform_log_score", "prior_log_score", "wall_s")
+
+
+def _run(path: Path, out: Path, map_name: str, solver: str, resume: bool, seed: int) -> float:
+    cmd = [sys.executable, "-m", "qfg", "mrclam", str(path), "--map", map_name, "--no-figures",
+           "--no-progress", "--output", str(out), "--seed", str(seed)]
+    if solver != "none":
+        cmd += ["--method", solver]
+    cmd += ["--resume"] if resume else ["--overwrite"]
+    t0 = time.perf_counter()
+    done = subprocess.run(cmd, capture_output=True, text=True)
+    if done.returncode:
+        raise RuntimeError(f"{' '.join(cmd)} failed ({done.returncode}): "
+                           f"{done.stderr.strip().splitlines()[-1:]}")
+    return time.perf_counter() - t0
+
+
+def compare(root, *, output, datasets=(1, 2, 3, 4, 5, 6), maps=MAPS, seed: int = 0,
+            say=print) -> list[dict]:
+    """Run every map of ``maps`` on every dataset under ``root``; return the table's rows."""
+    rows = []
+    for d in datasets:
+        path = Path(root) / f"MRCLAM_Dataset{d}"
+        started = set()
+        for name, solver in maps:
+            out = Path(output) / f"d{d}-{solver}"
+            wall = _run(path, out, name, solver, resume=out in started or
+                        (out / "records.jsonl").exists(), seed=seed)
+            started.add(out)
+            summ = json.loads((out / "summary.json").read_text())
+            answered = name
+            maps_info = out / "maps" / f"{name}.npz"
+            if maps_info.is_file():
+                import numpy as np
+
+                with np.load(maps_info, allow_pickle=False) as z:
+                    answered = json.loads(str(z["info"])).get("answered_by", name)
+            for kind in ("seen", "propagated", "camera"):
+                s = summ.get("honest", {}).get(kind)
+                if not s or not s.get("n"):
+                    continue
+                rows.append({"dataset": d, "map": name, "solver": solver,
+                             "answered_by": answered, "kind": kind, "n": int(s["n"]),
+                             "log_score": s["log_score"], "brier": s["brier"],
+                             "truth_under_1pct": s["truth_under_1pct"],
+                             "uniform_log_score": s["uniform_log_score"],
+                             "prior_log_score": s["prior_log_score"], "wall_s": wall})
+            say(f"dataset {d}, {name} ({solver}): "
+                + ", ".join(f"{r['kind']} {r['log_score']:.2f}" for r in rows
+                            if r["dataset"] == d and r["map"] == name) + f" ({wall:.0f} s)")
+    return rows
+
+
+def map_scores(rows) -> dict:
+    """Mean log score of each map over every seen and unseen (propagated) triplet of the rows'
+    datasets (weighted by the number of triplets), ``{map: (score, n)}``."""
+    acc: dict[str, list[float]] = {}
+    for r in rows:
+        if r["kind"] not in ("seen", "propagated"):
+            continue
+        a = acc.setdefault(r["map"], [0.0, 0])
+        a[0] += float(r["log_score"]) * int(r["n"])
+        a[1] += int(r["n"])
+    return {m: (s / n, n) for m, (s, n) in acc.items() if n}
+
+
+def best_map(rows, datasets=(1, 2, 3, 4, 5, 6)) -> str:
+    """The rule for ``qfg mrclam``'s default: the map with the best mean log score over the seen
+    and unseen triplets of ``datasets``; only maps scored on every one of them compete."""
+    want = {int(d) for d in datasets}
+    have: dict[str, set] = {}
+    for r in rows:
+        have.setdefault(r["map"], set()).add(int(r["dataset"]))
+    scores = map_scores([r for r in rows if int(r["dataset"]) in want
+                         and have[r["map"]] >= want])
+    if not scores:
+        raise ValueError(f"rows: no map scored on every one of datasets {sorted(want)}")
+    return max(scores, key=lambda m: scores[m][0])
+
+
+def read_table(path) -> list[dict]:
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def write_table(path, rows) -> None:
+    from qfg.harness.runner import write_text
+
+    lines = [",".join(COLUMNS)]
+    for r in rows:
+        lines.append(",".join(f"{r[c]:.4f}" if isinstance(r[c], float) else str(r[c])
+                              for c in COLUMNS))
+    write_text(Path(path), "\n".join(lines) + "\n")
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="python -m qfg.harness.studies.mrclam_compare",
+                                description=__doc__.split("\n\n")[0])
+    p.add_argument("root", help="the folder holding MRCLAM_Dataset1..6")
+    p.add_argument("--output", default="out/mrclam-maps")
+    p.add_argument("--datasets", default="1,2,3,4,5,6")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--update-docs", action="store_true",
+                   help="write docs/results/mrclam_maps.csv (a tracked file)")
+    a = p.parse_args(argv)
+    ds = [int(x) for x in a.datasets.split(",")]
+    rows = compare(a.root, output=a.output, datasets=ds, seed=a.seed,
+                   say=lambda m: print(m, file=sys.stderr, flush=True))
+    write_table(Path(a.output) / "mrclam_maps.csv", rows)
+    if a.update_docs:
+        write_table(Path("docs/results/mrclam_maps.csv"), rows)
+    for m, (s, n) in sorted(map_scores(rows).items(), key=lambda kv: -kv[1][0]):
+        print(f"{m}: mean log p(truth) {s:.3f} over {n} seen and unseen triplets")
+    print(f"best (the default rule): {best_map(rows, ds)}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
