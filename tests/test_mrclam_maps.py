@@ -1,0 +1,138 @@
+"""The map methods of ``qfg mrclam`` beyond the paper's (configuration inference, the joint GTSAM
+map), the fallback without odometry, and the one rule for the default map.
+
+The dataset is the synthetic one of tests/test_mrclam.py (known geometry, exact bearings, robot 1
+with motion capture), so the joint map has a right answer to find.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_mrclam import write_dataset
+
+from qfg.harness.cli import main
+from qfg.harness.studies import mrclam_compare, mrclam_maps
+
+FAST = ["--no-figures", "--no-progress", "--max-gap", "10", "--spread-views", "0"]
+TABLE = Path(__file__).resolve().parents[1] / "docs" / "results" / "mrclam_maps.csv"
+
+
+@pytest.fixture(scope="module")
+def root(tmp_path_factory):
+    r = tmp_path_factory.mktemp("mrclam_maps")
+    write_dataset(r / "MRCLAM_Dataset1")
+    write_dataset(r / "MRCLAM_Dataset2", robot2_odometry=False)
+    return r
+
+
+def _rows(out, name="triplets.csv"):
+    with open(out / name) as fh:
+        return list(csv.DictReader(fh))
+
+
+def _exit_code(argv) -> int:
+    """main's exit status, whether it returns it or argparse raises SystemExit."""
+    try:
+        return main(argv)
+    except SystemExit as exc:
+        return exc.code
+
+
+def _map_info(out, name):
+    with np.load(out / "maps" / f"{name}.npz", allow_pickle=False) as z:
+        return json.loads(str(z["info"]))
+
+
+def test_joint_map_needs_no_solver_and_beats_the_prior(root, tmp_path, monkeypatch):
+    def boom(*a, **k):
+        raise AssertionError("the joint map needs no single-triplet solver")
+
+    monkeypatch.setattr("qfg.solvers.solve_triplets", boom)
+    out = tmp_path / "o"
+    assert main(["mrclam", str(root / "MRCLAM_Dataset1"), "--map", "joint", "--output",
+                 str(out), *FAST]) == 0
+    rows = _rows(out)
+    n = len({r["A"] for r in rows} | {r["C"] for r in rows})
+    assert len(rows) == n * (n - 1) * (n - 2)          # every ordered triplet, each once
+    assert {r["map"] for r in rows} == {"joint"}
+    seen = [r for r in rows if r["kind"] == "seen"]
+    assert seen and _map_info(out, "joint")["answered_by"] == "joint"
+    # exact bearings of a known geometry: the joint posterior beats the prior alone
+    for kind in ("seen", "propagated"):
+        rs = [r for r in rows if r["kind"] == kind]
+        if not rs:  # the synthetic robots see every triplet of its few landmarks
+            continue
+        est = np.mean([float(r["log_score"]) for r in rs])
+        assert est > np.mean([float(r["prior_log_score"]) for r in rs]) + 1.0, kind
+    cams = _rows(out, "cameras.csv")
+    assert cams and {r["method"] for r in cams} == {"joint"}
+    assert json.loads((out / "run.json").read_text())["params"]["method"] == "none"
+
+
+def test_joint_map_without_odometry_falls_back_and_says_which_map_answered(root, tmp_path,
+                                                                          capsys):
+    d = root / "MRCLAM_Dataset2"
+    # asked for no solver where none can be skipped: refused up front, one line
+    assert _exit_code(["mrclam", str(d), "--robots", "2", "--map", "joint", "--method", "none",
+                       "--output", str(tmp_path / "refused"), *FAST]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--method none" in err[0] and "odometry" in err[0]
+    assert not (tmp_path / "refused" / "records.jsonl").exists()
+    # by default the solvers answer and the map falls back to JOINT_FALLBACK, which it records
+    out = tmp_path / "o"
+    assert main(["mrclam", str(d), "--robots", "2", "--map", "joint", "--output", str(out),
+                 *FAST]) == 0
+    info = _map_info(out, "joint")
+    assert info["answered_by"] == mrclam_maps.JOINT_FALLBACK and "odometry" in info["why"]
+    assert json.loads((out / "run.json").read_text())["params"]["method"] == "full"
+
+
+def test_configuration_map_answers_every_ordered_triplet(root, tmp_path):
+    out = tmp_path / "o"
+    assert main(["mrclam", str(root / "MRCLAM_Dataset1"), "--map", "config-state", "--method",
+                 "fast", "--output", str(out), *FAST]) == 0
+    rows = _rows(out)
+    keys = {(r["A"], r["B"], r["C"]) for r in rows}
+    assert len(keys) == len(rows) and {r["map"] for r in rows} == {"config-state"}
+    P = np.array([[float(x) for x in r["probabilities"].split(";")] for r in rows])
+    assert np.all(np.isfinite(P)) and np.allclose(P.sum(axis=1), 1.0)
+    assert all(np.isfinite(float(r["log_score"])) for r in rows)
+
+
+def test_method_none_with_a_map_made_from_estimates_is_refused(root, tmp_path, capsys):
+    assert _exit_code(["mrclam", str(root / "MRCLAM_Dataset1"), "--map", "pooled", "--method",
+                       "none", "--output", str(tmp_path / "o"), *FAST]) == 2
+    assert "--method none" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------------------ the default rule
+def _row(d, m, kind, n, score):
+    return {"dataset": d, "map": m, "kind": kind, "n": n, "log_score": score}
+
+
+def test_best_map_weights_by_triplets_and_needs_every_dataset():
+    rows = [_row(1, "a", "seen", 10, -1.0), _row(1, "a", "propagated", 90, -3.0),
+            _row(2, "a", "seen", 100, -2.0),
+            _row(1, "b", "seen", 10, -0.5), _row(1, "b", "propagated", 90, -2.9),
+            _row(2, "b", "seen", 100, -2.4),
+            _row(1, "c", "seen", 100, 0.0),                       # dataset 2 missing
+            _row(1, "a", "camera", 1000, 0.0), _row(1, "b", "camera", 1000, -9.0)]
+    s = mrclam_compare.map_scores([r for r in rows if r["map"] != "c"])
+    assert s["a"] == pytest.approx(((-10 - 270 - 200) / 200, 200))   # cameras do not count
+    assert s["b"] == pytest.approx(((-5 - 261 - 240) / 200, 200))
+    assert mrclam_compare.best_map(rows, datasets=(1, 2)) == "a"     # c is not on dataset 2
+    assert mrclam_compare.best_map(rows, datasets=(1,)) == "c"
+    with pytest.raises(ValueError, match="every one of datasets"):
+        mrclam_compare.best_map(rows, datasets=(3,))
+
+
+def test_the_default_map_is_the_rule_applied_to_the_recorded_comparison():
+    rows = mrclam_compare.read_table(TABLE)
+    assert {int(r["dataset"]) for r in rows} == {1, 2, 3, 4, 5, 6}
+    assert mrclam_maps.DEFAULT_MAP == mrclam_compare.best_map(rows)
+    assert mrclam_maps.DEFAULT_MAP in mrclam_maps.MAP_METHODS
