@@ -9,9 +9,15 @@ import numpy as np
 import pytest
 
 from qfg.combine import temper
-from qfg.configurations import (TEMPER, ConfigurationPosterior, PositionSummary,
-                                configuration_marginals, infer_configurations, prior_states,
-                                summarize_position)
+from qfg.configurations import (
+    TEMPER,
+    ConfigurationPosterior,
+    PositionSummary,
+    configuration_marginals,
+    infer_configurations,
+    prior_states,
+    summarize_position,
+)
 from qfg.geometry import to_frame
 from qfg.graph import QualitativeFactorGraph
 from qfg.priors import WorldBoxPrior
