@@ -68,3 +68,22 @@ def test_tv_kl_against_hand_values():
     tv, kl = eva._tv_kl(p, q)
     assert tv[0] == pytest.approx(0.25)
     assert kl[0] == pytest.approx(0.5 * np.log(2) + 0.5 * np.log(0.5 / 0.75))
+
+
+def test_propagation_graph_keeps_hypotheses_without_changing_the_graph():
+    from qfg.random_graphs import propagation_graph
+
+    T = eva._tensor({"random_tensor": True, "partition": "edc"})
+    kw = {"n_fc_min": 3, "n_fc_max": 6, "n_candidates": 2}
+    a = propagation_graph(np.random.default_rng(7), T, **kw)
+    b = propagation_graph(np.random.default_rng(7), T, **kw, hypotheses=True)
+    assert a.hypotheses is None
+    assert a.graph.triplets == b.graph.triplets and np.array_equal(a.landmarks, b.landmarks)
+    seen = [t for t, s in zip(b.graph.triplets, b.graph.seen, strict=True) if s]
+    assert sorted(b.hypotheses) == sorted(seen)
+    for pa, pb in zip(a.graph.priors, b.graph.priors, strict=True):
+        assert (pa is None) == (pb is None)
+        if pa is not None:
+            assert np.array_equal(pa, pb)       # the same estimates as the batched solve
+    h = b.hypotheses[seen[0]]
+    assert h.landmark_samples.shape[1] == 2 and np.isclose(h.landmark_weights.sum(), 1.0)
