@@ -312,3 +312,16 @@ def test_mrclam_runs_keep_requested_views_and_odometry_matches_dead_reckoning():
     assert meas.landmark_ids == tuple(int(x) for x in ds.landmark_ids)
     with pytest.raises(KeyError, match="robot"):
         meas.run(9)
+
+
+@pytest.mark.skipif(_mrclam_dir() is None or not (_mrclam_dir().parent / "MRCLAM_Dataset5").is_dir(),
+                    reason="MRCLAM dataset 5 not present")
+def test_mrclam_dataset_without_odometry_says_the_pipeline_must_answer():
+    from qfg.datasets import mrclam
+
+    ds = mrclam.load(_mrclam_dir().parent / "MRCLAM_Dataset5")
+    q = np.full(20, 0.05)
+    res = joint.mrclam_marginals(ds, [(6, 7, 8)], prior_states=q, samples=50)
+    assert res.method == "none" and "no_odometry" in res.posterior.flags
+    assert set(res.posterior.robot_flags.values()) == {"no_odometry"}
+    assert res.triplets.method == "joint:none" and np.allclose(res.triplets[(6, 7, 8)], q)
