@@ -196,18 +196,25 @@ def _all_ordered_triplets(n: int) -> np.ndarray:
 def map_configurations(seen: SeenEstimates, likelihood: str = "state") -> MapResult:
     """Every ordered triplet by configuration inference (:func:`qfg.configurations.
     configuration_marginals`): landmark configurations sampled from the solvers' prior, each seen
-    triplet weighting them by its combined estimate over the prior's state distribution; every
-    triplet, seen or not, is then read off the same samples."""
+    landmark set weighting them by one ordering's combined estimate over the prior's state
+    distribution; every triplet, seen or not, is then read off the same samples."""
     from qfg.configurations import configuration_marginals
 
-    evidence = {tuple(t): p for t, p in zip(seen.triplets.tolist(), seen.probabilities,
-                                             strict=True)}
+    # The orderings of one landmark set are solved from the same views: their estimates are one
+    # piece of evidence, not six, and counting each would make the map over-confident. One
+    # ordering per set (the first seen, in sorted order) weights the configurations.
+    evidence, sets = {}, set()
+    for t, p in zip(seen.triplets.tolist(), seen.probabilities, strict=True):
+        if frozenset(t) not in sets:
+            sets.add(frozenset(t))
+            evidence[tuple(t)] = p
+    seen_keys = {tuple(t) for t in seen.triplets.tolist()}
     wanted = _all_ordered_triplets(seen.dataset.landmark_ids.size)
     res = configuration_marginals(evidence, prior=seen.prior, triplets=[tuple(t) for t in
                                                                         wanted.tolist()],
                                   partition=seen.partition.name, likelihood=likelihood,
                                   seed=seen.seed)
-    is_seen = np.array([tuple(t) in evidence for t in wanted.tolist()], bool)
+    is_seen = np.array([tuple(t) in seen_keys for t in wanted.tolist()], bool)
     info = {k: v for k, v in res.info.items() if isinstance(v, (int, float, str, bool))}
     err = res.info.get("mc_error")
     if err is not None:
