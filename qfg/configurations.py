@@ -729,7 +729,7 @@ class ConfigurationPosterior:
         L = self.landmarks
         return [(a, b, c) for a in L for b in L for c in L if a != b and b != c and a != c]
 
-    def marginals(self, triplets=None, *, pseudo_count=None):
+    def marginals(self, triplets=None, *, pseudo_count=None, widen=None):
         """:class:`qfg.inference.Marginals` of ``triplets`` (default: every ordered triplet of
         the landmarks), seen and unseen alike.
 
@@ -738,6 +738,13 @@ class ConfigurationPosterior:
         is given probability 0). ``info``: ``mc_error`` (n, m) the standard error from the
         spread of the ``n_groups`` populations' estimates, ``mc_error_max``, ``seen`` (n,) bool,
         the sampler's diagnostics and ``configurations`` (this object).
+
+        ``widen`` (None: off): a row whose populations disagree is not trusted. Each row is mixed
+        toward the prior's state distribution, ``(1 - w) f + w q`` with ``w = min(1, e / widen)``
+        and ``e`` the row's largest Monte Carlo error: where the sampler has not settled (e.g.
+        clusters of landmarks tied by few seen triplets, whose relative placement the
+        populations choose differently), the answer says "unknown" instead of picking one
+        population's guess. ``info["widened"]``: (n,) the weights ``w``.
         """
         from .inference.results import Marginals
 
@@ -764,6 +771,15 @@ class ConfigurationPosterior:
         se = np.std(fg, axis=0, ddof=1) / np.sqrt(G) if G > 1 else np.full((R, m), np.nan)
         seen = set(self._terms.triplets)
         info = dict(self.diagnostics)
+        if widen is not None:
+            widen = non_negative("widen", widen)
+            if not widen > 0:
+                raise ValueError("widen: expected a number > 0 (or None: off)")
+            if G < 2:
+                raise ValueError("widen: needs n_groups >= 2 (the error is their spread)")
+            w = np.minimum(1.0, se.max(axis=1, initial=0.0) / widen)[:, None]
+            f = (1.0 - w) * f + w * self._q
+            info["widened"] = w[:, 0]
         info.update(mc_error=se, mc_error_max=float(np.max(se)) if se.size else 0.0,
                     seen=np.array([t in seen for t in ts], dtype=bool),
                     configurations=self)
@@ -905,10 +921,11 @@ def infer_configurations(evidence, prior="world", *, partition="edc", likelihood
 
 
 def configuration_marginals(evidence, prior="world", *, triplets=None, partition=None,
-                            likelihood="state", seed=None, **options):
+                            likelihood="state", seed=None, widen=None, **options):
     """Marginals of ``triplets`` (default: a graph's triplets, else every ordered triplet of the
     landmarks) by configuration inference: :func:`infer_configurations` then
-    :meth:`ConfigurationPosterior.marginals`. The result's ``info["configurations"]`` holds the
+    :meth:`ConfigurationPosterior.marginals` (``widen``: rows the populations disagree on mixed
+    toward the prior, see there). The result's ``info["configurations"]`` holds the
     samples. ``partition`` defaults to the graph's (else ``"edc"``).
 
     >>> import numpy as np
@@ -927,4 +944,4 @@ def configuration_marginals(evidence, prior="world", *, triplets=None, partition
                                                   _as_triplet(t)}), seed=seed, **options)
     if triplets is None and hasattr(evidence, "triplets"):
         triplets = evidence.triplets
-    return post.marginals(triplets)
+    return post.marginals(triplets, widen=widen)

@@ -153,6 +153,26 @@ def test_two_seeds_agree_within_the_reported_error():
     assert np.max(np.abs(r[0].probabilities - r[1].probabilities)) < 0.08
 
 
+def test_widen_mixes_each_row_toward_the_prior_by_its_monte_carlo_error(posterior):
+    ts = _all_triplets(4)
+    raw = posterior.marginals(ts)
+    q = prior_states("world", "edc")
+    se = np.asarray(raw.info["mc_error"]).max(axis=1)
+    for scale in (1e-12, float(np.median(se)), 10.0):
+        r = posterior.marginals(ts, widen=scale)
+        w = np.minimum(1.0, se / scale)
+        assert np.allclose(r.info["widened"], w)
+        assert np.allclose(r.probabilities, (1 - w[:, None]) * raw.probabilities + w[:, None] * q)
+        assert np.allclose(r.probabilities.sum(axis=1), 1.0)
+    # a tiny scale leaves nothing the populations disagree on: the prior wherever se > 0
+    assert np.allclose(posterior.marginals(ts, widen=1e-12).probabilities[se > 0], q)
+    with pytest.raises(ValueError, match="widen"):
+        posterior.marginals(ts, widen=0.0)
+    one = infer_configurations(EVIDENCE, seed=3, n_particles=200, n_groups=1)
+    with pytest.raises(ValueError, match="n_groups"):
+        one.marginals(ts, widen=0.1)
+
+
 def test_labelled_result_for_every_triplet(posterior):
     res = posterior.marginals()
     assert list(res.triplets) == _all_triplets(4)
