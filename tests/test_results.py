@@ -43,7 +43,7 @@ def test_array_style_keys_are_refused(key):
     r = _marginals()
     with pytest.raises((TypeError, KeyError), match="probabilities|not in"):
         r[key]
-    assert not (key in r)
+    assert key not in r
 
 
 def test_array_work_goes_through_probabilities():

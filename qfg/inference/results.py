@@ -100,7 +100,8 @@ class Marginals:
     ``0 <= v < n``) row ``v``; an absent key raises :class:`MissingKeyError` (a ``KeyError``),
     anything else (slices, masks, negative indices) a ``TypeError`` or ``KeyError``: array work
     goes through ``res.probabilities``. ``key in res`` follows the same rule. ``len(res)``,
-    ``iter(res)`` (triplets), ``res.to_dict()``, ``np.asarray(res)``. Extras are also attributes: ``res.converged`` = ``res.info["converged"]``.
+    ``iter(res)`` (triplets), ``res.to_dict()``, ``np.asarray(res)``. Extras are also
+    attributes: ``res.converged`` = ``res.info["converged"]``.
 
     >>> r = Marginals(((0, 1, 2), (1, 2, 3)), "lr", [[0.9, 0.1], [0.5, 0.5]], "exact")
     >>> r[(1, 2, 3)].tolist(), r[0].tolist(), len(r), np.asarray(r).shape, list(r)
