@@ -93,7 +93,8 @@ else:
     from qfg.inference.memory import memory_budget
     need = gtsam_estimate(model)
     if need > memory_budget():
-        print(json.dumps({"refused": f"estimate {need:.3g} bytes"}))
+        print(json.dumps({"refused": f"refused, estimate {need:.3g} bytes > budget "
+                                     f"{memory_budget():.3g}"}))
         sys.exit(0)
     graph = gtsam.DiscreteFactorGraph()
     for s, t in zip(model.scopes, model.tables):
@@ -156,7 +157,7 @@ def run_engine(inst, engine, timeout):
     try:
         r = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
     except subprocess.TimeoutExpired:
-        return {"error": f"> {timeout:.0f} s"}
+        return {"error": f"stopped at the {timeout:.0f} s wall-clock limit"}
     if r.returncode != 0:
         return {"error": r.stderr.strip().splitlines()[-1][:80] if r.stderr.strip() else "failed"}
     return json.loads(r.stdout.strip().splitlines()[-1])
