@@ -90,11 +90,12 @@ def run(path, *, seed=0, samples=2000, cameras=True, **options):
         out.append(row)
     if cam_h:
         Pc, gc = [], []
-        for h, C in zip(cam_h, res.cameras):
+        for h, C in zip(cam_h, res.cameras, strict=False):
             ok = np.asarray(h.truth.camera_states) >= 0
             if h.groundtruth_valid is not None:
                 ok &= np.asarray(h.groundtruth_valid, bool)
-            Pc.append(C[ok]); gc.append(np.asarray(h.truth.camera_states)[ok])
+            Pc.append(C[ok])
+            gc.append(np.asarray(h.truth.camera_states)[ok])
         Pc, gc = np.concatenate(Pc), np.concatenate(gc).astype(int)
         row = {"dataset": ds.name, "kind": "camera", "method": res.method, **score(Pc, gc),
                "uniform_log_score": float(np.log(1 / 20)),

@@ -45,7 +45,7 @@ def main(argv=None):
         ok = pg.constrained
         tri = np.array([t for t in joint._all_triplets(len(ok)) if ok[list(t)].all()])
 
-        def st(S):
+        def st(S, tri=tri):
             return joint._state_counts(S, tri, edc) / len(S)
 
         t0 = time.perf_counter()

@@ -58,6 +58,7 @@ from __future__ import annotations
 import itertools
 import time as _time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -65,6 +66,9 @@ from . import nonlinear as _nl
 from . import partitions as _partitions
 from ._validate import as_float_array, as_rng, non_negative, positive_int
 from .geometry import poses_to_frame, to_frame, wrap_angle
+
+if TYPE_CHECKING:
+    from .inference.results import Marginals
 
 __all__ = ["RobotRun", "JointMeasurements", "Mode", "JointPosterior", "solve",
            "sample_landmarks", "triplet_marginals", "camera_marginals", "odometry_steps",
@@ -315,7 +319,8 @@ def _problem_of(runs, lm_index, points_ok, anchor_robot, *, robust, weak_prior=N
             et.append(np.arange(1, r.n_poses) + offs[r.robot])
             z.append(r.odometry)
             zs.append(r.odometry_sigma)
-    cat = (lambda xs, shape: np.concatenate(xs) if xs else np.zeros(shape))
+    def cat(xs, shape):
+        return (np.concatenate(xs) if xs else np.zeros(shape))
     kw = {}
     if weak_prior is not None:
         kw = dict(point_prior_index=np.arange(ok.size), point_prior=weak_prior[0][ok],
@@ -643,7 +648,7 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
     w = np.exp(logw - logw.max())
     w /= w.sum()
     out_modes = []
-    for (f, C), wk in zip(modes, w):
+    for (f, C), wk in zip(modes, w, strict=False):
         P = np.full((L, 2), np.nan)
         P[ok] = f.points
         out_modes.append(Mode(float(wk), P, C, float(f.cost)))
@@ -757,7 +762,7 @@ def sample_landmarks(posterior: JointPosterior, n: int = 2000, seed=0, *,
     ok = np.flatnonzero(posterior.constrained)
     counts = rng.multinomial(n, [m.weight for m in posterior.modes])
     start = 0
-    for k, (mode, c) in enumerate(zip(posterior.modes, counts)):
+    for k, (mode, c) in enumerate(zip(posterior.modes, counts, strict=False)):
         if c == 0:
             continue
         sl = slice(start, start + c)

@@ -271,18 +271,18 @@ def _graph(pr: BearingProblem):
     kb = float(pr.robust_bearing)
     cache = {}
     for p, j, phi, s in zip(pr.bearing_pose.tolist(), pr.bearing_point.tolist(),
-                            pr.bearing.tolist(), pr.sigma_bearing.tolist()):
+                            pr.bearing.tolist(), pr.sigma_bearing.tolist(), strict=False):
         n = cache.get(s)
         if n is None:
             n = cache[s] = _noise([s], kb)
         g.add(gtsam.BearingFactor2D(p, pr.n_poses + j, gtsam.Rot2(phi), n))
     ke = float(pr.robust_between)
     for a, b, z, s in zip(pr.between_from.tolist(), pr.between_to.tolist(), pr.between,
-                          pr.between_sigma):
+                          pr.between_sigma, strict=False):
         g.add(gtsam.BetweenFactorPose2(a, b, gtsam.Pose2(*z), _noise(s, ke)))
-    for i, z, s in zip(pr.pose_prior_index.tolist(), pr.pose_prior, pr.pose_prior_sigma):
+    for i, z, s in zip(pr.pose_prior_index.tolist(), pr.pose_prior, pr.pose_prior_sigma, strict=False):
         g.add(gtsam.PriorFactorPose2(i, gtsam.Pose2(*z), _noise(s, 0.0)))
-    for j, z, s in zip(pr.point_prior_index.tolist(), pr.point_prior, pr.point_prior_sigma):
+    for j, z, s in zip(pr.point_prior_index.tolist(), pr.point_prior, pr.point_prior_sigma, strict=False):
         g.add(gtsam.PriorFactorPoint2(pr.n_poses + j, np.asarray(z, float), _noise(s, 0.0)))
     return g
 
@@ -438,7 +438,7 @@ def intersect_rays(origins, angles, sigma, *, iterations: int = 5, k: float = HU
     w = np.ones(th.size)
     p = o.mean(axis=0)
     ok = False
-    for it in range(iterations + 1):
+    for _it in range(iterations + 1):
         M = np.einsum("n,ni,nj->ij", w, nrm, nrm)
         if np.linalg.det(M) <= 1e-12 * max(w.sum(), 1.0) ** 2 or np.count_nonzero(w) < 2:
             ok = False

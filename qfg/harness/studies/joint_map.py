@@ -179,7 +179,7 @@ def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
         ests = qfg.solve_triplets(hs, method=task["solver"] if odo else "baseline",
                                   seed=seeds[1]) if hs else []
         t_solve = time.perf_counter() - t0
-        priors = {h.landmarks: e.landmark for h, e in zip(hs, ests)}
+        priors = {h.landmarks: e.landmark for h, e in zip(hs, ests, strict=False)}
         for m in graph_methods:
             t0 = time.perf_counter()
             fl = "-"
