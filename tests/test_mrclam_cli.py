@@ -162,8 +162,9 @@ def test_damaged_data_file_is_one_line_naming_file_and_line(tmp_path, capsys, no
 
 # ------------------------------------------------------------------------------ item 3: pieces
 def _run(path, out, *extra):
+    # the solvers' pipeline (the pooled map), whatever the default map is
     return main(["mrclam", str(path), "--output", str(out), "--piece-size", "8", "--seed", "4",
-                 *FAST, *extra])
+                 "--map", "pooled", *FAST, *extra])
 
 
 def test_interrupted_and_resumed_run_writes_the_same_triplets_as_one_run(root, tmp_path,
@@ -306,7 +307,8 @@ def test_ctrl_c_in_a_real_process_keeps_the_pieces_and_resume_finishes(root, tmp
 
     d = root / "MRCLAM_Dataset1"
     part = tmp_path / "part"
-    args = ["mrclam", str(d), "--output", str(part), "--piece-size", "8", "--seed", "4", *FAST]
+    args = ["mrclam", str(d), "--output", str(part), "--piece-size", "8", "--seed", "4",
+            "--map", "pooled", *FAST]
     code = ("import signal, sys, time\n"
             "signal.signal(signal.SIGINT, signal.default_int_handler)\n"
             "from qfg.harness.studies import mrclam as study\n"

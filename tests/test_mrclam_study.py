@@ -51,7 +51,8 @@ def cli_run(data, small_tensor, tmp_path_factory):
     out = tmp_path_factory.mktemp("out") / "ds1"
     rc = qfg_main(["mrclam", str(data / "MRCLAM_Dataset1"), "--tensor", str(small_tensor),
                    "--output", str(out), "--seed", "3", "--curve", "3,0", "--method", "fast",
-                   "--combine", "prior-once", "--max-gap", "10", "--spread-views", "0", "--no-distances"])
+                   "--combine", "prior-once", "--max-gap", "10", "--spread-views", "0", "--no-distances",
+                   "--map", "pooled"])
     assert rc in (0, None)
     with open(out / "triplets.csv") as fh:
         rows = list(csv.DictReader(fh))

@@ -138,7 +138,7 @@ MAP_METHODS: dict[str, MapMethod] = {}
 #: ``qfg mrclam``'s map method when ``--map`` is not given. The rule: the map method with the
 #: best mean log score over the seen and unseen triplets of MRCLAM datasets 1-6, as recorded in
 #: docs/results/mrclam_maps.csv (``tests/test_mrclam_maps.py`` checks the two agree).
-DEFAULT_MAP = "pooled"
+DEFAULT_MAP = "joint"
 
 
 
