@@ -54,12 +54,16 @@ def register(sub):
     from qfg.harness.studies.mrclam_maps import MAP_METHODS
 
     p = sub.add_parser("mrclam", help="solve, map, propagate and score one MRCLAM dataset",
-                       description="Every triplet history of the dataset solved, histories of one "
-                                   "ordered triplet combined, the full qualitative map propagated, "
-                                   "everything scored against the landmark ground truth "
-                                   "(docs/results/mrclam.md). Options and data are checked "
-                                   "before anything runs; the solving is recorded in pieces "
-                                   "(Ctrl-C, then --resume, continues).")
+                       description="The qualitative map of one dataset (every ordered "
+                                   "landmark triplet and every camera view), made by a map "
+                                   "method (--map; by default one joint posterior from all "
+                                   "bearings and odometry), scored against the landmark ground "
+                                   "truth beside uniform and the prior alone "
+                                   "(docs/results/mrclam.md). Maps made from single-triplet "
+                                   "solves solve each history and combine those of one ordered "
+                                   "triplet first. Options and data are checked before anything "
+                                   "runs; the solving is recorded in pieces (Ctrl-C, then "
+                                   "--resume, continues).")
     p.error = _one_line_error(p)
     p.add_argument("path", help="an MRCLAM_DatasetN directory")
     p.add_argument("--robots", default="", help="comma-separated robot numbers (default: all)")
