@@ -59,7 +59,7 @@ def test_demo_map_compares_propagated_exact_and_truth(tmp_path):
     rows = res["map"]
     assert rows and any(line.startswith("qualitative map:") for line in lines)
     for r in rows:
-        for key in ("propagated", "exact"):
+        for key in ("propagated", "exact", "configurations"):
             p = np.asarray(r[key])
             assert p.shape == (20,) and np.all(p >= 0) and abs(p.sum() - 1) < 1e-9
         assert 0 <= r["truth"] < 20

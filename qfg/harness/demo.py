@@ -88,6 +88,7 @@ def _qualitative_map(sc, hist, part, seed, echo, n_unseen: int = 3, support: int
     The map keeps, for each unseen triplet i,j:s, at most ``support`` pairs (i,j:k, j,k:s) of seen
     triplets, those with the most views, so that exact elimination stays small enough for a demo.
     """
+    from qfg.configurations import configuration_marginals
     from qfg.graph import map_from_histories, truth_states
     from qfg.propagation import compare_unseen
 
@@ -119,13 +120,25 @@ def _qualitative_map(sc, hist, part, seed, echo, n_unseen: int = 3, support: int
     g.discover_compositions()
     truth = truth_states(g.triplets, sc.landmarks, partition=part.name)
     rows = compare_unseen(g, truth)
+    # configuration inference over the same seen estimates, one ordering per landmark set (the
+    # orderings of a set are solved from the same views: one piece of evidence)
+    evidence, sets = {}, set()
+    for t, p, is_seen in zip(g.triplets, g.priors, g.seen, strict=True):
+        if is_seen and frozenset(t) not in sets:
+            sets.add(frozenset(t))
+            evidence[tuple(t)] = p
+    cfg = configuration_marginals(evidence, prior="world", triplets=[r["triplet"] for r in rows],
+                                  partition=part.name, seed=seed)
+    for r in rows:
+        r["configurations"] = cfg[tuple(r["triplet"])]
     echo(f"qualitative map: {g.n_triplets} triplets ({int(g.seen.sum())} seen, fast-solver priors; "
          f"{len(rows)} unseen, hidden from the solver), {g.n_factors} composition factors")
-    echo(f"{'unseen':>9}  {'truth':>5}  {'propagated (Alg. 2)':>20}  {'exact marginal':>16}  ISC")
+    echo(f"{'unseen':>9}  {'truth':>5}  {'propagated (Alg. 2)':>20}  {'exact marginal':>16}  "
+         f"{'configurations':>16}  ISC")
     for r in rows:
         a, b, c = r["triplet"]
         cells = []
-        for key in ("propagated", "exact"):
+        for key in ("propagated", "exact", "configurations"):
             p = r[key]
             if p is None:
                 cells.append("n/a")
@@ -134,11 +147,12 @@ def _qualitative_map(sc, hist, part, seed, echo, n_unseen: int = 3, support: int
             cells.append(f"{part.labels[j]:>3}{' ' if j == r['truth'] else '*'}{p[j]:5.2f} "
                          f"[{p[r['truth']]:4.2f}]")
         echo(f"{f'{a},{b}:{c}':>9}  {part.labels[r['truth']]:>5}  {cells[0]:>20}  {cells[1]:>16}  "
-             f"{r['isc']:.2f}")
+             f"{cells[2]:>16}  {r['isc']:.2f}")
     if rows and rows[0]["exact"] is None:
         echo(f"(exact marginals not computed: {rows[0]['exact_error']})")
     echo("(most likely state, its probability [probability of the truth]; * = not the truth; "
-         f"uniform would give {1 / part.n_states:.2f} to every state)")
+         f"uniform would give {1 / part.n_states:.2f} to every state; configurations: landmark "
+         "configurations sampled given the same seen estimates, qfg.configurations)")
     return rows
 
 
