@@ -136,3 +136,16 @@ def test_the_default_map_is_the_rule_applied_to_the_recorded_comparison():
     assert {int(r["dataset"]) for r in rows} == {1, 2, 3, 4, 5, 6}
     assert mrclam_maps.DEFAULT_MAP == mrclam_compare.best_map(rows)
     assert mrclam_maps.DEFAULT_MAP in mrclam_maps.MAP_METHODS
+
+
+def test_seen_config_keeps_the_solvers_seen_rows_and_answers_the_rest(root, tmp_path):
+    d, out = root / "MRCLAM_Dataset1", tmp_path / "o"
+    args = ["mrclam", str(d), "--method", "fast", "--output", str(out), *FAST]
+    assert main([*args, "--map", "pooled"]) == 0
+    pooled = {(r["A"], r["B"], r["C"]): r["probabilities"] for r in _rows(out)
+              if r["kind"] == "seen"}
+    assert main([*args, "--map", "seen-config", "--resume"]) == 0
+    rows = _rows(out)
+    seen = {(r["A"], r["B"], r["C"]): r["probabilities"] for r in rows if r["kind"] == "seen"}
+    assert seen == pooled                     # the solvers' combined estimates, as written
+    assert {r["map"] for r in rows} == {"seen-config"}
