@@ -57,8 +57,8 @@ from . import priors as _priors
 from ._validate import as_float_array, as_rng, non_negative, positive_int
 
 __all__ = ["PositionSummary", "summarize_position", "ConfigurationPosterior",
-           "infer_configurations", "configuration_marginals", "prior_states", "LIKELIHOODS",
-           "DEFAULTS"]
+           "infer_configurations", "configuration_marginals", "prior_states",
+           "one_ordering_per_set", "LIKELIHOODS", "DEFAULTS"]
 
 #: Likelihood kinds of :func:`infer_configurations`.
 LIKELIHOODS = ("state", "metric")
@@ -304,6 +304,24 @@ def summarize_position(hypotheses, states=None, prior="world", *, partition="edc
 
 
 # --------------------------------------------------------------------------- evidence
+def one_ordering_per_set(evidence) -> dict:
+    """One estimate per landmark set: of the seen orderings of ``{i, j, k}`` (in ``evidence``, a
+    mapping ``{triplet: estimate}``), the first in sorted order. The orderings of one set are
+    solved from the same views, so they are one piece of evidence; the configuration model takes
+    its evidence as independent and would count it up to six times.
+
+    >>> one_ordering_per_set({(1, 0, 2): "a", (0, 2, 1): "b", (2, 3, 4): "c"})
+    {(0, 2, 1): 'b', (2, 3, 4): 'c'}
+    """
+    out, sets = {}, set()
+    for t in sorted(evidence):
+        key = frozenset(t)
+        if key not in sets:
+            sets.add(key)
+            out[t] = evidence[t]
+    return out
+
+
 def _as_triplet(t, name="triplet"):
     try:
         tt = tuple(int(x) for x in t)

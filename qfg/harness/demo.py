@@ -88,7 +88,7 @@ def _qualitative_map(sc, hist, part, seed, echo, n_unseen: int = 3, support: int
     The map keeps, for each unseen triplet i,j:s, at most ``support`` pairs (i,j:k, j,k:s) of seen
     triplets, those with the most views, so that exact elimination stays small enough for a demo.
     """
-    from qfg.configurations import configuration_marginals
+    from qfg.configurations import configuration_marginals, one_ordering_per_set
     from qfg.graph import map_from_histories, truth_states
     from qfg.propagation import compare_unseen
 
@@ -120,13 +120,9 @@ def _qualitative_map(sc, hist, part, seed, echo, n_unseen: int = 3, support: int
     g.discover_compositions()
     truth = truth_states(g.triplets, sc.landmarks, partition=part.name)
     rows = compare_unseen(g, truth)
-    # configuration inference over the same seen estimates, one ordering per landmark set (the
-    # orderings of a set are solved from the same views: one piece of evidence)
-    evidence, sets = {}, set()
-    for t, p, is_seen in zip(g.triplets, g.priors, g.seen, strict=True):
-        if is_seen and frozenset(t) not in sets:
-            sets.add(frozenset(t))
-            evidence[tuple(t)] = p
+    # configuration inference over the same seen estimates
+    evidence = one_ordering_per_set({tuple(t): p for t, p, s in zip(g.triplets, g.priors, g.seen,
+                                                                     strict=True) if s})
     cfg = configuration_marginals(evidence, prior="world", triplets=[r["triplet"] for r in rows],
                                   partition=part.name, seed=seed)
     for r in rows:

@@ -188,11 +188,9 @@ def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
                     out = np.tile(q, (len(keys), 1))
                     fl = "nothing_seen"
                 elif m == "configurations":
-                    from qfg.configurations import configuration_marginals
+                    from qfg.configurations import configuration_marginals, one_ordering_per_set
 
-                    # one ordering per landmark set: the six orderings of one set are the
-                    # same views, and the configuration model takes evidence as independent
-                    ev = {t: p for t, p in priors.items() if list(t) == sorted(t)}
+                    ev = one_ordering_per_set(priors)
                     r = configuration_marginals(ev, "world", triplets=keys,
                                                 n_particles=int(task["config_particles"]),
                                                 seed=seeds[2])

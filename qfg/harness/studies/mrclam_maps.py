@@ -206,16 +206,10 @@ def map_configurations(seen: SeenEstimates, likelihood: str = "state") -> MapRes
     configuration_marginals`): landmark configurations sampled from the solvers' prior, each seen
     landmark set weighting them by one ordering's combined estimate over the prior's state
     distribution; every triplet, seen or not, is then read off the same samples."""
-    from qfg.configurations import configuration_marginals
+    from qfg.configurations import configuration_marginals, one_ordering_per_set
 
-    # The orderings of one landmark set are solved from the same views: their estimates are one
-    # piece of evidence, not six, and counting each would make the map over-confident. One
-    # ordering per set (the first seen, in sorted order) weights the configurations.
-    evidence, sets = {}, set()
-    for t, p in zip(seen.triplets.tolist(), seen.probabilities, strict=True):
-        if frozenset(t) not in sets:
-            sets.add(frozenset(t))
-            evidence[tuple(t)] = p
+    evidence = one_ordering_per_set({tuple(t): p for t, p in zip(seen.triplets.tolist(),
+                                                                  seen.probabilities, strict=True)})
     seen_keys = {tuple(t) for t in seen.triplets.tolist()}
     wanted = _all_ordered_triplets(seen.dataset.landmark_ids.size)
     res = configuration_marginals(evidence, prior=seen.prior, triplets=[tuple(t) for t in
