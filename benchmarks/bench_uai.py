@@ -123,15 +123,9 @@ print(json.dumps(out))
 def _reference(path: Path):
     if not path.exists():
         return None
-    tok = path.read_text().split()
-    if tok[0] == "PR":
-        return float(tok[1])
-    n, pos, out = int(tok[1]), 2, []
-    for _ in range(n):
-        c = int(tok[pos])
-        out.append(np.array(tok[pos + 1:pos + 1 + c], dtype=float))
-        pos += 1 + c
-    return out
+    from qfg.inference.tasks import read_result
+
+    return read_result(path)
 
 
 def instances(data: Path) -> list[dict]:

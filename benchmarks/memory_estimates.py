@@ -10,23 +10,14 @@ Run: ``OPENBLAS_NUM_THREADS=1 .venv/bin/python -m benchmarks.memory_estimates``
 
 from __future__ import annotations
 
-import itertools
 import tracemalloc
 from pathlib import Path
 
-import numpy as np
-
 
 def band(L, w, m=20, seed=0):
-    from qfg.graph import QualitativeFactorGraph
+    from qfg.random_graphs import band_graph
 
-    rng = np.random.default_rng(seed)
-    g = QualitativeFactorGraph(None, tensor=rng.random((m, m, m)) + 0.01)
-    for t in itertools.combinations(range(L), 3):
-        if max(t) - min(t) < w:
-            g.add_triplet(t, rng.random(m) if rng.random() < 0.5 else None)
-    g.discover_compositions()
-    return g
+    return band_graph(L, w, m, seed)
 
 
 def traced(fn):

@@ -27,7 +27,7 @@ from ._validate import as_rng
 from .graph import QualitativeFactorGraph
 
 __all__ = ["PropagationGraph", "propagation_graph", "candidate_graph", "connectivity_score",
-           "factor_triplets"]
+           "factor_triplets", "band_graph"]
 
 
 def factor_triplets(f) -> tuple[tuple, tuple, tuple]:
@@ -148,3 +148,22 @@ def propagation_graph(seed, table, *, n_landmarks: int = 6, n_fc_min: int = 5,
     g = _build(triplets, seen, [e.landmark for e in est], factors, table, partition)
     return PropagationGraph(graph=g, landmarks=L, connectivity=conn, kept_candidate=kept,
                             hypotheses=hyp)
+
+
+def band_graph(n_landmarks: int, window: int, m: int = 20, seed=0) -> QualitativeFactorGraph:
+    """A random graph of bounded width for memory and engine checks: every triplet i < j < k
+    with ``k - i < window``, about half of them seen with a random prior, a random positive
+    (m, m, m) tensor, and every composition among them. The junction tree's width grows with
+    ``window``, its length with ``n_landmarks``.
+
+    >>> g = band_graph(6, 4, m=3)         # spans k - i of 2 (4 triplets) and 3 (6)
+    >>> g.n_triplets, g.n_factors > 0
+    (10, True)
+    """
+    rng = as_rng(seed)
+    g = QualitativeFactorGraph(None, tensor=rng.random((m, m, m)) + 0.01)
+    for t in itertools.combinations(range(int(n_landmarks)), 3):
+        if max(t) - min(t) < window:
+            g.add_triplet(t, rng.random(m) if rng.random() < 0.5 else None)
+    g.discover_compositions()
+    return g

@@ -460,13 +460,9 @@ def test_loopy_bp_warns_when_not_converged_and_on_dense_maps():
 
 def _band(L, w, m=20, seed=0):
     """Triplets i < j < k of landmarks within a window of w (compositions among them)."""
-    rng = np.random.default_rng(seed)
-    g = QualitativeFactorGraph(None, tensor=rng.random((m, m, m)) + 0.01)
-    for t in itertools.combinations(range(L), 3):
-        if max(t) - min(t) < w:
-            g.add_triplet(t, rng.random(m) if rng.random() < 0.5 else None)
-    g.discover_compositions()
-    return g
+    from qfg.random_graphs import band_graph
+
+    return band_graph(L, w, m, seed)
 
 
 @pytest.mark.parametrize("seed", range(4))

@@ -304,15 +304,9 @@ DATA = Path(__file__).parent / "data" / "uai"
 
 
 def _reference(path):
-    tok = Path(path).read_text().split()
-    if tok[0] == "PR":
-        return float(tok[1])
-    n, pos, out = int(tok[1]), 2, []
-    for _ in range(n):
-        c = int(tok[pos])
-        out.append(np.array(tok[pos + 1:pos + 1 + c], dtype=float))
-        pos += 1 + c
-    return out
+    from qfg.inference.tasks import read_result
+
+    return read_result(path)
 
 
 def _evid(name):
@@ -426,3 +420,13 @@ def test_tasks_refuse_before_work_over_budget():
     with pytest.raises(MemoryBudgetError, match="memory budget") as info:
         solve_task(DATA / "Grids_12.uai", "MAR", memory=1000)
     assert info.value.estimate > 1000 and info.value.budget == 1000
+
+
+def test_read_result_names_a_file_that_is_not_one(tmp_path):
+    from qfg.inference.tasks import read_result
+
+    for text in ("MAP\n1 0\n", "MAR\n2 2 0.5 0.5\n", "", "PR\nx\n"):
+        p = tmp_path / "bad.MAR"
+        p.write_text(text)
+        with pytest.raises(ValueError, match="bad.MAR"):
+            read_result(p)

@@ -16,11 +16,12 @@ from .exact import ENGINES, elimination_estimate, exact_marginals, k_best, map_a
 from .junction import MAX_TABLE, FactorModel, JunctionTree, SizeEstimate, size_estimate
 from .memory import MemoryBudgetError, MemoryEstimate, memory_budget
 from .results import Assignment, GraphTooLargeError, Marginals, MissingKeyError, ZeroMassError
-from .tasks import TaskResult, query, solve_task, write_result
+from .tasks import TaskResult, query, read_result, solve_task, write_result
 from .uai import read_uai, read_uai_graph, write_uai
 
 __all__ = ["exact_marginals", "map_assignment", "k_best", "elimination_estimate", "ENGINES",
            "FactorModel", "JunctionTree", "SizeEstimate", "size_estimate", "MAX_TABLE",
            "Marginals", "Assignment", "GraphTooLargeError", "ZeroMassError", "MissingKeyError",
            "write_uai", "read_uai", "read_uai_graph", "read_evid", "clamp", "MemoryBudgetError",
-           "MemoryEstimate", "memory_budget", "query", "solve_task", "write_result", "TaskResult"]
+           "MemoryEstimate", "memory_budget", "query", "solve_task", "write_result",
+           "read_result", "TaskResult"]

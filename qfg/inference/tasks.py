@@ -34,7 +34,7 @@ import numpy as np
 
 from .junction import FactorModel, JunctionTree
 
-__all__ = ["TASKS", "TaskResult", "solve_task", "write_result", "query"]
+__all__ = ["TASKS", "TaskResult", "solve_task", "write_result", "read_result", "query"]
 
 #: Tasks of :func:`solve_task` (``MPE`` is accepted as another name of ``MAP``).
 TASKS = ("PR", "MAR", "MAP")
@@ -149,6 +149,35 @@ def write_result(result: TaskResult, path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(result.to_text())
     return path
+
+
+def read_result(path):
+    """A competition result file (``PR``: log10 Z, a float; ``MAR``: a list of (card,) arrays, one
+    per variable), e.g. the reference answers shipped with the instances, or what
+    :func:`write_result` wrote. ValueError naming the file when it is not one.
+
+    >>> import tempfile, os
+    >>> p = os.path.join(tempfile.mkdtemp(), "x.MAR")
+    >>> _ = open(p, "w").write("MAR 2  2 0.25 0.75  1 1.0")
+    >>> [a.tolist() for a in read_result(p)]
+    [[0.25, 0.75], [1.0]]
+    """
+    tok = Path(path).read_text().split()
+    try:
+        if tok[0] == "PR":
+            return float(tok[1])
+        if tok[0] != "MAR":
+            raise ValueError(f"expected PR or MAR first, got {tok[0]!r}")
+        n, pos, out = int(tok[1]), 2, []
+        for _ in range(n):
+            c = int(tok[pos])
+            if len(tok) < pos + 1 + c:
+                raise ValueError("fewer values than the cardinalities announce")
+            out.append(np.array(tok[pos + 1:pos + 1 + c], dtype=float))
+            pos += 1 + c
+    except (IndexError, ValueError) as exc:
+        raise ValueError(f"{path}: not a PR or MAR result file ({exc})") from None
+    return out
 
 
 def query(g_or_model, variables=None, evidence=None, *, memory=None):
