@@ -28,6 +28,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 #: the maps compared, and the solver each is made from (``none``: no single-triplet solver)
 MAPS = (("joint", "none"), ("config-state", "fast"), ("seen-config", "fast"), ("pooled", "fast"),
         ("best", "fast"))
@@ -91,8 +93,6 @@ def compare(root, *, output, datasets=(1, 2, 3, 4, 5, 6), maps=MAPS, seed: int =
             answered = name
             maps_info = out / "maps" / f"{name}.npz"
             if maps_info.is_file():
-                import numpy as np
-
                 with np.load(maps_info, allow_pickle=False) as z:
                     answered = json.loads(str(z["info"])).get("answered_by", name)
             for kind in ("seen", "propagated", "camera"):
