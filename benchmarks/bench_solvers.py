@@ -4,6 +4,14 @@ sigma_w = 5 deg), default options, measured side by side in one run. Batched: on
 repeats; fast-paper: T = 200, 5 repeats). Single calls: median over triplets (baseline 20,
 reference 5). The paper's MATLAB took 0.05 s (fast), 18 s (full) and 26 s (baseline).
 
+Views scaling, every method side by side in one run: the same geometries (10 per n, drawn like
+the rows above with 20 views; the first n views of each) solved at n = 3, 10 and 20 views, full
+and fast batched (one call on the 10), baseline and reference single calls (median). Each time is
+also given in units of a fixed numpy workload (``_workload``: sines and a matrix product; the
+mean of its best-of-5 time just before and just after), so that rows measured at different
+loads compare;
+"growth" is the time at n over the time at 3 views (linear in views: 3.3 at 10, 6.7 at 20).
+
 ``python -m benchmarks.bench_solvers --against DIR [--method full]`` times a solver against an
 older tree's ``qfg`` package in DIR (``git archive <commit> qfg | tar -x -C DIR``), interleaved in
 one process: the ratio survives the shared machine's load.
@@ -47,6 +55,67 @@ def _single(method, hs):
     return float(np.median(ts)), float(np.percentile(ts, 90))
 
 
+def _workload(repeats=5):
+    """Seconds of a fixed numpy computation (best of ``repeats``): the machine's speed now."""
+    a = np.linspace(0.0, 50.0, 400_000)
+    m = np.random.default_rng(0).standard_normal((160, 160))
+    best = np.inf
+    for _ in range(repeats):
+        t = time.perf_counter()
+        np.sin(a).sum()
+        np.cos(a + 1.0).sum()
+        (m @ m @ m).sum()
+        best = min(best, time.perf_counter() - t)
+    return best
+
+
+#: Views at which the scaling rows are measured, and geometries per n.
+VIEWS = (3, 10, 20)
+VIEW_TRIPLETS = 10
+
+
+def views_scaling(views=VIEWS, n=VIEW_TRIPLETS, methods=("full", "fast", "baseline",
+                                                           "reference"), seed=2025):
+    """Rows: seconds per triplet of every method at every n of ``views``, side by side, with the
+    fixed workload's seconds just before each and the growth over 3 views."""
+    from dataclasses import replace
+
+    ss = np.random.SeedSequence(seed)
+    full = [random_triplet_history(np.random.default_rng(c), max(views), np.deg2rad(2.0),
+                                   np.deg2rad(5.0)) for c in ss.spawn(n)]
+
+    def first(h, k):
+        return replace(h, bearings=h.bearings[:k], headings=h.headings[:k - 1],
+                       views=h.views[:k], truth=None)
+
+    rows, base = [], {}
+    for k in views:
+        hs = [first(h, k) for h in full]
+        for method in methods:
+            w0 = _workload()
+            load = os.getloadavg()[0]
+            if method in ("full", "fast"):
+                solve_triplets(hs[:2], method=method, seed=0)
+                t = time.perf_counter()
+                solve_triplets(hs, method=method, seed=1)
+                sec, how = (time.perf_counter() - t) / len(hs), f"batched ({len(hs)} per call)"
+            else:
+                ts = []
+                for j, h in enumerate(hs):
+                    t = time.perf_counter()
+                    solve_triplet(h, method=method, seed=j)
+                    ts.append(time.perf_counter() - t)
+                sec, how = float(np.median(ts)), f"single calls, median of {len(hs)}"
+            w = 0.5 * (w0 + _workload())
+            units = sec / w
+            base.setdefault(method, units)
+            rows.append({"name": f"{method}, {k} views", "value": 1e3 * sec, "unit": "ms/triplet",
+                         "target": "", "note": f"{how}; {units:.3g} workloads (workload "
+                         f"{1e3 * w:.1f} ms); growth over 3 views x{units / base[method]:.2f}; "
+                         f"load {load:.1f}"})
+    return rows
+
+
 def run():
     rows = []
     hs = _histories(200)
@@ -61,7 +130,7 @@ def run():
         med, p90 = _single(method, hs[:n])
         rows.append({"name": f"{method}, single call", "value": 1e3 * med, "unit": "ms/triplet",
                      "target": "", "note": f"median of {n}, p90 {1e3 * p90:.0f} ms"})
-    return rows
+    return rows + views_scaling()
 
 
 def _load_tree(src, name="qfg_before"):
