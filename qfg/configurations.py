@@ -67,6 +67,7 @@ LIKELIHOODS = ("state", "metric")
 DEFAULTS = {
     "n_particles": 2000, "n_groups": 4, "target_ess": 0.5, "n_sweeps": 2, "floor": 1e-2,
     "state_mix": 0.1, "low_ess_mix": 0.5, "pseudo_count": 2.0, "temper": None,
+    "ess_prior": 0.0, "block_moves": True,
 }
 
 #: ``temper=None``: the exponent of the state likelihoods per likelihood kind (seed 555: 0.6 gave
@@ -333,8 +334,12 @@ def _as_triplet(t, name="triplet"):
     return tt
 
 
-def _evidence_items(evidence, part, pr, likelihood):
-    """{triplet: (states (m,), PositionSummary or None)} from a graph or a mapping, checked."""
+def _evidence_items(evidence, part, pr, likelihood, ess=None):
+    """{triplet: (states (m,), PositionSummary or None, ess)} from a graph or a mapping, checked.
+
+    ``ess``: the effective sample size behind each estimate, from ``ess`` ({triplet: number})
+    where given, else the estimate's own (``TripletEstimate.ess``, ``PositionSummary.ess``), else
+    inf (a plain vector: taken as exact)."""
     if hasattr(evidence, "triplets") and hasattr(evidence, "priors"):
         gpart = getattr(evidence, "partition", None)
         if gpart is not None and gpart != part.name:
@@ -347,10 +352,27 @@ def _evidence_items(evidence, part, pr, likelihood):
         raise ValueError("evidence: expected a QualitativeFactorGraph or a mapping {triplet: "
                          f"estimate}}, got {type(evidence).__name__}")
     m = part.n_states
+    ess_given = {}
+    if ess is not None:
+        if not isinstance(ess, Mapping):
+            raise ValueError(f"ess: expected a mapping {{triplet: effective sample size}}, got "
+                             f"{type(ess).__name__}")
+        for t, n in ess.items():
+            tt = _as_triplet(t, "ess")
+            try:
+                n = float(n)
+            except (TypeError, ValueError):
+                n = float("nan")
+            if not n > 0:
+                raise ValueError(f"ess: triplet {tt}: expected a number > 0 (or inf), got {n!r}")
+            ess_given[tt] = n
     out = {}
     for t, e in items.items():
         tt = _as_triplet(t, "evidence")
         summ = None
+        n_eff = float(getattr(e, "ess", float("inf")))
+        if not n_eff > 0:       # an estimate with no effective sample (degenerate): no weight
+            n_eff = 0.0
         if isinstance(e, PositionSummary):
             summ, vec = e, e.states
             if e.partition != part.name or e.prior != pr.name:
@@ -381,7 +403,11 @@ def _evidence_items(evidence, part, pr, likelihood):
         if likelihood == "metric" and summ is None:
             raise ValueError(f"evidence: triplet {tt}: likelihood='metric' needs a "
                              "PositionSummary (summarize_position) for every seen triplet")
-        out[tt] = (v / v.sum(), summ if likelihood == "metric" else None)
+        out[tt] = (v / v.sum(), summ if likelihood == "metric" else None,
+                   ess_given.get(tt, n_eff))
+    unknown = set(ess_given) - set(out)
+    if unknown:
+        raise ValueError(f"ess: triplet {sorted(unknown)[0]} has no evidence")
     return out
 
 
@@ -393,6 +419,7 @@ class _Terms:
     ijk: np.ndarray            # (T, 3) landmark indices
     logtab: np.ndarray         # (T, m) log state likelihood (floored)
     ratiotab: np.ndarray       # (T, m) P_t / q
+    eps: np.ndarray            # (T,) the term's floor: floor, widened by the estimate's ESS
     metric: np.ndarray         # (T,) bool
     mix: np.ndarray            # (T,) b: weight of the state likelihood inside the metric one
     centres: np.ndarray        # (T, K, 2)
@@ -405,7 +432,8 @@ class _Terms:
 
     def subset(self, keep):
         keep = np.asarray(keep)
-        return _Terms(self.ijk[keep], self.logtab[keep], self.ratiotab[keep], self.metric[keep],
+        return _Terms(self.ijk[keep], self.logtab[keep], self.ratiotab[keep], self.eps[keep],
+                      self.metric[keep],
                       self.mix[keep], self.centres[keep], self.logw[keep], self.lin[keep],
                       self.lnorm[keep], self.kind[keep],
                       [t for t, k in zip(self.triplets, keep, strict=True) if k] if keep.dtype
@@ -421,7 +449,7 @@ def _make_terms(items, index, q, o, kind):
                                           float(o["temper"]))
     m = q.shape[0]
     T = len(items)
-    K = max([s.centres.shape[0] for _, s in items.values() if s is not None], default=1)
+    K = max([s.centres.shape[0] for _, s, _ in items.values() if s is not None], default=1)
     K = max(K, 1)
     ijk = np.zeros((T, 3), dtype=np.intp)
     ratio = np.ones((T, m))
@@ -433,7 +461,14 @@ def _make_terms(items, index, q, o, kind):
     lin = np.tile(np.eye(2), (T, 1, 1))
     lnorm = np.zeros(T)
     trips, evs = [], []
-    for r, (t, (v, s)) in enumerate(items.items()):
+    a = float(o["ess_prior"])
+    eps = np.full(T, float(floor))
+    for r, (t, (v, s, n_eff)) in enumerate(items.items()):
+        # an estimate from n_eff effective draws is a histogram of them: read as a Dirichlet
+        # posterior mean with a draws of the prior, (n P + a q) / (n + a); its ratio to q is the
+        # likelihood mixed with 1 (flat) at weight a / (n + a), which then adds to the floor
+        w = a / (n_eff + a) if a > 0 else 0.0
+        eps[r] = 1.0 - (1.0 - floor) * (1.0 - w)
         ijk[r] = [index[x] for x in t]
         # the state likelihood P_t / q, tempered (P_t / q)^tau (renormalized: mean 1 under q)
         ratio[r] = (v if tau == 1 else temper(v, q, tau)) / q
@@ -448,8 +483,8 @@ def _make_terms(items, index, q, o, kind):
             lin[r], lnorm[r] = li[0], ln[0]
         trips.append(t)
         evs.append(v if s is None else s)
-    logtab = np.log((1.0 - floor) * ratio + floor)
-    return _Terms(ijk, logtab, ratio, metric, mix, centres, logw, lin, lnorm,
+    logtab = np.log((1.0 - eps[:, None]) * ratio + eps[:, None])
+    return _Terms(ijk, logtab, ratio, eps, metric, mix, centres, logw, lin, lnorm,
                   np.full(T, kind, dtype=np.int8), trips, evs)
 
 
@@ -463,7 +498,8 @@ def _concat_terms(a: _Terms, b: _Terms) -> _Terms:
         return np.concatenate([x, np.full(shape, fill)], axis=1)
 
     return _Terms(np.concatenate([a.ijk, b.ijk]), np.concatenate([a.logtab, b.logtab]),
-                  np.concatenate([a.ratiotab, b.ratiotab]), np.concatenate([a.metric, b.metric]),
+                  np.concatenate([a.ratiotab, b.ratiotab]), np.concatenate([a.eps, b.eps]),
+                  np.concatenate([a.metric, b.metric]),
                   np.concatenate([a.mix, b.mix]),
                   np.concatenate([pad(a.centres, 0.0), pad(b.centres, 0.0)]),
                   np.concatenate([pad(a.logw, -np.inf), pad(b.logw, -np.inf)]),
@@ -473,12 +509,62 @@ def _concat_terms(a: _Terms, b: _Terms) -> _Terms:
 
 
 # --------------------------------------------------------------------------- the sampler
+def _landmark_blocks(ijk, n) -> list:
+    """Blocks of landmarks the sampler moves as one (``_Sampler.move_blocks``), from the seen
+    triplets' landmark indices ``ijk`` (T, 3) of ``n`` landmarks: the connected components of the
+    evidence (landmarks linked by a common seen triplet) and its rigid clusters (seen triplets
+    linked when they share two landmarks: a cluster's shape is tied together, its placement
+    relative to another cluster only through one shared landmark or none); blocks of fewer than
+    two landmarks, or of all of them (the whole-configuration move does that), are left out.
+
+    >>> [b.tolist() for b in _landmark_blocks(np.array([[0, 1, 2], [1, 2, 3], [3, 4, 5]]), 6)]
+    [[3, 4, 5], [0, 1, 2, 3]]
+    """
+    def find(par, i):
+        while par[i] != i:
+            par[i] = par[par[i]]
+            i = par[i]
+        return i
+
+    ijk = np.asarray(ijk, dtype=np.intp).reshape(-1, 3)
+    blocks = []
+    par = list(range(n))
+    for t in ijk:
+        for x in t[1:]:
+            par[find(par, int(x))] = find(par, int(t[0]))
+    comp = {}
+    for l in {int(x) for x in ijk.ravel()}:
+        comp.setdefault(find(par, l), []).append(l)
+    blocks += [sorted(c) for c in comp.values()]
+    T = len(ijk)
+    tp = list(range(T))
+    by_pair = {}
+    for r, t in enumerate(ijk.tolist()):
+        for a, b in ((0, 1), (0, 2), (1, 2)):
+            key = (min(t[a], t[b]), max(t[a], t[b]))
+            if key in by_pair:
+                tp[find(tp, r)] = find(tp, by_pair[key])
+            else:
+                by_pair[key] = r
+    cl = {}
+    for r, t in enumerate(ijk.tolist()):
+        cl.setdefault(find(tp, r), set()).update(t)
+    blocks += [sorted(c) for c in cl.values()]
+    out, seen = [], set()
+    for b in sorted(blocks, key=lambda b: (len(b), b)):
+        key = tuple(b)
+        if 2 <= len(b) < n and key not in seen:
+            seen.add(key)
+            out.append(np.array(b, dtype=np.intp))
+    return out
+
+
 class _Sampler:
     """Tempered SMC over world configurations, stored landmark-major: ``Xt`` (n, P, 2) (gathering
     the landmarks of many triplets is then a copy of whole rows); per-term log-likelihoods ``ll``
     (T, P). Particle p belongs to group p // Pg."""
 
-    def __init__(self, X, terms, part, pr, floor, rng, n_groups):
+    def __init__(self, X, terms, part, pr, floor, rng, n_groups, block_moves=True):
         self.Xt = np.ascontiguousarray(np.transpose(X, (1, 0, 2)))
         self.terms, self.part, self.pr = terms, part, pr
         self.floor, self.rng, self.G = floor, rng, n_groups
@@ -493,6 +579,12 @@ class _Sampler:
         self.ll = self._loglik(np.arange(len(terms.ijk)))
         self.step = np.full(self.n, 0.5)
         self.sim_step = 0.5
+        self.blocks = _landmark_blocks(terms.ijk, self.n) if block_moves else []
+        self.block_step = np.full(len(self.blocks), 0.5)
+        self.block_terms = [np.unique(np.concatenate([self.of_landmark[l] for l in S]))
+                            for S in self.blocks]
+        self._spread_all = 1.0
+        self.acc_block = []
         self.acc_land, self.acc_sim = [], []
 
     @property
@@ -507,10 +599,13 @@ class _Sampler:
         ijk = t.ijk[idx]
         pts = [self.Xt[ijk[:, a]] for a in range(3)]                    # (T, P, 2) each, copies
         if l is not None:
+            ls = np.atleast_1d(l)
+            props = prop[None] if prop.ndim == 2 else prop                  # (k, P, 2)
             for a in range(3):
-                hit = ijk[:, a] == l
-                if hit.any():
-                    pts[a][hit] = prop[None]
+                for j, lj in enumerate(ls):
+                    hit = ijk[:, a] == lj
+                    if hit.any():
+                        pts[a][hit] = props[j][None]
         from .geometry import to_frame
 
         c = to_frame(pts[2], pts[0], pts[1])
@@ -523,7 +618,8 @@ class _Sampler:
             r = np.exp(_log_mixture(c[met], t.centres[mi], t.logw[mi], t.lin[mi], t.lnorm[mi]))
             st = np.take_along_axis(t.ratiotab[mi], sm, axis=1)
             b = t.mix[mi][:, None]
-            out[met] = np.log((1.0 - self.floor) * ((1.0 - b) * r + b * st) + self.floor)
+            e = t.eps[mi][:, None]
+            out[met] = np.log((1.0 - e) * ((1.0 - b) * r + b * st) + e)
         return out
 
     def coef(self, beta):
@@ -551,7 +647,7 @@ class _Sampler:
     def _min_pair(self, Xt):
         """(P,) least pairwise distance within each configuration, Xt (n, P, 2)."""
         out = np.full(Xt.shape[1], np.inf)
-        for i in range(self.n - 1):
+        for i in range(Xt.shape[0] - 1):
             d = Xt[i + 1:] - Xt[i][None]
             np.minimum(out, np.min(np.einsum("npk,npk->np", d, d), axis=0), out=out)
         return np.sqrt(out)
@@ -603,17 +699,75 @@ class _Sampler:
         shrink = ok & (s < 1)
         if self.pr.d_min > 0 and shrink.any():
             ok[shrink] = self._min_pair(Y[:, shrink]) >= self.pr.d_min
-        # likelihoods are invariant; the box prior is flat: the Jacobian s^(2n) decides
-        a = ok & (np.log(rng.random(P)) < 2 * n * ls)
+        # likelihoods are invariant; the box prior is flat: the Jacobian decides, s^(2(n-1)) (the
+        # centroid is translated, the n - 1 independent offsets from it rotated and scaled)
+        a = ok & (np.log(rng.random(P)) < 2 * (n - 1) * ls)
         self.Xt[:, a] = Y[:, a]
         self.acc_sim.append(float(a.mean()))
         return float(a.mean())
 
+    def move_blocks(self, beta):
+        """A random similarity transform of one block of landmarks at a time (about the block's
+        centroid; the others stay), accepted by Metropolis on the likelihood of the triplets that
+        touch the block and the prior. A block whose triplets all lie inside it (a connected
+        component of the evidence) keeps its likelihood: the move carries it across the
+        placements relative to the rest that no evidence constrains; a rigid cluster tied to
+        the rest by one or two landmarks moves about them where the evidence allows."""
+        if not self.blocks:
+            return np.zeros(0)
+        coef = self.coef(beta)
+        rng, P = self.rng, self.P
+        acc = np.zeros(len(self.blocks))
+        for b in rng.permutation(len(self.blocks)):
+            S = self.blocks[b]
+            k = S.size
+            st = self.block_step[b]
+            Xs = self.Xt[S]                                                   # (k, P, 2)
+            c = Xs.mean(axis=0, keepdims=True)
+            th = st * 0.3 * rng.standard_normal(P)
+            ls = st * 0.5 / k * rng.standard_normal(P)
+            tr = st * 0.3 * self._spread_all * rng.standard_normal((1, P, 2))
+            sc = np.exp(ls)
+            cs, sn = np.cos(th) * sc, np.sin(th) * sc
+            d = Xs - c
+            Y = np.stack([cs * d[..., 0] - sn * d[..., 1], sn * d[..., 0] + cs * d[..., 1]],
+                         axis=-1) + c + tr
+            ok = np.all(self._inside(Y), axis=0)
+            if self.pr.d_min > 0:
+                rest = np.setdiff1d(np.arange(self.n), S)
+                md = np.full(P, np.inf)
+                for j in range(k):
+                    if rest.size:
+                        dd = self.Xt[rest] - Y[j][None]
+                        np.minimum(md, np.min(np.einsum("npk,npk->np", dd, dd), axis=0), out=md)
+                if k > 1:
+                    np.minimum(md, self._min_pair(Y) ** 2, out=md)
+                ok &= np.sqrt(md) >= self.pr.d_min
+            idx = self.block_terms[b]
+            if idx.size:
+                new = self._loglik(idx, S, Y)
+                dlog = coef[idx] @ (new - self.ll[idx])
+            else:
+                new, dlog = None, np.zeros(P)
+            a = ok & (np.log(rng.random(P)) < dlog + 2 * (k - 1) * ls)
+            self.Xt[np.ix_(S, a)] = Y[:, a]
+            if new is not None and a.any():
+                self.ll[idx] = np.where(a[None, :], new, self.ll[idx])
+            acc[b] = a.mean()
+        self.acc_block.append(float(acc.mean()))
+        return acc
+
     def sweep(self, beta, n_sweeps):
-        accs, sims = [], []
+        accs, sims, blks = [], [], []
         for _ in range(n_sweeps):
             accs.append(self.move_landmarks(beta))
+            if self.blocks:
+                self._spread_all = float(np.mean(self._spread()))
+                blks.append(self.move_blocks(beta))
             sims.append(self.move_similarity())
+        if blks:
+            self.block_step *= np.exp(np.clip(np.mean(blks, axis=0) - 0.3, -0.3, 0.3) * 2)
+            self.block_step = np.clip(self.block_step, 1e-3, 3.0)
         acc = np.mean(accs, axis=0)
         # steps adapted toward an acceptance of about 0.3 (fixed within a stage)
         self.step *= np.exp(np.clip(acc - 0.3, -0.3, 0.3) * 2)
@@ -804,7 +958,7 @@ class ConfigurationPosterior:
         return Marginals(tuple(ts), self.partition.name, f, f"configurations-{self.likelihood}",
                          info)
 
-    def update(self, evidence, *, seed=None, landmarks=()) -> "ConfigurationPosterior":
+    def update(self, evidence, *, seed=None, landmarks=(), ess=None) -> "ConfigurationPosterior":
         """A new posterior with more evidence, tempered in from these particles (cheaper than a
         restart when the new evidence is a small part of the whole).
 
@@ -814,7 +968,7 @@ class ConfigurationPosterior:
         """
         o = self.options
         rng = as_rng(seed)
-        items = _evidence_items(evidence, self.partition, self.prior, self.likelihood)
+        items = _evidence_items(evidence, self.partition, self.prior, self.likelihood, ess)
         new_ids = [x for x in dict.fromkeys([*landmarks, *(x for t in items for x in t)])
                    if x not in self._index]
         ids = self.landmarks + tuple(new_ids)
@@ -823,7 +977,7 @@ class ConfigurationPosterior:
         if new_ids:
             X = np.concatenate([X, _prior_extension(self.prior, X, len(new_ids), rng)], axis=1)
         old = _Terms(**{k: getattr(self._terms, k) for k in (
-            "ijk", "logtab", "ratiotab", "metric", "mix", "centres", "logw", "lin", "lnorm",
+            "ijk", "logtab", "ratiotab", "eps", "metric", "mix", "centres", "logw", "lin", "lnorm",
             "kind")}, triplets=list(self._terms.triplets), evidence=list(self._terms.evidence))
         old.kind = np.where(np.isin(np.arange(len(old.triplets)),
                                     [i for i, t in enumerate(old.triplets) if t in items]),
@@ -853,7 +1007,8 @@ def _prior_extension(pr, X, k, rng):
 
 def _run(ids, X, terms, part, pr, likelihood, options, q, rng, groups):
     G = options["n_groups"]
-    s = _Sampler(np.array(X, dtype=float), terms, part, pr, options["floor"], rng, G)
+    s = _Sampler(np.array(X, dtype=float), terms, part, pr, options["floor"], rng, G,
+                 bool(options["block_moves"]))
     betas, esss, logz = s.run(options["target_ess"], options["n_sweeps"])
     if len(betas) > 1:
         # after the last stage the particles have moved once; one more sweep decorrelates the
@@ -865,13 +1020,15 @@ def _run(ids, X, terms, part, pr, likelihood, options, q, rng, groups):
     diag = {"n_stages": len(betas) - 1, "betas": np.array(betas), "ess": np.array(esss),
             "acceptance_landmark": float(np.mean(s.acc_land)) if s.acc_land else float("nan"),
             "acceptance_similarity": float(np.mean(s.acc_sim)) if s.acc_sim else float("nan"),
+            "acceptance_block": float(np.mean(s.acc_block)) if s.acc_block else float("nan"),
+            "n_blocks": len(s.blocks),
             "log_evidence": logz, "options": dict(options), "likelihood": likelihood,
             "n_seen": len(terms.triplets), "n_metric": int(terms.metric.sum())}
     return ConfigurationPosterior(ids, s.X, groups, part, pr, likelihood, terms, options, diag, q)
 
 
 def infer_configurations(evidence, prior="world", *, partition="edc", likelihood="state",
-                         landmarks=(), seed=None, **options) -> ConfigurationPosterior:
+                         landmarks=(), seed=None, ess=None, **options) -> ConfigurationPosterior:
     """Sample landmark configurations given seen triplets' evidence (module docstring).
 
     Args:
@@ -918,12 +1075,13 @@ def infer_configurations(evidence, prior="world", *, partition="edc", likelihood
     if not o["floor"] > 0:
         raise ValueError("floor: expected a number > 0 (a zero floor lets one estimate veto)")
     non_negative("pseudo_count", o["pseudo_count"])
+    non_negative("ess_prior", o["ess_prior"])
     o = {**o, "n_groups": G, "n_particles": P, "floor": float(o["floor"])}
     if likelihood not in LIKELIHOODS:
         raise ValueError(f"likelihood: expected one of {LIKELIHOODS}, got {likelihood!r}")
     pr = _world_prior(prior)
     part = _partitions.get(partition)
-    items = _evidence_items(evidence, part, pr, likelihood)
+    items = _evidence_items(evidence, part, pr, likelihood, ess)
     extra = [_as_triplet(t) for t in getattr(evidence, "triplets", ())]
     ids = list(dict.fromkeys([*(int(x) for x in landmarks), *(x for t in items for x in t),
                               *(x for t in extra for x in t)]))
@@ -939,7 +1097,7 @@ def infer_configurations(evidence, prior="world", *, partition="edc", likelihood
 
 
 def configuration_marginals(evidence, prior="world", *, triplets=None, partition=None,
-                            likelihood="state", seed=None, widen=None, **options):
+                            likelihood="state", seed=None, widen=None, ess=None, **options):
     """Marginals of ``triplets`` (default: a graph's triplets, else every ordered triplet of the
     landmarks) by configuration inference: :func:`infer_configurations` then
     :meth:`ConfigurationPosterior.marginals` (``widen``: rows the populations disagree on mixed
@@ -959,7 +1117,8 @@ def configuration_marginals(evidence, prior="world", *, triplets=None, partition
         partition = getattr(evidence, "partition", None) or "edc"
     post = infer_configurations(evidence, prior, partition=partition, likelihood=likelihood,
                                 landmarks=sorted({x for t in (triplets or ()) for x in
-                                                  _as_triplet(t)}), seed=seed, **options)
+                                                  _as_triplet(t)}), seed=seed, ess=ess,
+                                **options)
     if triplets is None and hasattr(evidence, "triplets"):
         triplets = evidence.triplets
     return post.marginals(triplets, widen=widen)
