@@ -155,7 +155,11 @@ def step(state: BaselineState, phi, heading=None) -> BaselineState:
     sv = float(meas.sigma_bearing)
     k = 1 if sv == 0 else opts["noise_samples"]
     rng = _seeds.stream(state.root, i, _seeds.STREAM_CAMERAS)
-    draws = phi[None, :] + sv * rng.standard_normal((k, 3))
+    tail = opts.get("bearing_tail") if sv > 0 else None
+    z = rng.standard_normal((k, 3))
+    # with a bearing tail the draws come from its mixture (component choices drawn after z)
+    draws = phi[None, :] + (sv * z if tail is None else _likelihood.bearing_noise(
+        z, rng.random((k, 3)), rng.random((k, 3)), sv, tail))
     L = state.candidates
     poses, logdet, ok = resect(L, draws)
     lc = _prior.point_log_prior(opts["prior"], poses[..., :2]) - logdet

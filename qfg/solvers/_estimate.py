@@ -27,6 +27,10 @@ class TripletEstimate:
             (:func:`qfg.solvers._diagnostics.pareto_k`; above about 0.7 the weighted answer is
             unreliable whatever the ESS), NaN where the weights are not importance weights
             (``fast-paper``'s quadrature, the reference) or too few.
+        model_check: posterior predictive p-value of the bearings and headings
+            (:mod:`qfg.solvers._model_check`; small: the measurements contradict the model),
+            NaN where the method does not compute it (without headings, noiseless, the
+            methods other than ``full`` and ``fast``).
         degenerate: True when the input was degenerate or nothing survived; the distributions are
             then as spread as the geometry allows, uniform wherever nothing is known (never NaN).
         reason: why ``degenerate`` is set ("" otherwise).
@@ -59,6 +63,7 @@ class TripletEstimate:
     ess: float = float("nan")
     mc_error: float = float("nan")
     pareto_k: float = float("nan")
+    model_check: float = float("nan")
     prior: str = ""
     options: dict = field(default_factory=dict)
 
@@ -163,11 +168,15 @@ def shrink_to_uniform(p, n_eff, alpha):
 
 
 def make_estimate(method, part, n_views, landmark, cameras, *, hypotheses: Hypotheses,
-                  reasons=(), mc_error=float("nan"), opts) -> tuple[TripletEstimate, Hypotheses]:
+                  reasons=(), mc_error=float("nan"), model_check=float("nan"), widen=None,
+                  opts) -> tuple[TripletEstimate, Hypotheses]:
     """The (answer, hypotheses) pair every solver's ``finish`` returns. With the option
     ``mc_shrinkage`` = alpha > 0 the landmark and camera distributions are shrunk toward the
     uniform by alpha pseudo-draws against the final sample's ESS (:func:`shrink_to_uniform`);
-    with the option ``min_ess``, an answer whose ESS is smaller is flagged (a failed sampler)."""
+    with the option ``min_ess``, an answer whose ESS is smaller is flagged (a failed sampler).
+    ``widen`` = (lam, q_landmark (m,), q_camera (m,)): the answer (after the shrinkage) mixed
+    with those state distributions by the share lam (a failed model check,
+    :mod:`._model_check`)."""
     lw = hypotheses.landmark_weights
     e = ess(lw)
     if "min_ess" in opts and e < opts["min_ess"]:
@@ -176,6 +185,10 @@ def make_estimate(method, part, n_views, landmark, cameras, *, hypotheses: Hypot
     a = float(opts.get("mc_shrinkage", 0.0) or 0.0)
     landmark = shrink_to_uniform(landmark, e, a)
     cameras = shrink_to_uniform(cameras, e, a)
+    if widen is not None and widen[0] > 0:
+        lam, q_l, q_x = widen
+        landmark = (1.0 - lam) * np.asarray(landmark) + lam * np.asarray(q_l)
+        cameras = (1.0 - lam) * np.asarray(cameras) + lam * np.asarray(q_x)[None, :]
     k = float("nan")
     if method != "fast-paper":
         with np.errstate(divide="ignore"):
@@ -184,7 +197,8 @@ def make_estimate(method, part, n_views, landmark, cameras, *, hypotheses: Hypot
         landmark=np.asarray(landmark, dtype=float), cameras=np.asarray(cameras, dtype=float),
         n_hypotheses=int(np.count_nonzero(lw > 0)), degenerate=bool(reasons),
         reason="; ".join(reasons), method=method, partition=part.name, n_views=int(n_views),
-        ess=e, mc_error=float(mc_error), pareto_k=k, prior=prior_name(opts),
+        ess=e, mc_error=float(mc_error), pareto_k=k, model_check=float(model_check),
+        prior=prior_name(opts),
         options=public_options(opts))
     return est, hypotheses
 

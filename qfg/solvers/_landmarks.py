@@ -11,11 +11,11 @@ import numpy as np
 from ..geometry import wrap_angle
 from ._arcs import RAY_CENTRE, ray_log_density_polar, ray_points
 from ._laplace import CHUNK_ROWS, depth_spread, triangulate
-from ._likelihood import logsumexp, sum_views
+from ._likelihood import log_bearing, logsumexp, sum_views
 
 
 def sample_landmarks(rng, poses, phi_c, sigma, k: int, ray_fraction: float, draws=None,
-                     laplace=None):
+                     laplace=None, tail=None):
     """C samples for each camera trajectory, from a defensive mixture: a Gaussian about the
     least-squares triangulation with covariance ``(1.5 sigma)^2 H^-1`` (``H = sum_t g_t g_t^T``,
     ``g_t = grad_L f(L, X_t)``; the Laplace approximation of C's conditional, inflated) and, for
@@ -30,7 +30,8 @@ def sample_landmarks(rng, poses, phi_c, sigma, k: int, ray_fraction: float, draw
     triangulation and ``H`` of these rows if already computed (:func:`laplace_landmark` with
     ``parts``). Returns ``L (J, k, 2)``, ``log q
     (J, k)``, ``log lik (J, k)`` (sum over views of the normalized Gaussian C-bearing
-    likelihood) and the depth spread ``(J,)``: the standard deviation of C along its least
+    likelihood; with ``tail`` a :class:`._likelihood.BearingTail`, its mixture) and the depth
+    spread ``(J,)``: the standard deviation of C along its least
     constrained direction over its distance from the nearest camera (inf without a
     triangulation).
     """
@@ -49,11 +50,11 @@ def sample_landmarks(rng, poses, phi_c, sigma, k: int, ray_fraction: float, draw
         sl = slice(i, i + chunk)
         L[sl], log_q[sl], log_lik[sl], spread[sl] = _sample_landmarks_rows(
             poses[sl], phi_c[sl], sig[sl], kg, kr, {key: v[sl] for key, v in draws.items()},
-            None if laplace is None else tuple(v[sl] for v in laplace))
+            None if laplace is None else tuple(v[sl] for v in laplace), tail)
     return L, log_q, log_lik, spread
 
 
-def _sample_landmarks_rows(poses, phi_c, sig, kg, kr, draws, laplace=None):
+def _sample_landmarks_rows(poses, phi_c, sig, kg, kr, draws, laplace=None, tail=None):
     """:func:`sample_landmarks` on one block of rows."""
     J, n = poses.shape[:2]
     k = kg + kr
@@ -61,7 +62,9 @@ def _sample_landmarks_rows(poses, phi_c, sig, kg, kr, draws, laplace=None):
     theta = poses[..., 2] + phi_c
     L = np.empty((J, k, 2))
     spread = np.full(J, np.inf)
-    c2 = (1.5 * sig) ** 2
+    # the proposal's width: with a tail, as wide as its mixture's normal part
+    sq = sig if tail is None else sig * tail.width_factor
+    c2 = (1.5 * sq) ** 2
     if kg:
         Ls, ok, h00, h01, h11, det, r2min = triangulate(X, theta) if laplace is None else laplace
         # covariance c2 H^-1 and its Cholesky factor
@@ -76,10 +79,10 @@ def _sample_landmarks_rows(poses, phi_c, sig, kg, kr, draws, laplace=None):
     if kr:
         t = draws["t"]
         jj = np.arange(J)[:, None]
-        eps = sig[:, None] * draws["eps"]
+        eps = sq[:, None] * draws["eps"]
         v = (np.arange(kr) + draws["u"]) / kr
         Lr, _ = ray_points(X[jj, t], theta[jj, t], eps[..., None], v[..., None],
-                           sig[:, None, None])
+                           sq[:, None, None])
         L[:, kg:] = Lr[..., 0, :]
     # per view: distance and angular residual of every sample, views along the first axis
     # (n, J, k) so that the sums over views are adds of contiguous blocks
@@ -88,8 +91,11 @@ def _sample_landmarks_rows(poses, phi_c, sig, kg, kr, draws, laplace=None):
     res = np.arctan2(ddy, ddx)
     res -= theta.T[:, :, None]
     res = wrap_angle(res)
-    log_lik = -0.5 * sum_views(res * res) / (sig * sig)[:, None] - n * (
-        np.log(sig) + 0.5 * np.log(2 * np.pi))[:, None]
+    if tail is None:
+        log_lik = -0.5 * sum_views(res * res) / (sig * sig)[:, None] - n * (
+            np.log(sig) + 0.5 * np.log(2 * np.pi))[:, None]
+    else:
+        log_lik = sum_views(log_bearing(res, sig[None, :, None], tail))
     logs = []
     if kg:
         ex = L[..., 0] - Ls[:, None, 0]
@@ -104,7 +110,7 @@ def _sample_landmarks_rows(poses, phi_c, sig, kg, kr, draws, laplace=None):
         ddy *= ddy
         ddx += ddy
         r = np.sqrt(ddx, out=ddx)
-        lr = ray_log_density_polar(res, r, tau.T[:, :, None], sig[None, :, None])
+        lr = ray_log_density_polar(res, r, tau.T[:, :, None], sq[None, :, None])
         logs.append(np.log(kr / k) + logsumexp(lr, axis=0) - np.log(n))
     log_q = logs[0] if len(logs) == 1 else np.logaddexp(logs[0], logs[1])
     return L, log_q, log_lik, spread

@@ -6,6 +6,8 @@ Everything is in the AB frame (A = (0, 0), B = (0, 1)); angles in radians; lengt
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 NEG_INF = -np.inf
@@ -69,3 +71,127 @@ def logsumexp(a, axis=-1) -> np.ndarray:
     with np.errstate(divide="ignore"):
         out = np.where(ok, mx + np.log(np.where(ok, s, 1.0)), -np.inf)
     return np.squeeze(out, axis=axis)
+
+
+_HALF_LOG_2PI = 0.5 * np.log(2.0 * np.pi)
+
+
+@dataclass(frozen=True)
+class BearingTail:
+    """A heavy-tailed bearing-noise model: the normal of width sigma (the history's
+    ``sigma_bearing``, the core), a wider normal and a uniform outlier share on the circle,
+
+        p(r) = (1 - share - outlier) N(r; sigma) + share N(r; scale sigma) + outlier / (2 pi).
+
+    ``share``, ``outlier`` in [0, 1) with ``share + outlier < 1``; ``scale`` >= 1. Measured on
+    MRCLAM against motion capture (docs/mrclam.md): sigma 0.345 deg, share 0.271, scale 2.79,
+    outlier 0.0011 (:data:`qfg.datasets.mrclam` ``DEFAULT_BEARING_TAIL``).
+
+    >>> t = BearingTail(share=0.2, scale=3.0, outlier=0.01)
+    >>> round(float(log_bearing(0.0, 0.01, t)), 4), round(float(log_bearing(1.0, 0.01, t)), 4)
+    (3.5316, -6.443)
+    """
+
+    share: float = 0.0
+    scale: float = 1.0
+    outlier: float = 0.0
+
+    def __post_init__(self):
+        for k in ("share", "scale", "outlier"):
+            v = getattr(self, k)
+            if not isinstance(v, (int, float, np.floating, np.integer)) or not np.isfinite(v):
+                raise ValueError(f"bearing_tail: {k} expected a finite number, got {v!r}")
+        if not (0 <= self.share < 1 and 0 <= self.outlier < 1 and self.share + self.outlier < 1):
+            raise ValueError(f"bearing_tail: expected share, outlier >= 0 with share + outlier "
+                             f"< 1, got share={self.share}, outlier={self.outlier}")
+        if self.scale < 1:
+            raise ValueError(f"bearing_tail: scale expected >= 1, got {self.scale}")
+
+    @property
+    def active(self) -> bool:
+        return self.share > 0 or self.outlier > 0
+
+    @property
+    def width_factor(self) -> float:
+        """Standard deviation of the normal part of the mixture over sigma: the width the
+        proposals of C use (a proposal as narrow as the core would miss the wide component)."""
+        core = 1.0 - self.share - self.outlier
+        return float(np.sqrt((core + self.share * self.scale ** 2) / (core + self.share)))
+
+
+def as_tail(value) -> BearingTail | None:
+    """The option ``bearing_tail``: None (the normal), a :class:`BearingTail`, a tuple
+    ``(share, scale, outlier)`` or a dict of those; a tail with no share is None."""
+    if value is None:
+        return None
+    if isinstance(value, BearingTail):
+        t = value
+    elif isinstance(value, dict):
+        t = BearingTail(**value)
+    else:
+        try:
+            t = BearingTail(*value)
+        except TypeError:
+            raise ValueError(f"bearing_tail: expected None, a BearingTail or (share, scale, "
+                             f"outlier), got {value!r}") from None
+    return t if t.active else None
+
+
+def log_bearing(residual, sigma, tail: BearingTail | None = None):
+    """Normalized log density of bearing residuals (radians) under the normal of width
+    ``sigma`` or, with ``tail``, under the :class:`BearingTail` mixture. Broadcasts.
+
+    >>> bool(np.isclose(log_bearing(0.0, 1.0), -0.5 * np.log(2 * np.pi)))
+    True
+    """
+    r = np.asarray(residual, dtype=float) / sigma
+    ln = -0.5 * r * r - np.log(sigma) - _HALF_LOG_2PI
+    if tail is None:
+        return ln
+    k = tail.scale
+    lw = -0.5 * (r / k) ** 2 - np.log(k * sigma) - _HALF_LOG_2PI
+    core = 1.0 - tail.share - tail.outlier
+    with np.errstate(divide="ignore"):
+        out = np.logaddexp(np.log(core) + ln, np.log(tail.share) + lw if tail.share > 0
+                           else -np.inf)
+        if tail.outlier > 0:
+            out = np.logaddexp(out, np.log(tail.outlier) - np.log(2.0 * np.pi))
+    return out
+
+
+def bearing_noise(z, u, v, sigma, tail: BearingTail | None, spread: float = 1.0):
+    """Draws of bearing noise from the :class:`BearingTail` mixture with its normal components
+    ``spread`` times wider: ``z`` standard normals, ``u`` uniforms choosing the component, ``v``
+    uniforms placing an outlier on (-pi, pi) (outliers are never spread). Without a tail,
+    ``spread sigma z``. Broadcasts.
+
+    >>> bearing_noise(np.array([1.0, 1.0, 1.0]), np.array([0.5, 0.05, 0.001]),
+    ...               np.array([0.5, 0.5, 0.75]), 0.1, BearingTail(0.1, 3.0, 0.01)).round(4)
+    array([0.1   , 0.3   , 1.5708])
+    """
+    z = np.asarray(z, dtype=float)
+    if tail is None:
+        return spread * sigma * z
+    width = np.where(u < tail.outlier + tail.share, tail.scale, 1.0) * spread * sigma * z
+    return np.where(u < tail.outlier, np.pi * (2.0 * np.asarray(v) - 1.0), width)
+
+
+def log_bearing_proposal(x, sigma, tail: BearingTail | None, spread: float):
+    """Log density of :func:`bearing_noise` draws ``x`` (the mixture with its normal components
+    ``spread`` times wider; the outlier share uniform on (-pi, pi)), for the importance weight
+    ``log_bearing(x) - log_bearing_proposal(x)``. With ``spread`` 1 it is :func:`log_bearing`.
+
+    >>> t = BearingTail(0.2, 3.0, 0.01)
+    >>> bool(np.isclose(log_bearing_proposal(0.3, 0.1, t, 1.0), log_bearing(0.3, 0.1, t)))
+    True
+    """
+    if tail is None or spread == 1.0:
+        return log_bearing(x, spread * sigma, tail)
+    if tail.outlier <= 0:
+        return log_bearing(x, spread * sigma, tail)
+    x = np.asarray(x, dtype=float)
+    # the normal components at spread * sigma; the uniform part only inside (-pi, pi)
+    normal = log_bearing(x, spread * sigma, BearingTail(tail.share / (1.0 - tail.outlier),
+                                                        tail.scale, 0.0)) + np.log1p(-tail.outlier)
+    return np.logaddexp(normal, np.where(np.abs(x) <= np.pi,
+                                         np.log(tail.outlier) - np.log(2.0 * np.pi), -np.inf))

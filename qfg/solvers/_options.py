@@ -8,6 +8,7 @@ import numpy as np
 
 from .. import priors as _priors
 from .._validate import non_negative, positive_int
+from ._likelihood import as_tail
 from ._prior import resolve_prior
 
 #: Methods :func:`qfg.solvers.solve_triplet` knows.
@@ -41,6 +42,11 @@ DEFAULTS = {
                                      # (resample-move; measured not to help: docs/solvers.md)
         "mc_shrinkage": 1.0,         # pseudo-draws of the uniform added to the ESS draws
                                      # (shrink_to_uniform)
+        "bearing_tail": None,        # heavy-tailed bearing noise (_likelihood.BearingTail, or
+                                     # (share, scale, outlier)); None: the normal
+        "model_check": 0.0,          # level of the bearing/heading model check: an answer whose
+                                     # posterior predictive p is below it is widened toward the
+                                     # prior's state distribution and flagged (0: report only)
         "min_ess": 2.0,              # an answer whose final landmark weights have a smaller
                                      # ESS is flagged: it rests on about one trajectory (1st
                                      # percentile on 80 development triplets at 2/5 deg, 3
@@ -61,6 +67,8 @@ DEFAULTS = {
                                             # noiseless posterior's narrow peaks are missed
         "move_steps": 0,
         "mc_shrinkage": 1.0,
+        "bearing_tail": None,
+        "model_check": 0.0,
         "min_ess": 1.5,              # less than about one effective draw: flagged (its 1st
                                      # percentile on the same triplets: 1.9)
         "prior": "world",
@@ -84,6 +92,7 @@ DEFAULTS = {
         "n_landmark_samples": 4096,  # C candidates drawn from the prior (stratified)
         "noise_samples": 16,         # measurement-noise draws per view (1 when sigma = 0)
         "jacobian_cap": 30.0,        # cap on 1/|det J| relative to the median candidate
+        "bearing_tail": None,        # as full's: the noise draws come from the mixture
         "prior": "world",
     },
 }
@@ -135,6 +144,13 @@ def resolve_options(method: str, options: dict, defaults: dict | None = None) ->
     if opts.get("resection", "centroid") not in RESECTIONS:
         raise ValueError(f"resection: expected one of {RESECTIONS}, got {opts['resection']!r}")
     opts["prior"] = resolve_prior(opts["prior"])
+    if "bearing_tail" in opts:
+        opts["bearing_tail"] = as_tail(opts["bearing_tail"])
+    if "model_check" in opts:
+        mc = non_negative("model_check", opts["model_check"])
+        if mc >= 1:
+            raise ValueError(f"model_check: expected a level in [0, 1), got {mc}")
+        opts["model_check"] = mc
     if "ray_fraction" in opts:
         rf = non_negative("ray_fraction", opts["ray_fraction"])
         if rf > 1:

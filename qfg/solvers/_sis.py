@@ -55,6 +55,7 @@ from . import (
     _landmarks,
     _laplace,
     _likelihood,
+    _model_check,
     _options,
     _prior,
     _seeds,
@@ -147,7 +148,8 @@ def _c_weight(state_like, tid, poses, bearings_c, gens, k, laplace=None):
     n = poses.shape[1]
     draws = _landmark_draws(gens, tid, n, k, state_like.opts["ray_fraction"])
     return _landmarks.sample_landmarks(None, poses, bearings_c[tid], state_like.sigma_v()[tid], k,
-                                       state_like.opts["ray_fraction"], draws=draws, laplace=laplace)
+                                       state_like.opts["ray_fraction"], draws=draws, laplace=laplace,
+                                       tail=state_like.opts.get("bearing_tail"))
 
 
 #: Depth spread below which the intermediate C weight uses the Laplace approximation; above it
@@ -162,14 +164,18 @@ def _log_intermediate_c(state_like, tid, poses, bearings_c, gens):
     motion step's children are then never gathered all at once)."""
     get = poses if callable(poses) else poses.__getitem__
     prior = state_like.opts["prior"]
+    tail = state_like.opts.get("bearing_tail")
     sig = state_like.sigma_v()[tid]
     N = tid.size
     out, hard, lap = np.empty(N), [], []
     for lo in range(0, N, _laplace.CHUNK_ROWS):
         sl = slice(lo, lo + _laplace.CHUNK_ROWS)
-        lz, Ls, spread, parts = _laplace.laplace_landmark(get(sl), bearings_c[tid[sl]], sig[sl],
+        P = get(sl)
+        lz, Ls, spread, parts = _laplace.laplace_landmark(P, bearings_c[tid[sl]], sig[sl],
                                                           parts=True)
         out[sl] = lz + _prior.point_log_prior(prior, Ls)
+        if tail is not None:
+            out[sl] += _tail_correction(P, bearings_c[tid[sl]], sig[sl], Ls, tail)
         h = np.flatnonzero(~(spread < _LAPLACE_SPREAD))
         hard.append(lo + h)
         lap.append(tuple(v[h] for v in parts))
@@ -183,6 +189,17 @@ def _log_intermediate_c(state_like, tid, poses, bearings_c, gens):
         lw = np.where(np.isnan(lw), -np.inf, lw)
         out[hard] = _likelihood.logsumexp(lw, axis=1) - np.log(k)
     return np.where(np.isnan(out), -np.inf, out)
+
+
+def _tail_correction(poses, phi_c, sig, L, tail):
+    """(J,) log of the tail model's C-bearing likelihood over the normal's at the triangulation
+    ``L`` (J, 2): the Laplace value of C's integral (a normal likelihood) moved toward the tail
+    model for the intermediate weights (the final weights use the tail model exactly)."""
+    X = poses[..., :2]
+    res = wrap_angle(np.arctan2(L[:, None, 1] - X[..., 1], L[:, None, 0] - X[..., 0])
+                     - poses[..., 2] - phi_c)
+    s = sig[:, None]
+    return np.sum(_likelihood.log_bearing(res, s, tail) - _likelihood.log_bearing(res, s), axis=1)
 
 
 def _segment_max(tid, x, T):
@@ -295,8 +312,14 @@ def _log_pose_target(st: SISState, tid, poses):
     d = X[:, 1:] - X[:, :-1]
     rh = wrap_angle(st.headings[tid] - (np.arctan2(d[..., 1], d[..., 0]) - al[:, :-1]))
     lp = np.sum(_prior.point_log_prior(st.opts["prior"], X), axis=1)
-    out = lp - 0.5 * (np.sum(ra * ra + rb * rb, axis=1) / sv[:, 0] ** 2
-                      + np.sum(rh * rh, axis=1) / sw[:, 0] ** 2)
+    tail = st.opts.get("bearing_tail")
+    if tail is None:
+        out = lp - 0.5 * (np.sum(ra * ra + rb * rb, axis=1) / sv[:, 0] ** 2
+                          + np.sum(rh * rh, axis=1) / sw[:, 0] ** 2)
+    else:
+        out = lp + np.sum(_likelihood.log_bearing(ra, sv, tail)
+                          + _likelihood.log_bearing(rb, sv, tail), axis=1) \
+            - 0.5 * np.sum(rh * rh, axis=1) / sw[:, 0] ** 2
     dist = st.distances[tid]
     if X.shape[1] >= 3 and np.any(dist > 0):
         step = np.hypot(d[..., 0], d[..., 1])
@@ -387,14 +410,25 @@ def start(bearings0, sigma_bearing, sigma_heading, roots, opts, part, method,
     quiet = (sb == 0) & (sh == 0)
     M = np.where(quiet, opts["n_samples"] * opts["motion_samples"], opts["n_samples"])
 
+    tail = opts.get("bearing_tail")
+
     def draw(rng, m):
-        return rng.standard_normal((m, 2)), (rng.permutation(m) + rng.random(m)) / m
+        out = rng.standard_normal((m, 2)), (rng.permutation(m) + rng.random(m)) / m
+        # the tail's component choices after the normal draws: without a tail the streams
+        # are the same as before it existed
+        return out if tail is None else out + (rng.random((m, 2)), rng.random((m, 2)))
 
     gens = _gens(roots, 0, _seeds.STREAM_CAMERAS)
-    z, u = _per_triplet(gens, M, draw)
+    z, u, *uv = _per_triplet(gens, M, draw)
     tid = np.repeat(np.arange(T), M)
-    pa = b0[tid, 0] + sb[tid] * z[:, 0]
-    pb = b0[tid, 1] + sb[tid] * z[:, 1]
+    if tail is None:
+        pa = b0[tid, 0] + sb[tid] * z[:, 0]
+        pb = b0[tid, 1] + sb[tid] * z[:, 1]
+    else:
+        # noiseless triplets draw no outliers
+        uc = np.where((sb[tid] > 0)[:, None], uv[0], 1.0)
+        nz = _likelihood.bearing_noise(z, uc, uv[1], sb[tid][:, None], tail)
+        pa, pb = b0[tid, 0] + nz[:, 0], b0[tid, 1] + nz[:, 1]
     gamma = wrap_angle(pb - pa)
     a, log_dadw = _arcs.arc_parameter(gamma, u)
     X = locus_point(gamma, a)
@@ -480,11 +514,17 @@ def _extend(state: SISState, phi, psi, spread: float, purpose: int) -> SISState:
     tid, prev = state.tid, state.poses[:, -1, :]
     counts = np.bincount(tid, minlength=T) * r
 
+    tail = opts.get("bearing_tail")
+
     def draw(rng, m):
-        return (rng.standard_normal((m, 3)),)
+        z = rng.standard_normal((m, 3))
+        return (z,) if tail is None else (z, rng.random((m, 2)), rng.random((m, 2)))
 
     gens = _gens(state.roots, i, purpose)
-    (z,) = _per_triplet(gens, counts, draw)
+    z, *uv = _per_triplet(gens, counts, draw)
+    if uv:
+        # columns: [heading, A, B] noise; then A/B component choices and outlier places
+        z = np.concatenate([z, uv[0], uv[1]], axis=1)
     par = np.repeat(np.arange(tid.size), r[tid])
     ct = tid[par]
     # children in blocks whose temporaries stay in cache; every child is independent of the others
@@ -527,21 +567,35 @@ def _extend(state: SISState, phi, psi, spread: float, purpose: int) -> SISState:
 
 def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
     """One block of the motion step's children: parents ``par`` (B,) (rows of ``prev``), their
-    noise draws ``z`` (B, 3). Returns (child index (offset + row), pose (K, 3), log weight,
+    noise draws ``z`` (B, 3) (heading, A, B), with a bearing tail (B, 7) (then also the A/B
+    component choices and outlier places, :func:`._likelihood.bearing_noise`). Returns (child index (offset + row), pose (K, 3), log weight,
     log per-point prior) of the K children whose ray meets the drawn locus arc."""
     ct = state.tid[par]
     sb, sh = state.sigma_bearing[ct], state.sigma_heading[ct]
     th = prev[par, 2] + psi[ct] + spread * sh * z[:, 0]
-    pa = phi[ct, 0] + spread * sb * z[:, 1]
-    pb = phi[ct, 1] + spread * sb * z[:, 2]
+    tail = state.opts.get("bearing_tail")
+    if tail is None:
+        pa = phi[ct, 0] + spread * sb * z[:, 1]
+        pb = phi[ct, 1] + spread * sb * z[:, 2]
+    else:
+        uc = np.where((sb > 0)[:, None], z[:, 3:5], 1.0)
+        nab = _likelihood.bearing_noise(z[:, 1:3], uc, z[:, 5:7], sb[:, None], tail, spread)
+        pa, pb = phi[ct, 0] + nab[:, 0], phi[ct, 1] + nab[:, 1]
     # likelihood over proposal of the drawn noise: N(x; s) / N(x; spread s) per drawn component
     # (exactly 0 when the noise is drawn at the model's width)
     if spread == 1.0:
         lcorr = np.zeros(z.shape[0])
-    else:
+    elif tail is None:
         noisy = np.stack([sh, sb, sb], axis=1) > 0
-        lcorr = np.sum(np.where(noisy, -0.5 * z * z * (spread * spread - 1.0) + np.log(spread),
-                                0.0), axis=1)
+        lcorr = np.sum(np.where(noisy, -0.5 * z[:, :3] ** 2 * (spread * spread - 1.0)
+                                + np.log(spread), 0.0), axis=1)
+    else:
+        lcorr = np.where(sh > 0, -0.5 * z[:, 0] ** 2 * (spread * spread - 1.0) + np.log(spread),
+                         0.0)
+        s2 = sb[:, None]
+        lab = _likelihood.log_bearing(nab, s2, tail) \
+            - _likelihood.log_bearing_proposal(nab, s2, tail, spread)
+        lcorr = lcorr + np.sum(np.where((sb > 0)[:, None], lab, 0.0), axis=1)
     circ = locus_circle(pa, pb)
     pts, valid = ray_circle_intersection(prev[par, :2], th, circ.center, circ.radius, circ.side)
     mixed = _mixed(state, ct, r, spread)
@@ -722,6 +776,7 @@ def finish(state: SISState, hypotheses: bool = False):
     cm = np.bincount(cidx.ravel(), weights=np.repeat(cw, n), minlength=T * n * m).reshape(T, n, m)
     unresolved = np.bincount(tid, weights=cw * (spread > _degenerate.DEPTH_SPREAD), minlength=T)
     lb = np.searchsorted(flat_tid, np.arange(T + 1))
+    sv = state.sigma_v()
     cb = np.searchsorted(tid, np.arange(T + 1))
     out = []
     for t in range(T):
@@ -740,13 +795,26 @@ def finish(state: SISState, hypotheses: bool = False):
                            "by the prior")
         wt = w[lb[t]:lb[t + 1]]
         Lt = Lf[lb[t]:lb[t + 1]]
+        cam = np.transpose(np.repeat(poses[cb[t]:cb[t + 1]], k, axis=0), (1, 0, 2))
         hyp = _estimate.Hypotheses(
-            landmark_samples=Lt, landmark_weights=wt,
-            camera_samples=np.transpose(np.repeat(poses[cb[t]:cb[t + 1]], k, axis=0), (1, 0, 2)),
+            landmark_samples=Lt, landmark_weights=wt, camera_samples=cam,
             camera_weights=np.broadcast_to(wt, (n, wt.size)).copy(), joint=True)
+        p_land, p_cams = lm[t] / lm[t].sum(), cm[t] / cm[t].sum(axis=1, keepdims=True)
+        pval = float("nan")
+        if state.sigma_bearing[t] > 0:
+            pval = _model_check.posterior_predictive_p(
+                state.bearings[t], state.headings[t], cam, Lt, wt, float(sv[t]),
+                float(state.sigma_heading[t]), opts.get("bearing_tail"))
+        lam = _model_check.widening(pval, opts.get("model_check", 0.0))
+        widen = None
+        if lam > 0:
+            widen = (lam,) + _model_check.prior_states(opts["prior"], part)
+            reasons.append(f"model check: the bearings and headings fit the model with posterior "
+                           f"predictive p = {pval:.2g} < {opts['model_check']:g}; widened toward "
+                           f"the prior's states by {lam:.2f}")
         est, hyp = _estimate.make_estimate(
-            state.method, part, n, lm[t] / lm[t].sum(), cm[t] / cm[t].sum(axis=1, keepdims=True),
-            hypotheses=hyp, reasons=reasons, opts=opts,
-            mc_error=_histograms.weighted_state_error(part, Lt, wt))
+            state.method, part, n, p_land, p_cams, hypotheses=hyp, reasons=reasons, opts=opts,
+            mc_error=_histograms.weighted_state_error(part, Lt, wt), model_check=pval,
+            widen=widen)
         out.append((est, hyp if hypotheses else None))
     return out

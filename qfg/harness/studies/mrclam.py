@@ -103,6 +103,47 @@ DEFAULTS = {
     "distances": True,                     # odometry's travelled distances in the motion model
                                            # (off: no gain on dataset 6, docs/mrclam.md)
     "sigma_distance_ratio": 0.0,           # their log-ratio noise (0: loader default, 0.074)
+    "bearing_tail": "normal",              # bearing-noise model (BEARING_TAILS)
+    "model_check": 0.0,                    # level of the solvers' model check (0: report only)
+    "heading_drift": False,                # heading sigma from each history's longest step
+}
+
+
+#: The odometry's direction-of-travel error (``sigma90``, degrees) against motion capture by the
+#: step's duration (centre of the measured bins 3-10 s, 10-30 s, 30-100 s; dataset 6,
+#: docs/mrclam.md "From views to triplet histories"): the odometry's heading drifts over a step.
+HEADING_SIGMA_BY_STEP = ((6.5, 1.59), (20.0, 5.04), (65.0, 9.76))
+
+
+def drift_sigma_heading(h, sigma_heading: float) -> float:
+    """The heading sigma (radians) for history ``h`` with ``heading_drift``: the measured
+    ``sigma90`` of a step as long as the history's longest step, interpolated linearly in the
+    duration over :data:`HEADING_SIGMA_BY_STEP` (constant beyond its ends), never below
+    ``sigma_heading``. One value per history: the solvers take one heading sigma per triplet.
+
+    >>> import types
+    >>> h = types.SimpleNamespace(views=np.array([0.0, 5.0, 25.0]))
+    >>> round(float(np.degrees(drift_sigma_heading(h, np.deg2rad(1.57)))), 3)
+    5.04
+    """
+    if len(h.views) < 2:
+        return float(sigma_heading)
+    t, sg = np.array(HEADING_SIGMA_BY_STEP).T
+    dt = float(np.max(np.diff(np.asarray(h.views, dtype=float))))
+    return float(max(sigma_heading, np.deg2rad(np.interp(dt, t, sg))))
+
+
+#: Bearing-noise models for the solvers, by name: (bearing sigma in degrees, heading sigma in
+#: degrees, (share, scale, outlier) of :class:`qfg.solvers._likelihood.BearingTail`); None: the
+#: loader's. Fitted by EM to dataset 6's bearing residuals against motion capture
+#: (docs/mrclam.md, "A heavy-tailed bearing model"): ``measured`` per landmark row;
+#: ``within-view`` to the residuals minus their image's mean (a per-image offset shared by A, B
+#: and C is absorbed by the camera heading, so only the motion headings see it: their sigma
+#: grows to hypot(1.57, 0.58) deg).
+BEARING_TAILS = {
+    "normal": (None, None, None),
+    "measured": (0.345, None, (0.271, 2.79, 0.0011)),
+    "within-view": (0.166, 1.67, (0.425, 2.74, 0.0014)),
 }
 
 
@@ -259,6 +300,7 @@ class _Light:
     cameras: np.ndarray
     method: str
     degenerate: bool
+    model_check: float = float("nan")
 
 
 # ----------------------------------------------------------------------------- the pipeline
@@ -269,7 +311,8 @@ class _Light:
 #: The options that fix the solved estimates (what a piece record depends on).
 SOLVE_KEYS = ("path", "robots", "method", "mode", "prior", "partition", "fix_landmarks",
               "min_travel", "max_gap", "max_views", "spread_views", "sigma_bearing_deg",
-              "sigma_heading_deg", "distances", "sigma_distance_ratio", "piece")
+              "sigma_heading_deg", "distances", "sigma_distance_ratio", "bearing_tail",
+              "model_check", "heading_drift", "piece")
 
 
 @dataclass(frozen=True, eq=False)
@@ -292,6 +335,7 @@ class Prepared:
     histories: list
     mode: str
     prior_name: str
+    solver_options: dict = dataclasses.field(default_factory=dict)
 
 
 def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena",
@@ -299,7 +343,8 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
                 max_gap: float = 120.0, max_views: int = 0, spread_views: int = 3,
                 sigma_bearing_deg: float = 0.0, sigma_heading_deg: float = 0.0,
                 distances: bool = True, sigma_distance_ratio: float = 0.0,
-                dataset=None) -> Prepared:
+                bearing_tail: str = "normal", model_check: float = 0.0,
+                heading_drift: bool = False, dataset=None) -> Prepared:
     """Load (or take ``dataset``, loaded from ``path``), fix the landmark ground truth, make the
     prior and its state distributions, and the histories to solve (module docstring, steps
     1-4). Every data file is read and checked here, before anything is solved."""
@@ -315,13 +360,24 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
     pr = make_prior(ds, prior)
     q_c = prior_state_distribution(pr, part, samples=PRIOR_SAMPLES, seed=1)
     q_x = prior_state_distribution(pr, part, point=1, n_cameras=1, samples=PRIOR_SAMPLES, seed=2)
+    if bearing_tail not in BEARING_TAILS:
+        raise ValueError(f"bearing_tail: expected one of {tuple(BEARING_TAILS)}, "
+                         f"got {bearing_tail!r}")
+    tail_sb, tail_sh, tail = BEARING_TAILS[bearing_tail]
     sig = {}
+    if tail_sb and not sigma_bearing_deg:
+        sig["sigma_bearing"] = np.deg2rad(tail_sb)
+    if tail_sh and not sigma_heading_deg:
+        sig["sigma_heading"] = np.deg2rad(tail_sh)
     if sigma_bearing_deg:
         sig["sigma_bearing"] = np.deg2rad(float(sigma_bearing_deg))
     if sigma_heading_deg:
         sig["sigma_heading"] = np.deg2rad(float(sigma_heading_deg))
     rh = histories(ds, robots, mode=mode, max_views=max_views, spread_views=spread_views,
                    partition=part, min_travel=min_travel, max_gap=max_gap, **sig)
+    if heading_drift:
+        rh = [(r, dataclasses.replace(h, sigma_heading=drift_sigma_heading(h, h.sigma_heading))
+               if h.has_motion else h) for r, h in rh]
     if not distances:
         rh = [(r, dataclasses.replace(h, distances=None)) for r, h in rh]
     elif sigma_distance_ratio:
@@ -329,7 +385,8 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
               for r, h in rh]
     return Prepared(path=str(Path(path)), dataset=ds, swaps=swaps, prior=pr, partition=part,
                     prior_states=q_c, prior_camera_states=q_x, histories=rh, mode=mode,
-                    prior_name=prior)
+                    prior_name=prior,
+                    solver_options={"bearing_tail": tail, "model_check": float(model_check)})
 
 
 def n_pieces(prep: Prepared, piece: int = CHUNK) -> int:
@@ -353,9 +410,15 @@ def solve_piece(prep: Prepared, index: int, *, method: str = "full", seed=0, pie
         return [_Light(prep.prior_states.copy(), np.tile(prep.prior_camera_states, (h.n_views, 1)),
                        "none", False) for h in hs]
     ss = np.random.SeedSequence(int(seed), spawn_key=(int(index),))
+    # the run's noise model and check (prepare_run), only where set: the solvers' defaults
+    # otherwise (the baseline takes no model check)
+    opts = {k: v for k, v in prep.solver_options.items() if v}
+    if method == "baseline":
+        opts.pop("model_check", None)
     ests = solve_triplets(hs, method=method, partition=prep.partition, seed=ss,
-                          **dict(solver_options, prior=prep.prior))
-    return [_Light(e.landmark, e.cameras, e.method, bool(e.degenerate)) for e in ests]
+                          **dict(opts, **solver_options, prior=prep.prior))
+    return [_Light(e.landmark, e.cameras, e.method, bool(e.degenerate),
+                   float(getattr(e, "model_check", float("nan")))) for e in ests]
 
 
 def _solve(hs, method, part, seed, options) -> list[_Light]:
@@ -395,6 +458,7 @@ def piece_rows(prep: Prepared, index: int, ests: list[_Light], piece: int = CHUN
         rows.append({"history": hk, "robot": int(r), "A": int(h.landmarks[0]),
                      "B": int(h.landmarks[1]), "C": int(h.landmarks[2]),
                      "n_views": int(h.n_views), "method": e.method, "degenerate": e.degenerate,
+                     "model_check": repr(float(e.model_check)),
                      "landmark": _exact(e.landmark),
                      "cameras": _exact(e.cameras) if cams else ""})
     return rows
@@ -419,7 +483,8 @@ def estimates_from_rows(prep: Prepared, rows: list[dict]) -> list[_Light]:
         cams = (_unexact(r["cameras"], (h.n_views, m)) if r.get("cameras")
                 else np.full((h.n_views, m), 1.0 / m))
         out.append(_Light(_unexact(r["landmark"]), cams, str(r["method"]),
-                          str(r["degenerate"]) == "True" or r["degenerate"] is True))
+                          str(r["degenerate"]) == "True" or r["degenerate"] is True,
+                          float(r.get("model_check", "nan"))))
     return out
 
 
@@ -626,7 +691,8 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
                 temper: float = 1.0, spread_views: int = 3, return_details: bool = False,
                 propagation: str = "mean", distances: bool = True,
                 sigma_distance_ratio: float = 0.0, map_method: str = "",
-                piece: int = CHUNK, **solver_options):
+                piece: int = CHUNK, bearing_tail: str = "normal", model_check: float = 0.0,
+                heading_drift: bool = False, **solver_options):
     """Solve, combine, map, propagate and score one dataset directory, in memory (``qfg
     mrclam`` runs the same phases and records them: :func:`prepare_run`, :func:`solve_piece`
     per piece, :func:`finish`).
@@ -665,6 +731,11 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
         sigma_distance_ratio: noise of their log ratio the solver assumes (0: the loader's
             ``DEFAULT_SIGMA_DISTANCE_RATIO``).
         piece: histories solved per call (and per recorded piece of ``qfg mrclam``).
+        bearing_tail: the solvers' bearing-noise model by name (:data:`BEARING_TAILS`).
+        model_check: level of the solvers' model check (``full``/``fast``: answers whose
+            posterior predictive p is below it are widened toward the prior; 0: report only).
+        heading_drift: each history's heading sigma from its longest step
+            (:func:`drift_sigma_heading`).
 
     Returns:
         rows (list of dicts; module docstring). With ``return_details``: ``(rows, details)``.
@@ -681,7 +752,9 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
                        fix_landmarks=fix_landmarks, min_travel=min_travel, max_gap=max_gap,
                        max_views=max_views, spread_views=spread_views,
                        sigma_bearing_deg=sigma_bearing_deg, sigma_heading_deg=sigma_heading_deg,
-                       distances=distances, sigma_distance_ratio=sigma_distance_ratio)
+                       distances=distances, sigma_distance_ratio=sigma_distance_ratio,
+                       bearing_tail=bearing_tail, model_check=model_check,
+                       heading_drift=heading_drift)
     t0 = time.perf_counter()
     ests = []
     for c in range(n_pieces(prep, piece)):
