@@ -21,9 +21,28 @@ from qfg.metrics import brier, log_score, truth_under
 #: configuration-inference methods: name -> likelihood kind
 CONFIG = {"cfg_state": "state", "cfg_metric": "metric"}
 
-#: study parameters of the configuration methods (defaults of qfg.configurations where shared)
+#: study parameters of the configuration methods (defaults of qfg.configurations where shared;
+#: each seen estimate is widened by the effective sample size of the solver's weights behind it,
+#: :func:`solver_ess`, with the library's ``ess_prior`` of each likelihood kind)
 PARAMS = {"map_methods": True, "config_particles": 2000, "config_floor": 0.01,
           "config_state_mix": 0.1, "config_components": 32}
+
+
+def solver_ess(hypotheses) -> dict:
+    """{triplet: effective sample size of the solver's weights of C} from a drawn graph's
+    ``hypotheses`` ({triplet: qfg.solvers.Hypotheses}); a triplet whose weights are all zero gets
+    a tiny ESS (its estimate is then the prior's states: no evidence).
+
+    >>> from types import SimpleNamespace
+    >>> solver_ess({(0, 1, 2): SimpleNamespace(landmark_weights=np.full(4, 0.25))})
+    {(0, 1, 2): 4.0}
+    """
+    out = {}
+    for t, h in hypotheses.items():
+        w = np.asarray(h.landmark_weights, dtype=float)
+        tot = w.sum()
+        out[t] = float(tot * tot / np.sum(w * w)) if tot > 0 else 1e-9
+    return out
 
 
 def randomized_pit(P, truth, u) -> np.ndarray:
@@ -63,6 +82,7 @@ def config_marginals(drawn, task, seed) -> tuple[dict, dict, dict]:
     g = drawn.graph
     opts = {"n_particles": int(task["config_particles"]), "floor": float(task["config_floor"]),
             "state_mix": float(task["config_state_mix"])}
+    ess = solver_ess(drawn.hypotheses) if drawn.hypotheses is not None else None
     ss = np.random.SeedSequence(int(seed))
     seeds = ss.spawn(2)
     out, times, diag = {}, {}, {}
@@ -76,7 +96,7 @@ def config_marginals(drawn, task, seed) -> tuple[dict, dict, dict]:
             ev = g
         post = infer_configurations(ev, partition=g.partition, likelihood=kind,
                                     landmarks=sorted({x for t in g.triplets for x in t}),
-                                    seed=s, **opts)
+                                    seed=s, ess=ess, **opts)
         res = post.marginals(g.triplets)
         times[name] = time.perf_counter() - t0
         out[name] = np.asarray(res.probabilities)
