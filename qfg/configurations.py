@@ -910,7 +910,31 @@ class ConfigurationPosterior:
         L = self.landmarks
         return [(a, b, c) for a in L for b in L for c in L if a != b and b != c and a != c]
 
-    def marginals(self, triplets=None, *, pseudo_count=None, widen=None):
+    def components(self) -> np.ndarray:
+        """(n,) int, the connected component of each landmark (column of ``positions``) in the
+        graph that links the landmarks of every seen triplet; a landmark in no seen triplet is
+        a component of its own.
+
+        >>> post = infer_configurations({(0, 1, 2): np.full(20, 0.05)}, landmarks=range(4),
+        ...                             n_particles=40, seed=0)
+        >>> post.components().tolist()
+        [0, 0, 0, 1]
+        """
+        par = list(range(len(self.landmarks)))
+
+        def find(i):
+            while par[i] != i:
+                par[i] = par[par[i]]
+                i = par[i]
+            return i
+
+        for t in self._terms.ijk:
+            for x in t[1:]:
+                par[find(int(x))] = find(int(t[0]))
+        roots = [find(i) for i in range(len(par))]
+        return np.unique(roots, return_inverse=True)[1].astype(np.intp)
+
+    def marginals(self, triplets=None, *, pseudo_count=None, widen=None, unlinked="sample"):
         """:class:`qfg.inference.Marginals` of ``triplets`` (default: every ordered triplet of
         the landmarks), seen and unseen alike.
 
@@ -926,7 +950,16 @@ class ConfigurationPosterior:
         clusters of landmarks tied by few seen triplets, whose relative placement the
         populations choose differently), the answer says "unknown" instead of picking one
         population's guess. ``info["widened"]``: (n,) the weights ``w``.
+
+        ``unlinked``: the answer for a triplet whose landmarks lie in different connected
+        components of the evidence (:meth:`components`), about whose relative placement only the
+        prior speaks: ``"sample"`` (the samples, i.e. the world prior's model of where unlinked
+        groups lie) or ``"prior"`` (the prior's state distribution ``q``: "unknown", for data whose
+        landmarks the i.i.d. box prior does not describe, e.g. an arena's). ``info["unlinked"]``:
+        (n,) bool.
         """
+        if unlinked not in ("sample", "prior"):
+            raise ValueError(f"unlinked: expected 'sample' or 'prior', got {unlinked!r}")
         from .inference.results import Marginals
 
         if triplets is None:
@@ -961,6 +994,11 @@ class ConfigurationPosterior:
             w = np.minimum(1.0, se.max(axis=1, initial=0.0) / widen)[:, None]
             f = (1.0 - w) * f + w * self._q
             info["widened"] = w[:, 0]
+        comp = self.components()[ijk]
+        cut = (comp[:, 0] != comp[:, 1]) | (comp[:, 0] != comp[:, 2])
+        if unlinked == "prior" and cut.any():
+            f[cut] = self._q
+        info["unlinked"] = cut
         info.update(mc_error=se, mc_error_max=float(np.max(se)) if se.size else 0.0,
                     seen=np.array([t in seen for t in ts], dtype=bool),
                     configurations=self)
@@ -1108,11 +1146,13 @@ def infer_configurations(evidence, prior="world", *, partition="edc", likelihood
 
 
 def configuration_marginals(evidence, prior="world", *, triplets=None, partition=None,
-                            likelihood="state", seed=None, widen=None, ess=None, **options):
+                            likelihood="state", seed=None, widen=None, ess=None,
+                            unlinked="sample", **options):
     """Marginals of ``triplets`` (default: a graph's triplets, else every ordered triplet of the
     landmarks) by configuration inference: :func:`infer_configurations` then
     :meth:`ConfigurationPosterior.marginals` (``widen``: rows the populations disagree on mixed
-    toward the prior, see there). The result's ``info["configurations"]`` holds the
+    toward the prior, see there; ``unlinked``: the answer for triplets across unlinked groups of
+    landmarks, see there). The result's ``info["configurations"]`` holds the
     samples. ``partition`` defaults to the graph's (else ``"edc"``).
 
     >>> import numpy as np
@@ -1132,4 +1172,4 @@ def configuration_marginals(evidence, prior="world", *, triplets=None, partition
                                 **options)
     if triplets is None and hasattr(evidence, "triplets"):
         triplets = evidence.triplets
-    return post.marginals(triplets, widen=widen)
+    return post.marginals(triplets, widen=widen, unlinked=unlinked)

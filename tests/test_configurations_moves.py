@@ -90,3 +90,24 @@ def test_blocks_are_components_and_rigid_clusters():
     assert blocks == {(0, 1, 2, 3), (3, 4, 5), (6, 7, 8), (0, 1, 2, 3, 4, 5)}
     # all landmarks in one block: nothing (the whole-configuration move does it)
     assert _landmark_blocks(np.array([[0, 1, 2]]), 3) == []
+
+
+def test_unlinked_triplets_can_answer_the_prior():
+    """Two groups of landmarks no seen triplet links: ``unlinked="prior"`` answers the prior's
+    states for every triplet across them and leaves the others as sampled."""
+    pr = WorldBoxPrior()
+    q = prior_states(pr, "edc")
+    v = np.full(M, 0.1 / (M - 1))
+    v[5] = 0.9
+    post = infer_configurations({(0, 1, 2): v, (3, 4, 5): v}, pr, n_particles=400, seed=0)
+    assert post.components().tolist() == [0, 0, 0, 1, 1, 1]
+    ts = [(0, 1, 2), (0, 1, 3), (3, 4, 0), (4, 5, 3)]
+    a = post.marginals(ts)
+    b = post.marginals(ts, unlinked="prior")
+    assert a.info["unlinked"].tolist() == [False, True, True, False]
+    np.testing.assert_allclose(b.probabilities[1], q)
+    np.testing.assert_allclose(b.probabilities[2], q)
+    np.testing.assert_allclose(b.probabilities[[0, 3]], a.probabilities[[0, 3]])
+    assert np.abs(a.probabilities[1] - q).max() > 1e-3       # the samples' own answer differs
+    with pytest.raises(ValueError, match="unlinked"):
+        post.marginals(ts, unlinked="yes")
