@@ -177,7 +177,8 @@ def _reference_estimate(meas, part, opts, root) -> TripletEstimate:
         landmark=np.asarray(out["landmark"], dtype=float), cameras=cameras,
         n_hypotheses=int(out["n_samples"]), degenerate=bool(reasons), reason="; ".join(reasons),
         method="reference", partition=part.name, n_views=meas.n_views, ess=float(out["ess"]),
-        mc_error=float(np.max(out["mc_error"])), prior=_estimate.prior_name(opts),
+        mc_error=float(np.max(out["mc_error"])), pareto_k=float(out.get("pareto_k", np.nan)),
+        prior=_estimate.prior_name(opts),
         options=_estimate.public_options(opts))
 
 

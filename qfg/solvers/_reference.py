@@ -53,8 +53,10 @@ from ..geometry import (
     wrap_angle,
 )
 from ._arcs import arc_parameter, log_ray_jacobian
+from ._diagnostics import pareto_k
 from ._input import check_bearings, check_headings
 from ._likelihood import logsumexp
+from ._reference_rb import RB_DEFAULTS as _RB_DEFAULTS
 
 __all__ = ["solve_reference", "REFERENCE_DEFAULTS"]
 
@@ -76,13 +78,26 @@ REFERENCE_DEFAULTS = {
     "inflate": 1.1,               # scale factor on the fitted standard deviations
     "bearing_floor": np.deg2rad(0.05),   # sigmas used are max(sigma, floor): zero noise works
     "heading_floor": np.deg2rad(0.05),
-    "min_ess": 30.0,              # below this the answer is flagged
+    "min_ess": 50.0,              # below this the answer is flagged (issue 20)
     "laplace": True,              # refine poorly sampled components by Newton (Laplace; the
                                   # four heaviest clusters, split where the curvature says two modes)
+    # the sampler: "conditional" (C drawn from a fitted 2-D mixture, the trajectory given C by a
+    # particle filter twisted by its Laplace approximation: ._reference_rb, cost linear in the
+    # views), "staged" (the adaptive importance sampler above, views added in stages) or "auto"
+    # (staged up to AUTO_STAGED_VIEWS views, conditional beyond: docs/priors.md); the options
+    # above this line are the staged sampler's, those below the conditional sampler's
+    "sampler": "auto",
+    **{k: v for k, v in _RB_DEFAULTS.items()},
 }
 
 _LOG2PI = np.log(2 * np.pi)
 _LOG_FMAX = np.log(np.finfo(float).max)
+
+#: ``sampler="auto"`` uses the staged sampler up to this many (distinct) views and the
+#: conditional one beyond (development seeds, docs/priors.md: at 3-5 views the staged sampler
+#: reaches a larger ESS in less time; from 8 views on its ESS collapses while the conditional
+#: sampler's cost grows linearly).
+AUTO_STAGED_VIEWS = 5
 
 #: Largest noise sigma used (radians); the wrapped normal is uniform beyond it.
 SIGMA_CAP = 10.0
@@ -636,7 +651,9 @@ def solve_reference(bearings, headings, sigma_bearing, sigma_heading, partition=
     ``cameras_mc_error`` (n, m) (standard deviations of the probabilities), ``ess`` (effective
     sample size of the final round), ``ess_rounds`` (per round), ``n_samples`` (draws in all
     rounds), ``log_evidence`` (log p(measurements), radians as the unit of every angle; None when
-    nothing had weight), ``degenerate`` (bool), ``reason`` (str).
+    nothing had weight), ``degenerate`` (bool), ``reason`` (str), ``pareto_k`` (Pareto k-hat of
+    the final rounds' weights, :func:`qfg.solvers._diagnostics.pareto_k`) and ``sampler`` (the
+    sampler used: ``options["sampler"]``, "auto" resolved by the number of views).
 
     >>> import numpy as np
     >>> from qfg.simulation import random_triplet_history
@@ -677,12 +694,28 @@ def solve_reference(bearings, headings, sigma_bearing, sigma_heading, partition=
     pr = _priors.get(prior)
     rng = as_rng(seed)
     L = _Layout(b, h if (h is not None and h.size) else None, sv, sw)
-    out = _solve(L, pr, part, rng, opts, N, rounds, lam, lam_ray)
+    if opts["sampler"] not in ("auto", "conditional", "staged"):
+        raise ValueError(f"sampler: expected 'auto', 'conditional' or 'staged', got "
+                         f"{opts['sampler']!r}")
+    sampler = opts["sampler"]
+    if sampler == "auto":
+        sampler = "staged" if L.n <= AUTO_STAGED_VIEWS else "conditional"
+
+    def run(prior):
+        if sampler == "conditional":
+            from ._reference_rb import solve_rb
+
+            return solve_rb(L, prior, part, rng, opts)
+        return _solve(L, prior, part, rng, opts, N, rounds, lam, lam_ray)
+
+    out = run(pr)
+    out["sampler"] = sampler
     if out["log_evidence"] is None and isinstance(pr, _priors.WorldBoxPrior) and pr.d_min > 0:
         # e.g. every view at one pose with zero noise: cameras closer than d_min are impossible
         # under the prior, so nothing has weight; answer under the same box without d_min
         free = _priors.WorldBoxPrior(pr.width, pr.height, 0.0, pr.n_rho)
-        out = _solve(L, free, part, rng, opts, N, rounds, lam, lam_ray)
+        out = run(free)
+        out["sampler"] = sampler
         out["n_samples"] *= 2
         out["degenerate"] = True
         out["reason"] = "; ".join(x for x in (
@@ -692,8 +725,6 @@ def solve_reference(bearings, headings, sigma_bearing, sigma_heading, partition=
 
 
 def _solve(L, pr, part, rng, opts, N, rounds, lam, lam_ray):
-    sv, sw = L.sv, L.sw
-
     # views are added in stages (the first stage has min(n, first_stage) views): every stage is
     # a complete importance sampler of the posterior given its views, whose fitted proposal
     # carries over to the next stage, where the new view's variables are drawn by the
@@ -711,7 +742,7 @@ def _solve(L, pr, part, rng, opts, N, rounds, lam, lam_ray):
     # combines their estimates with weights proportional to their ESS (the variances combine
     # accordingly). Fits use the pooled rounds of the current stage, each round's normalized
     # weights scaled by its ESS, so that a poor round does not starve the next fit.
-    comps, ess_rounds, finals, total = [], [], [], 0
+    comps, ess_rounds, finals, total, final_lws = [], [], [], 0, []
     for si, (j, nr) in enumerate(plan):
         Lj = L if j == n else L.first(j)
         final = si == len(plan) - 1
@@ -730,6 +761,7 @@ def _solve(L, pr, part, rng, opts, N, rounds, lam, lam_ray):
                 pool.append((v, r, wn * ess))
                 if final:
                     finals.append(_summaries(part, X, c, lw) + (X, c))
+                    final_lws.append(lw)
             if k + 1 >= max(nr, max_rounds) or (k + 1 >= nr and ess >= target):
                 if not final:
                     comps = _fit_pool(Lj, pool[-3:], opts, pr)
@@ -745,7 +777,11 @@ def _solve(L, pr, part, rng, opts, N, rounds, lam, lam_ray):
         reasons.append("no sample had positive weight")
     else:
         land, err, cams, cam_err, ess, log_mean, wn, X, c = summ
-        log_ev = log_mean - 2 * n * np.log(sv) - L.n_psi * np.log(sw)
+        # the weights are densities in eps units, where the likelihood of the true bearings
+        # (1/sv per factor) and the change of variables phi~ = phi + sv eps (sv per factor)
+        # cancel: their mean is p(measurements) itself (the conditional sampler's estimate of the
+        # same quantity agrees: tests/test_reference_conditional.py)
+        log_ev = log_mean
         if ess < float(opts["min_ess"]):
             reasons.append(f"effective sample size {ess:.1f} < {opts['min_ess']:g}")
         reasons += _geometry_flags(L, X, c, wn)
@@ -753,6 +789,7 @@ def _solve(L, pr, part, rng, opts, N, rounds, lam, lam_ray):
         "landmark": land, "cameras": cams, "mc_error": err, "cameras_mc_error": cam_err,
         "ess": float(ess), "ess_rounds": ess_rounds, "n_samples": int(total),
         "log_evidence": log_ev, "degenerate": bool(reasons), "reason": "; ".join(reasons),
+        "pareto_k": pareto_k(np.concatenate(final_lws)) if final_lws else float("nan"),
     }
 
 
