@@ -166,3 +166,17 @@ def test_widening_share():
     assert mc.widening(0.01, 0.0) == 0.0
     assert mc.widening(0.0, 0.05) == 1.0
     assert mc.widening(0.025, 0.05) == pytest.approx(0.5)
+
+
+def test_a_per_image_offset_is_absorbed_by_the_camera_heading():
+    # bearings f_k = atan2(P_k - X) - alpha: an offset o shared by A, B and C of one image is
+    # the heading alpha - o; only the motion heading out of that view (relative to alpha) sees
+    # it, as psi + o
+    h = _histories(13, 4, 1, sb=0.0, sh=0.0)[0]
+    o = np.array([0.01, -0.02, 0.015, 0.03])
+    P = h.truth.poses_ab.copy()
+    L = h.truth.C_ab[None]
+    rb0, rh0 = mc.residuals(h.bearings, h.headings, P[:, None, :], L)
+    P[:, 2] -= o
+    rb, rh = mc.residuals(h.bearings + o[:, None], h.headings + o[:-1], P[:, None, :], L)
+    assert np.allclose(rb, rb0, atol=1e-12) and np.allclose(rh, rh0, atol=1e-12)

@@ -59,7 +59,9 @@ def _refused(capsys, argv, *words):
 # ------------------------------------------------------------------------------ item 1: options
 @pytest.mark.parametrize("bad, name", [
     (["--temper", "2"], "--temper"), (["--temper", "nan"], "--temper"),
-    (["--temper", "-0.5"], "--temper"),
+    (["--temper", "-0.5"], "--temper"), (["--temper", "banana"], "--temper"),
+    (["--model-check", "0.9"], "--model-check"), (["--model-check", "-1"], "--model-check"),
+    (["--bearing-tail", "cauchy"], "--bearing-tail"),
     (["--robots", "9"], "--robots"), (["--robots", "0"], "--robots"),
     (["--robots", "1,x"], "--robots"), (["--robots", "1,1"], "--robots"),
     (["--max-gap", "-1"], "--max-gap"), (["--max-gap", "0"], "--max-gap"),

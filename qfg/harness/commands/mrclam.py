@@ -117,9 +117,11 @@ def register(sub):
                    help="heading sigma of each history from its longest step (the odometry's "
                         "direction error by step duration, measured against motion capture: "
                         "1.6 deg at 6.5 s, 5.0 at 20 s, 9.8 at 65 s); default off")
-    p.add_argument("--temper", type=float, default=1.0,
+    p.add_argument("--temper", type=_temper_arg, default=1.0,
                    help="temper each estimate's likelihood part by this power in [0, 1] before "
-                        "combining (default 1: none; docs/results/mrclam.md)")
+                        "combining (default 1: none; docs/results/mrclam.md), or auto: the "
+                        "power under which the histories of each ordered triplet (passes, "
+                        "robots) agree best, a model check without ground truth")
     p.add_argument("--curve", default="",
                    help="comma-separated view caps (0 = all), e.g. 3,5,8,0: also score the seen "
                         "triplets with each pass cut to that many views (curve.csv, curve figure)")
@@ -143,6 +145,16 @@ def register(sub):
 
 
 # ------------------------------------------------------------------------------ checks
+def _temper_arg(text: str):
+    """``--temper``: a number, or ``auto`` (checked in range by :func:`check_options`)."""
+    if str(text).strip().lower() == "auto":
+        return "auto"
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number in [0, 1] or auto, got {text!r}")
+
+
 def _number(args, name: str, *, lo=None, hi=None, lo_open=False) -> float:
     import math
 
@@ -218,7 +230,8 @@ def check_options(args) -> dict:
         "model_check": _number(args, "--model-check", lo=0.0, hi=0.5),
         "piece": int(args.piece_size), "seed": int(args.seed),
         # the phases after solving: not part of the run's identity
-        "_after": {"combine": args.combine, "temper": _number(args, "--temper", lo=0.0, hi=1.0),
+        "_after": {"combine": args.combine, "temper": args.temper if args.temper == "auto"
+                   else _number(args, "--temper", lo=0.0, hi=1.0),
                    "map": map_name, "tensor": tensor, "curve": caps,
                    "method_given": args.method is not None},
     }

@@ -493,6 +493,60 @@ def _solver_of(ests) -> str:
     return "none" if names == ["none"] else ",".join(n for n in names if n != "none")
 
 
+#: Tempering powers the cross-pass check chooses from (``temper="auto"``), largest first.
+AUTO_TEMPERS = (1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3, 0.2, 0.1)
+
+
+def _history_groups(prep: Prepared) -> dict:
+    """{ordered triplet (landmark indices): [history index, ...]}."""
+    ds = prep.dataset
+    groups: dict[tuple, list[int]] = {}
+    for k, (_, h) in enumerate(prep.histories):
+        groups.setdefault(tuple(ds.landmark_index(h.landmarks).tolist()), []).append(k)
+    return groups
+
+
+def cross_pass_agreement(P, groups: dict, q, tau: float) -> tuple[float, int]:
+    """How well the histories of one ordered triplet (separate passes, other robots) predict
+    each other once tempered by ``tau``: the mean over pairs (i, j) of histories of one group of
+
+        log sum_s t_i(s) t_j(s) / q(s),   t = temper(p, q, tau),
+
+    which is log P(D_j | D_i) / P(D_j) when the two passes are independent given the state and
+    the tempered estimates are their posteriors (q the prior's state distribution). No ground
+    truth enters. ``P`` (H, m) the histories' estimates; returns (mean, number of pairs); (0, 0)
+    without a group of two.
+
+    >>> q = np.full(4, 0.25)
+    >>> P = np.array([[0.97, 0.01, 0.01, 0.01], [0.01, 0.97, 0.01, 0.01]])
+    >>> a1, n = cross_pass_agreement(P, {(0, 1, 2): [0, 1]}, q, 1.0)
+    >>> a0, _ = cross_pass_agreement(P, {(0, 1, 2): [0, 1]}, q, 0.0)
+    >>> n, round(a1, 3), round(a0, 3)      # confident and contradicting: worse than the prior
+    (1, -2.128, 0.0)
+    """
+    pairs = [(a, b) for ks in groups.values() for i, a in enumerate(ks) for b in ks[i + 1:]]
+    if not pairs:
+        return 0.0, 0
+    a, b = np.array(pairs).T
+    T = temper(np.asarray(P, dtype=float), q, tau)
+    return float(np.mean(np.log(np.sum(T[a] * T[b] / q, axis=1)))), len(pairs)
+
+
+def choose_temper(prep: Prepared, ests: list[_Light], taus=AUTO_TEMPERS) -> tuple[float, list]:
+    """The model check over histories: the tempering power (of ``taus``) under which the
+    histories of each ordered triplet agree best (:func:`cross_pass_agreement`). Passes that
+    contradict each other under the model (each confident, on different states) choose a power
+    below 1, which widens every estimate toward the prior; where they agree it stays 1. Returns
+    (the power, [(tau, agreement, pairs), ...]); 1 when no triplet has two histories."""
+    P = np.array([e.landmark for e in ests], dtype=float)
+    groups = _history_groups(prep)
+    table = [(float(t),) + cross_pass_agreement(P, groups, prep.prior_states, t) for t in taus]
+    if not table or table[0][2] == 0:
+        return 1.0, table
+    best = max(table, key=lambda r: (r[1], r[0]))
+    return best[0], table
+
+
 def seen_estimates(prep: Prepared, ests: list[_Light], *, combine: str = "geometric",
                    temper: float = 1.0, seed: int = 0, tensor=None) -> tuple:
     """Temper each history's estimate, combine those of each ordered triplet (module docstring,
@@ -505,10 +559,8 @@ def seen_estimates(prep: Prepared, ests: list[_Light], *, combine: str = "geomet
     ds, q_c, q_x = prep.dataset, prep.prior_states, prep.prior_camera_states
     if temper != 1:
         ests = [_Light(_temper(e.landmark, q_c, temper), _temper(e.cameras, q_x, temper),
-                       e.method, e.degenerate) for e in ests]
-    groups: dict[tuple, list[int]] = {}
-    for k, (_, h) in enumerate(prep.histories):
-        groups.setdefault(tuple(ds.landmark_index(h.landmarks).tolist()), []).append(k)
+                       e.method, e.degenerate, e.model_check) for e in ests]
+    groups = _history_groups(prep)
     combined = {t: _combine(np.array([ests[k].landmark for k in ks]), q_c, combine)
                 for t, ks in groups.items()}
     trip = np.array(sorted(combined), dtype=np.intp).reshape(-1, 3)
@@ -585,6 +637,13 @@ def finish(prep: Prepared, ests: list[_Light], *, combine: str = "geometric",
 
     say = say or (lambda msg: None)
     method = mrclam_maps.get(map_method)
+    temper_check = None
+    if temper == "auto":
+        temper, temper_check = choose_temper(prep, ests)
+        say(f"temper auto: the histories of one ordered triplet agree best at {temper:g} "
+            f"({temper_check[0][2] if temper_check else 0} pairs; agreement at 1: "
+            f"{temper_check[0][1] if temper_check else 0:.3f}, at {temper:g}: "
+            f"{dict((t, a) for t, a, _ in temper_check).get(temper, 0.0):.3f})")
     seen, ests, combined = seen_estimates(prep, ests, combine=combine, temper=temper, seed=seed,
                                           tensor=tensor)
     say(f"combined: {len(ests)} histories into {len(seen.triplets)} seen ordered triplets "
@@ -630,7 +689,8 @@ def finish(prep: Prepared, ests: list[_Light], *, combine: str = "geometric",
     return rows, {"dataset": ds, "swaps": prep.swaps, "histories": prep.histories,
                   "estimates": ests, "seen": seen, "map": result, "partition": prep.partition,
                   "prior": prep.prior, "prior_states": prep.prior_states,
-                  "prior_camera_states": prep.prior_camera_states, "combined": combined}
+                  "prior_camera_states": prep.prior_camera_states, "combined": combined,
+                  "temper": float(temper), "temper_check": temper_check}
 
 
 # ----------------------------------------------------------------------------- scoring
