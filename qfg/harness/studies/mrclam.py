@@ -522,7 +522,7 @@ def cross_pass_agreement(P, groups: dict, q, tau: float) -> tuple[float, int]:
     >>> a1, n = cross_pass_agreement(P, {(0, 1, 2): [0, 1]}, q, 1.0)
     >>> a0, _ = cross_pass_agreement(P, {(0, 1, 2): [0, 1]}, q, 0.0)
     >>> n, round(a1, 3), round(a0, 3)      # confident and contradicting: worse than the prior
-    (1, -2.128, 0.0)
+    (1, -2.546, 0.0)
     """
     pairs = [(a, b) for ks in groups.values() for i, a in enumerate(ks) for b in ks[i + 1:]]
     if not pairs:
