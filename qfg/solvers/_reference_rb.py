@@ -48,7 +48,9 @@ RB_DEFAULTS = {
     "particles": 16,           # trajectories per C draw (the particle filter given C)
     "final_rounds": 6,         # most final rounds (stops once the ESS reaches ess_goal)
     "ess_goal": 500.0,         # total ESS wanted from the final rounds
-    "tempering_rounds": 20,    # most rounds of the adaptive tempering of C's proposal
+    "tempering_rounds": 12,    # most rounds of the adaptive tempering of C's proposal
+    "tempering_samples": 500,  # C draws per tempering round
+    "tempering_ess": 0.3,      # share of effective draws kept when the temperature is raised
     "gn_iters": 40,            # most Levenberg-Marquardt iterations of the conditional mode
     "components": 6,           # components of C's mixture
 }
@@ -542,6 +544,14 @@ class _CMix:
 _PRODUCT = _priors.ProductPrior()
 
 
+class _ProductDensity:
+    """The product prior's one-point density as a C density (log_density of (N, 2))."""
+
+    @staticmethod
+    def log_density(x):
+        return _PRODUCT.log_density(x[:, None, :])
+
+
 def _log_t2(x, means, chols, dof):
     """Log densities (N, K) of 2-D t components at x (N, 2)."""
     d = x[:, None, :] - means[None]
@@ -611,18 +621,23 @@ def _stages(n):
 def adapt_c_proposal(L, prior, rng, opts):
     """C's proposal: adaptive tempering from the product prior to the Laplace marginal of the
     first 3 views, then from each stage's marginal to that of twice as many views, up to n
-    (each step a geometric bridge ``l_prev^(1 - b) l_next^b``, b raised while half the draws
-    stay effective, the t mixture refitted to the weighted draws after every round).
+    (each step a geometric bridge ``q_ref^(1 - b) p_k^b`` from the proposal the previous stage
+    ended with, or the product prior, to the Laplace marginal p_k of k views, b raised while
+    a share ``tempering_ess`` of the draws stays effective, the t mixture refitted to the weighted draws after every
+    round).
     Returns the mixture and the number of C draws spent."""
-    M = int(opts["rb_samples"])
+    M = int(opts["tempering_samples"])
+    keep = float(opts["tempering_ess"])
     K = int(opts["components"])
     iters = int(opts["gn_iters"])
     max_rounds = int(opts["tempering_rounds"])
     spent, rounds = 0, 0
     mix = None
-    prev = None
+    ref = _ProductDensity()
     for k in _stages(L.n):
         Lk = L if k == L.n else L.first(k)
+        if mix is not None:
+            ref = mix           # the bridge starts from the proposal the last stage ended with
         beta = 0.0
         while rounds < max_rounds:
             rounds += 1
@@ -633,8 +648,7 @@ def adapt_c_proposal(L, prior, rng, opts):
                 C = mix.draw(rng, M)
                 lq = mix.log_density(C)
             spent += M
-            l0 = (_PRODUCT.log_density(C[:, None, :]) if prev is None
-                  else laplace_marginal(prev, prior, C, iters))
+            l0 = ref.log_density(C)
             l1 = laplace_marginal(Lk, prior, C, iters)
             ok = np.isfinite(l1) & np.isfinite(lq) & np.isfinite(l0)
             if not np.any(ok):
@@ -644,15 +658,15 @@ def adapt_c_proposal(L, prior, rng, opts):
             def lw_at(b, l0=l0, l1=l1, lq=lq):
                 return b * l1 + (1.0 - b) * l0 - lq
 
-            if _ess(lw_at(1.0)) >= 0.5 * M:
+            if _ess(lw_at(1.0)) >= keep * M:
                 beta_new = 1.0
-            elif _ess(lw_at(beta)) < 0.5 * M:
+            elif _ess(lw_at(beta)) < keep * M:
                 beta_new = beta          # refit at the same temperature
             else:
                 lo, hi = beta, 1.0
                 for _ in range(25):
                     mid = 0.5 * (lo + hi)
-                    lo, hi = (mid, hi) if _ess(lw_at(mid)) >= 0.5 * M else (lo, mid)
+                    lo, hi = (mid, hi) if _ess(lw_at(mid)) >= keep * M else (lo, mid)
                 beta_new = lo
             lw = lw_at(beta_new)
             w = np.exp(lw - lw.max())
@@ -661,7 +675,6 @@ def adapt_c_proposal(L, prior, rng, opts):
             beta = beta_new
             if done or (beta == 1.0 and k < L.n):
                 break
-        prev = Lk
     if mix is None:
         mix = _CMix([1.0], np.array([[0.0, 0.5]]), np.eye(2)[None], defensive=True)
     return mix, spent
