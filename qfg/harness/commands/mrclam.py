@@ -377,7 +377,9 @@ def _main(args):
         shown["summary"] = study.write_outputs(
             outdir, trows, figures=not args.no_figures, details=details,
             figure_robot=opts["robots"][0] if opts["robots"] else None,
-            options={**params, **{k: v for k, v in after.items() if k != "curve"}})
+            options={**params, **{k: v for k, v in after.items() if k != "curve"},
+                     "temper_chosen": details.get("temper"),
+                     "temper_check": details.get("temper_check")})
 
     pieces = runner.Study("mrclam", study.piece_tasks, study.run_piece, summarize,
                           "one MRCLAM dataset, solved in pieces")
