@@ -568,7 +568,9 @@ def _extend(state: SISState, phi, psi, spread: float, purpose: int) -> SISState:
 def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
     """One block of the motion step's children: parents ``par`` (B,) (rows of ``prev``), their
     noise draws ``z`` (B, 3) (heading, A, B), with a bearing tail (B, 7) (then also the A/B
-    component choices and outlier places, :func:`._likelihood.bearing_noise`). Returns (child index (offset + row), pose (K, 3), log weight,
+    component choices and outlier places, :func:`._likelihood.bearing_noise`).
+
+    Returns (child index (offset + row), pose (K, 3), log weight,
     log per-point prior) of the K children whose ray meets the drawn locus arc."""
     ct = state.tid[par]
     sb, sh = state.sigma_bearing[ct], state.sigma_heading[ct]

@@ -152,7 +152,8 @@ def _temper_arg(text: str):
     try:
         return float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number in [0, 1] or auto, got {text!r}")
+        raise argparse.ArgumentTypeError(
+            f"expected a number in [0, 1] or auto, got {text!r}") from None
 
 
 def _number(args, name: str, *, lo=None, hi=None, lo_open=False) -> float:
