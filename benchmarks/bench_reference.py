@@ -5,6 +5,17 @@ Run as a script for the full table (ESS per noise level and view count, calibrat
 
     .venv/bin/python -m benchmarks.bench_reference --triplets 40 --views 3 5 10 --seed 7
 
+Views (issue 20), on development histories ``random_triplet_history(default_rng(700000 + i),
+n, 2 deg, 5 deg)``: median ESS, share flagged ESS < 50, Pareto k and time per sampler, the time
+also in units of a fixed numpy workload run in the same process (:func:`yardstick`), so that runs
+under different loads compare:
+
+    .venv/bin/python -m benchmarks.bench_reference --views-dev 3 5 10 20 --triplets 8 \
+        --samplers auto staged conditional
+
+and the conditional sampler against the staged one on the same triplets (``--agreement 3 4 5``):
+per state z = difference / combined reported error, total variation, log evidence difference.
+
 Calibration: configurations from ``qfg.priors.sample_measurements`` (the solver's own model and
 prior), solved by the reference; a calibrated posterior has ``E[1(top = truth)] = E[p_top]``, so
 ``z_top = sum(1(top = truth) - p_top) / sqrt(sum p_top (1 - p_top))`` is about N(0, 1); likewise
@@ -158,6 +169,76 @@ def seed_check(n_views, sb_deg, sh_deg, n_triplets, seed=31):
           f"max |z| = {np.abs(zs).max():.2f}")
 
 
+def yardstick(repeats=5):
+    """Seconds of a fixed numpy workload (elementwise transcendental functions and small
+    reductions on 10^6 floats, the solvers' kind of work): the median of ``repeats`` runs."""
+    x = np.random.default_rng(0).standard_normal(1_000_000)
+    ts = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        y = np.arctan2(np.sin(x), np.cos(x)) * np.exp(-0.5 * x * x)
+        float(np.sum(y * y) + np.log1p(np.abs(y)).mean())
+        ts.append(time.perf_counter() - t)
+    return float(np.median(ts))
+
+
+def _dev_history(n, i):
+    from qfg.simulation import random_triplet_history
+
+    return random_triplet_history(np.random.default_rng(700000 + i), n, np.deg2rad(2),
+                                  np.deg2rad(5))
+
+
+def views_dev(views, n_triplets, samplers):
+    """ESS, flags, Pareto k and time per number of views and sampler on development histories."""
+    import os
+
+    y0 = yardstick()
+    print(f"load {os.getloadavg()[0]:.1f}; yardstick {y0 * 1e3:.1f} ms")
+    print("| views | sampler | n | median ESS | min ESS | ESS < 50 | median Pareto k | median s "
+          "| median time / yardstick |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for n in views:
+        for smp in samplers:
+            ess, ks, ts, ys = [], [], [], []
+            for i in range(n_triplets):
+                h = _dev_history(n, i)
+                t = time.perf_counter()
+                out = solve_reference(h.bearings, h.headings, h.sigma_bearing, h.sigma_heading,
+                                      seed=1, sampler=smp)
+                ts.append(time.perf_counter() - t)
+                ys.append(yardstick(1))
+                ess.append(out["ess"])
+                ks.append(out["pareto_k"])
+            ess, ts = np.array(ess), np.array(ts)
+            print(f"| {n} | {smp} | {n_triplets} | {np.median(ess):.0f} | {ess.min():.0f} "
+                  f"| {np.mean(ess < 50):.2f} | {np.nanmedian(ks):.2f} | {np.median(ts):.1f} "
+                  f"| {np.median(ts / np.array(ys)):.0f} |", flush=True)
+
+
+def agreement(views, n_triplets):
+    """The conditional sampler against the staged one on the same development histories."""
+    print("| views | triplet | ESS staged / conditional | max abs z | total variation "
+          "| log evidence difference |")
+    print("|---|---|---|---|---|---|")
+    zs = []
+    for n in views:
+        for i in range(n_triplets):
+            h = _dev_history(n, i)
+            args = (h.bearings, h.headings, h.sigma_bearing, h.sigma_heading)
+            a = solve_reference(*args, seed=1, sampler="staged")
+            b = solve_reference(*args, seed=1, sampler="conditional")
+            sd = np.sqrt(a["mc_error"] ** 2 + b["mc_error"] ** 2)
+            z = (a["landmark"] - b["landmark"]) / np.maximum(sd, 1e-12)
+            zs += z[sd > 1e-4].tolist()
+            print(f"| {n} | {i} | {a['ess']:.0f} / {b['ess']:.0f} | {np.abs(z).max():.1f} "
+                  f"| {0.5 * np.abs(a['landmark'] - b['landmark']).sum():.3f} "
+                  f"| {b['log_evidence'] - a['log_evidence']:+.2f} |", flush=True)
+    zs = np.array(zs)
+    print(f"all: {zs.size} probabilities, std(z) = {zs.std():.2f}, |z| > 3: "
+          f"{np.mean(np.abs(zs) > 3):.3f}")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--triplets", type=int, default=40)
@@ -169,7 +250,18 @@ def main(argv=None):
                     help="every solver method on the same triplets instead")
     ap.add_argument("--seed-check", nargs=3, type=float, metavar=("VIEWS", "SB", "SH"),
                     help="two seeds per triplet against the reported error instead")
+    ap.add_argument("--views-dev", type=int, nargs="+", default=None,
+                    help="ESS and time per number of views on development histories instead")
+    ap.add_argument("--samplers", nargs="+", default=["auto"])
+    ap.add_argument("--agreement", type=int, nargs="+", default=None,
+                    help="conditional against staged sampler at these view counts instead")
     args = ap.parse_args(argv)
+    if args.views_dev:
+        views_dev(args.views_dev, args.triplets, args.samplers)
+        return
+    if args.agreement:
+        agreement(args.agreement, args.triplets)
+        return
     if args.seed_check:
         seed_check(int(args.seed_check[0]), args.seed_check[1], args.seed_check[2], args.triplets)
         return
@@ -180,7 +272,7 @@ def main(argv=None):
         compare(args.triplets)
         return
     opts = {} if args.n_samples is None else {"n_samples": args.n_samples}
-    print("| views | sigma_v/sigma_w (deg) | median ESS | 10th pct ESS | ESS<30 | median max MC err "
+    print("| views | sigma_v/sigma_w (deg) | median ESS | 10th pct ESS | ESS<50 | median max MC err "
           "| median s | z_top | z per bin | log score | Brier | top-1 |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for n in args.views:
@@ -189,7 +281,7 @@ def main(argv=None):
             ess = np.array([r["ess"] for r in rows])
             c = calibration(rows)
             print(f"| {n} | {sb:g}/{sh:g} | {np.median(ess):.0f} | {np.percentile(ess, 10):.0f} "
-                  f"| {np.sum(ess < 30)} | {np.median([r['err'] for r in rows]):.4f} "
+                  f"| {np.sum(ess < 50)} | {np.median([r['err'] for r in rows]):.4f} "
                   f"| {np.median([r['time'] for r in rows]):.1f} | {c['z_top']:+.2f} "
                   f"| {' '.join(f'{z:+.1f}' for z in c['z_bins'])} | {c['log_score']:.3f} "
                   f"| {c['brier']:.3f} | {c['top1']:.2f} |", flush=True)

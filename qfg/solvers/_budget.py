@@ -10,7 +10,8 @@ trajectories: docs/solvers.md, "More views"), so :func:`work_units` counts pose-
 and :data:`WORK_BUDGET` caps them at what full takes for 100 views (measured under a load of 11:
 full 0.42, 0.90, 3.15, 9.9 s per triplet at 10, 20, 40, 80 views; fast 0.10, 0.39, 1.46 s at 40,
 80, 160 views, so about 15 s for full at 100 views and 9 s for fast at its cap of about 480).
-The reference solver takes at most :data:`REFERENCE_MAX_VIEWS` views.
+The reference solver takes at most :data:`REFERENCE_MAX_VIEWS` views (its time is linear in
+them, but its ESS falls below 50 beyond).
 """
 
 from __future__ import annotations
@@ -18,9 +19,14 @@ from __future__ import annotations
 #: Largest working memory a call may need (bytes); above it the call is refused up front.
 MEMORY_BUDGET = 2 * 2**30
 
-#: Most views the reference solver takes: at 20 views it answered in 46-157 s with an ESS of
-#: 5-7 and gave no answer within 10 minutes at 50 (issue 20).
-REFERENCE_MAX_VIEWS = 20
+#: Most views the reference solver takes. Its conditional sampler (beyond 5 views) costs time
+#: linear in the views (under a load of about 9: 62 s and 86 s per triplet at 30 and 40 views on
+#: 2 development histories each; docs/priors.md for 6-20 views), but its ESS falls with the
+#: views (65 and 165 at 30, 33 and 37 at 40: every 40-view answer flagged): beyond 30 views it
+#: would spend minutes on answers it must flag (``python -m benchmarks.bench_reference --views-dev 30 40
+#: --triplets 2 --samplers conditional``). The staged sampler alone took 46-157 s with an ESS
+#: of 5-7 at 20 views (issue 20).
+REFERENCE_MAX_VIEWS = 30
 
 #: Most pose-views one triplet may process (:func:`work_units`): full's at 100 views.
 WORK_BUDGET = 3000 * 8 * 100 * 101 // 2
@@ -69,15 +75,21 @@ def _rows(method, opts, n_views) -> int:
     if method == "baseline":
         # candidates x resected poses per view, plus the (candidates, states) camera shares
         return opts["n_landmark_samples"] * (opts["noise_samples"] + 8)
-    return opts.get("n_samples", 10_000) * opts.get("grow", 4)
+    # the reference: the staged sampler's draws per round (up to grow x n_samples), or the
+    # conditional sampler's particles (rb_samples x particles, each a pose per view, plus its
+    # per-C Gauss-Newton blocks of 3 x 3 per view, about 4 particles' worth each)
+    staged = opts.get("n_samples", 10_000) * opts.get("grow", 4)
+    conditional = opts.get("rb_samples", 1000) * (opts.get("particles", 16) + 4)
+    return max(staged, conditional)
 
 
 def check(method: str, opts: dict, n_triplets: int, n_views: int) -> None:
     """ValueError up front when a call would exceed the bounds (naming what to change)."""
     if method == "reference" and n_views > REFERENCE_MAX_VIEWS:
         raise ValueError(f"bearings: the reference solver takes at most {REFERENCE_MAX_VIEWS} "
-                         f"views (got {n_views}): its time grows much faster than linearly; "
-                         "use method='full' or fewer views")
+                         f"views (got {n_views}): beyond that its effective sample size falls "
+                         "below 50 after minutes per triplet; use method='full' or fewer views "
+                         "(e.g. the latest ones)")
     work = work_units(method, opts, n_views)
     if work > WORK_BUDGET:
         raise ValueError(f"bearings: {n_views} views would take method {method!r} about "

@@ -1,5 +1,6 @@
-"""Reference sampler Rao-Blackwellised around C: the exact posterior by importance sampling of
-``(C, trajectory)`` with the trajectory drawn from its Laplace approximation given C.
+"""The reference's conditional sampler (``sampler="conditional"``): the exact posterior by
+importance sampling of ``(C, trajectory)``, Rao-Blackwellised around C, at a cost linear in the
+number of views.
 
 Model (the same as :mod:`._reference`, AB frame): configuration ``(C, X_1, alpha_1, ..,
 X_n, alpha_n)``, prior ``prior(C, X_1..X_n) (2 pi)^-n`` (headings uniform), bearings
@@ -11,23 +12,33 @@ locus circles of AB and AC, both through A, in closed form by inversion about A)
 headings chain consecutive poses. So, for a draw of C:
 
 * the trajectory's conditional ``p(X, alpha | C, z)`` is approximated by a Gaussian about its
-  mode (Gauss-Newton from the resection, the information ``J^T J`` block-tridiagonal with 3 x 3
-  blocks: per-view bearings on the diagonal, each heading coupling views j and j + 1), factored
-  by a block Cholesky (a forward filter) and sampled by back substitution (backward sampling),
-  vectorized over all draws of C with a Python loop over views only: O(draws x views);
-* each heading ``alpha_j`` is taken in the window ``(alpha*_j - pi, alpha*_j + pi]`` about its
-  mode (draws outside get weight 0: the proposal is then defective, which keeps the estimator
-  exact, since the window covers the circle once);
+  mode in *arc coordinates* ``t_j = (a_j, g_j, alpha_j)`` (the angle at A along the view's AB
+  locus arc, the angle AB subtends, the heading: the A and B bearings are linear in them, so a
+  camera that its own bearings leave spread along its locus circle, near the circle through
+  A, B and C, is a straight line there, not a banana; views with a camera near line AB keep
+  (x, y)). The mode is found by Levenberg-Marquardt from the resection (or, where a heading
+  leads in, the heading ray's points on the locus circle); the information ``J^T J`` is
+  block-tridiagonal (3 x 3 blocks: the bearings of a view on the diagonal, each heading coupling
+  views j and j + 1) and factored by a block Cholesky (a forward filter pass);
+* trajectories are drawn by a particle filter backwards along the views, K particles per C,
+  each step drawing ``t_j`` from the Gaussian's conditional given ``t_{j+1}`` (backward
+  sampling) and weighting by the exact factors of view j and its outgoing heading, twisted by
+  the Gaussian message of the earlier views; resampling after every view keeps the error of the
+  Gaussian from compounding over views. The filter's evidence estimate Z (unbiased) times the
+  prior of one drawn trajectory, over q(C), is an exact importance weight;
 * C is drawn from a 2-D mixture of t components fitted by weighted EM to draws weighted by the
-  Laplace marginal ``p(C, X*, alpha*, z) (2 pi)^(3n/2) det(J^T J)^(-1/2)``, reached from the
-  heavy-tailed product prior by adaptive tempering (the tempered target ``q0^(1 - b) p^b``, b
-  raised while half the draws stay effective), with defensive shares of a widened mixture and
-  of the product prior (support everywhere);
-* every draw is weighted by the exact joint target over its proposal density.
+  Laplace marginal ``p(C, X*, alpha*, z) (2 pi)^(3n/2) det(J^T J)^(-1/2)`` (arc Jacobians
+  included), reached from the heavy-tailed product prior by adaptive tempering over stages of
+  3, 6, 12, .. views (the tempered target ``q_ref^(1 - b) p^b``, b raised while 30% of the draws
+  stay effective), with defensive shares of a widened mixture and of the product prior
+  (support everywhere);
+* draws outside the arc domain or with a heading outside ``(alpha*_j - pi, alpha*_j + pi]``
+  get weight 0 (a defective proposal: still exact, the window covers the circle once).
 
-That is an importance sampler of the exact posterior whatever the quality of the
-approximations; their quality shows in the ESS and Pareto k. Rounds of final draws are added
-until the ESS reaches ``ess_goal`` (at most ``final_rounds``) and combined by ESS.
+Whatever the quality of the approximations, this is an importance sampler of the exact
+posterior; their quality shows in the ESS and the Pareto k. Rounds of final draws are added
+until the ESS reaches ``ess_goal`` (at most ``final_rounds``) and combined by ESS
+(:func:`._reference_weights._combine`).
 """
 
 from __future__ import annotations
@@ -39,6 +50,7 @@ import numpy as np
 from .. import priors as _priors
 from ..geometry import locus_circle, ray_circle_intersection, wrap_angle
 from ._likelihood import logsumexp
+from ._reference_weights import _combine, _geometry_flags, _log_wn, _summaries
 
 __all__ = ["RB_DEFAULTS", "solve_rb", "resect", "fit_trajectories", "log_joint"]
 
@@ -75,12 +87,6 @@ def _quiet(f):
         with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
             return f(*args, **kwargs)
     return g
-
-
-def _log_wn(r, sigma):
-    from ._reference import _log_wn as f
-
-    return f(r, sigma)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -518,7 +524,7 @@ class _CMix:
         shares = [s for s, _ in self._parts()] + ([P_PRIOR] if self.defensive else [])
         counts = rng.multinomial(N, np.array(shares) / np.sum(shares))
         out = []
-        for (s, scale), k in zip(self._parts(), counts[:len(self._parts())], strict=True):
+        for (_, scale), k in zip(self._parts(), counts[:len(self._parts())], strict=True):
             if not k:
                 continue
             comp = rng.choice(self.pis.size, size=k, p=self.pis)
@@ -623,8 +629,8 @@ def adapt_c_proposal(L, prior, rng, opts):
     first 3 views, then from each stage's marginal to that of twice as many views, up to n
     (each step a geometric bridge ``q_ref^(1 - b) p_k^b`` from the proposal the previous stage
     ended with, or the product prior, to the Laplace marginal p_k of k views, b raised while
-    a share ``tempering_ess`` of the draws stays effective, the t mixture refitted to the weighted draws after every
-    round).
+    a share ``tempering_ess`` of the draws stays effective, the t mixture refitted to the
+    weighted draws after every round).
     Returns the mixture and the number of C draws spent."""
     M = int(opts["tempering_samples"])
     keep = float(opts["tempering_ess"])
@@ -684,7 +690,6 @@ def adapt_c_proposal(L, prior, rng, opts):
 def solve_rb(L, prior, part, rng, opts):
     """The reference's answer by the conditional-Laplace sampler (the dict of
     :func:`qfg.solvers._reference.solve_reference`)."""
-    from ._reference import _combine, _geometry_flags, _summaries
     from ._diagnostics import pareto_k
 
     mix, spent = adapt_c_proposal(L, prior, rng, opts)
