@@ -194,11 +194,23 @@ def _all_ordered_triplets(n: int) -> np.ndarray:
     return np.array(list(itertools.permutations(range(n), 3)), dtype=np.intp).reshape(-1, 3)
 
 
+#: The configuration map's sampler options (beyond qfg.configurations.DEFAULTS): 4000 particles
+#: and 8 sweeps per stage, where 2000 and 2 left the populations in different places (median
+#: Monte Carlo error 0.08-0.19 on dataset 2, 0.01-0.03 now; with every seen set at its true state
+#: the unseen triplets of dataset 2 went from -2.38 to -0.64, the prior alone -2.73).
+CONFIG_OPTIONS = {"n_particles": 4000, "n_sweeps": 8}
+
 #: ``widen`` of the configuration map (:meth:`qfg.configurations.ConfigurationPosterior.
-#: marginals`): chosen on dataset 6 (development; fast estimates): unseen triplets -5.54 with 56%
-#: of truths under 1% without it (the populations place weakly tied clusters of landmarks
-#: differently), -2.71 and 0% at 0.1, seen -0.94 -> -1.07 (the solvers alone: -1.41).
-CONFIG_WIDEN = 0.1
+#: marginals`) and its answer for triplets across groups of landmarks no seen triplet links
+#: (``unlinked``): chosen with the likelihood's temper and floor (the library defaults, 0.6 and
+#: 0.01, won) on datasets 6 and 2 (development, fast-solver estimates) by the mean log score over
+#: their seen and unseen triplets: -2.52 (the prior alone -2.75; grid tau 0.6/0.3/0.15/0.05 x floor
+#: 0.01/0.1 x widen none/0.05/0.1, /work/notes/cfg21b/grid2.log). ``unlinked="prior"``: dataset
+#: 6's seen sets form two groups (8 and 7 landmarks) no seen triplet links, and the world prior
+#: placed them confidently wrong (unseen -5.0 without it, even with every seen set at its true
+#: state -5.6).
+CONFIG_WIDEN = 0.05
+CONFIG_UNLINKED = "prior"
 
 
 def map_configurations(seen: SeenEstimates, likelihood: str = "state") -> MapResult:
@@ -215,7 +227,8 @@ def map_configurations(seen: SeenEstimates, likelihood: str = "state") -> MapRes
     res = configuration_marginals(evidence, prior=seen.prior, triplets=[tuple(t) for t in
                                                                         wanted.tolist()],
                                   partition=seen.partition.name, likelihood=likelihood,
-                                  seed=seen.seed, widen=CONFIG_WIDEN)
+                                  seed=seen.seed, widen=CONFIG_WIDEN, unlinked=CONFIG_UNLINKED,
+                                  **CONFIG_OPTIONS)
     is_seen = np.array([tuple(t) in seen_keys for t in wanted.tolist()], bool)
     info = {k: v for k, v in res.info.items() if isinstance(v, (int, float, str, bool))}
     err = res.info.get("mc_error")
@@ -223,6 +236,7 @@ def map_configurations(seen: SeenEstimates, likelihood: str = "state") -> MapRes
         info["mc_error_max"] = float(np.max(err))
     w = np.asarray(res.info.get("widened", np.zeros(len(wanted))))
     info["widened_half"] = float(np.mean(w > 0.5))   # share of rows mostly the prior
+    info["unlinked"] = float(np.mean(res.info.get("unlinked", np.zeros(len(wanted)))))
     return MapResult(triplets=wanted, probabilities=np.asarray(res.probabilities, dtype=float),
                      seen=is_seen, reached=~is_seen, info={"likelihood": likelihood, **info})
 
@@ -308,12 +322,18 @@ register("joint", map_joint, "every triplet and camera from one joint posterior 
          needs_estimates=False)
 
 
+#: map methods made by configuration inference (their records depend on its options)
+_CONFIG_MAPS = ("config-state", "seen-config")
+
+
 # ------------------------------------------------------------------------------- records
 def inputs_digest(name: str, seen: SeenEstimates, tensor_name: str = "") -> str:
     """A digest of what a map is made from: the method, the seen triplets, their estimates and
     the tensor's name (a recorded map is used again only under the same digest)."""
     h = hashlib.sha256()
     h.update(name.encode())
+    if name in _CONFIG_MAPS:   # a recorded configuration map is stale once its options change
+        h.update(repr((sorted(CONFIG_OPTIONS.items()), CONFIG_WIDEN, CONFIG_UNLINKED)).encode())
     h.update(tensor_name.encode())
     h.update(np.ascontiguousarray(seen.triplets, dtype=np.int64).tobytes())
     h.update(np.ascontiguousarray(seen.probabilities, dtype=np.float64).tobytes())
