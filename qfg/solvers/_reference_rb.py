@@ -65,6 +65,7 @@ RB_DEFAULTS = {
     "tempering_ess": 0.3,      # share of effective draws kept when the temperature is raised
     "gn_iters": 40,            # most Levenberg-Marquardt iterations of the conditional mode
     "components": 6,           # components of C's mixture
+    "refit": False,            # refit half of C's mixture to each final round's weighted draws
 }
 
 _LOG2PI = np.log(2 * np.pi)
@@ -715,6 +716,14 @@ def solve_rb(L, prior, part, rng, opts):
             lws.append(lw)
         if sum(ess_rounds) >= float(opts["ess_goal"]):
             break
+        if opts["refit"] and s is not None:
+            # population Monte Carlo: half of the next proposal refitted to this round's draws
+            # weighted by the exact target (the Laplace marginal that fitted C's mixture can
+            # miss where the trajectory's conditional is far from Gaussian)
+            w = np.exp(lw - np.max(lw))
+            pis, mus, chols = _fit_mixture(C, w, int(opts["components"]), rng)
+            mix = _CMix(np.r_[0.5 * mix.pis, 0.5 * pis], np.concatenate([mix.means, mus]),
+                        np.concatenate([mix.chols, chols]), defensive=True)
     summ = _combine(finals, M)
     m = part.n_states
     n = L.n
