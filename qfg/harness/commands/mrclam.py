@@ -207,6 +207,7 @@ def check_options(args) -> dict:
         if not t.is_file():
             raise ValueError(f"--tensor: {t} is not a file")
         tensor = str(t.resolve())
+    from qfg.harness.studies import mrclam as study
     from qfg.harness.studies import mrclam_maps
 
     map_name = map_name or mrclam_maps.DEFAULT_MAP
@@ -217,7 +218,12 @@ def check_options(args) -> dict:
         raise ValueError(f"--method none: the map {map_name!r} is made from the solvers' "
                          "estimates; give a solver (full, fast, baseline) or a map from the raw "
                          "measurements (--map joint)")
-    return {
+    later = {"bearing_tail": args.bearing_tail, "heading_drift": bool(args.heading_drift),
+             "model_check": _number(args, "--model-check", lo=0.0, hi=0.5)}
+    # at their defaults these stay out of the run's identity: runs recorded before they existed
+    # resume as before
+    later = {k: v for k, v in later.items() if v != study.DEFAULTS[k]}
+    return {**later,
         "robots": robots, "method": method, "mode": args.mode, "prior": args.prior,
         "partition": "edc", "fix_landmarks": not args.no_fix_landmarks,
         "min_travel": _number(args, "--min-travel", lo=0.0),
@@ -227,8 +233,6 @@ def check_options(args) -> dict:
         "sigma_bearing_deg": 0.0, "sigma_heading_deg": 0.0,
         "distances": bool(args.distances),
         "sigma_distance_ratio": _number(args, "--sigma-distance-ratio", lo=0.0),
-        "bearing_tail": args.bearing_tail, "heading_drift": bool(args.heading_drift),
-        "model_check": _number(args, "--model-check", lo=0.0, hi=0.5),
         "piece": int(args.piece_size), "seed": int(args.seed),
         # the phases after solving: not part of the run's identity
         "_after": {"combine": args.combine, "temper": args.temper if args.temper == "auto"
@@ -347,7 +351,7 @@ def _main(args):
     prep = study.prepare_run(path, dataset=ds, **{k: opts[k] for k in (
         "mode", "prior", "partition", "fix_landmarks", "min_travel", "max_gap", "max_views",
         "spread_views", "sigma_bearing_deg", "sigma_heading_deg", "distances",
-        "sigma_distance_ratio", "bearing_tail", "model_check", "heading_drift")},
+        "sigma_distance_ratio")}, **{k: opts.get(k, study.DEFAULTS[k]) for k in study.LATER_KEYS},
         robots=opts["robots"] or None)
     if not prep.histories:
         raise ValueError(f"--robots: no triplet history to solve in {ds.name}"
@@ -408,9 +412,8 @@ def _main(args):
                                  fix_landmarks=opts["fix_landmarks"], seed=args.seed,
                                  distances=opts["distances"],
                                  sigma_distance_ratio=opts["sigma_distance_ratio"],
-                                 bearing_tail=opts["bearing_tail"],
-                                 model_check=opts["model_check"],
-                                 heading_drift=opts["heading_drift"])
+                                 **{k: opts.get(k, study.DEFAULTS[k])
+                                    for k in study.LATER_KEYS})
         study.write_curve(out, recs, figures=not args.no_figures)
         for line in study.curve_lines(recs):
             print(line)

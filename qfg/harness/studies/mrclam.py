@@ -108,6 +108,10 @@ DEFAULTS = {
     "heading_drift": False,                # heading sigma from each history's longest step
 }
 
+#: Options added after runs were recorded without them: a run's params leave them out at their
+#: defaults, so that those runs resume (``qfg mrclam --resume``) as before.
+LATER_KEYS = ("bearing_tail", "model_check", "heading_drift")
+
 
 #: The odometry's direction-of-travel error (``sigma90``, degrees) against motion capture by the
 #: step's duration (centre of the measured bins 3-10 s, 10-30 s, 30-100 s; dataset 6,
@@ -1104,7 +1108,8 @@ _PREPARED: dict[str, Prepared] = {}
 
 
 def _prep_key(params: dict) -> str:
-    return json.dumps({k: params[k] for k in SOLVE_KEYS if k not in ("method", "piece")},
+    return json.dumps({k: params.get(k, DEFAULTS.get(k)) for k in SOLVE_KEYS
+                       if k not in ("method", "piece")},
                       sort_keys=True, default=str)
 
 
@@ -1120,7 +1125,8 @@ def prepared(params: dict) -> Prepared:
     if key not in _PREPARED:
         remember(params, prepare_run(
             params["path"], robots=params["robots"] or None,
-            **{k: params[k] for k in SOLVE_KEYS if k not in ("path", "robots", "method", "piece")}))
+            **{k: params.get(k, DEFAULTS[k]) for k in SOLVE_KEYS
+               if k not in ("path", "robots", "method", "piece")}))
     return _PREPARED[key]
 
 
