@@ -1,6 +1,13 @@
 """Reference solver: the exact posterior P(S^{AB:C} | H) and P(S^{AB:X}_i | H) under a given prior,
 by adaptive importance sampling, with its Monte Carlo error estimated and reported.
 
+Two samplers of the same target (option ``sampler``): the staged sampler of this module
+(described below; its ESS collapses from about 8-10 views) and the conditional sampler of
+:mod:`._reference_rb` (C from a fitted 2-D mixture, the trajectory given C by a particle filter
+twisted by its Laplace approximation; time linear in the views). ``"auto"`` (default) takes the
+staged one up to :data:`AUTO_STAGED_VIEWS` views and the conditional one beyond
+(docs/priors.md).
+
 Model (AB frame; the same as the other solvers, ``docs/priors.md``): configuration
 ``theta = (C, X_1, alpha_1, ..., X_n, alpha_n)``, prior ``prior(C, X_1..X_n) (2 pi)^-n`` (headings
 uniform), bearings ``phi_{j,L} ~ WN(f(L, X_j, alpha_j), sigma_v^2)`` for L in {A, B, C} and
