@@ -31,7 +31,10 @@ to keep the effective sample size at ``target_ess`` of the particles, after each
 resampling and Metropolis moves: one landmark at a time (only the triplets containing it are
 recomputed) and moves of the whole configuration by a random similarity transform, which leave
 every AB-frame position (hence every likelihood) unchanged and are accepted on the prior alone
-(the box and the Jacobian ``s^(2n)`` of a scale change). The particles are split into
+(the box and the Jacobian ``s^(2(n-1))`` of a scale change), and the same for blocks of
+landmarks (the evidence's components and rigid clusters), accepted on the likelihood of the
+triplets that touch them. Each estimate is widened by the effective sample size behind it
+(``ess``, ``ess_prior``). The particles are split into
 ``n_groups`` populations resampled separately; the spread of their estimates is the Monte Carlo
 error reported. Adding evidence later (:meth:`ConfigurationPosterior.update`) tempers only the new
 likelihoods in from the current particles.
@@ -1090,13 +1093,19 @@ def infer_configurations(evidence, prior="world", *, partition="edc", likelihood
         likelihood: ``"state"`` or ``"metric"``.
         landmarks: extra landmark ids to include (e.g. landmarks no seen triplet contains).
         seed: int, SeedSequence or Generator. Same seed, same samples.
+        ess: {triplet: effective sample size behind its estimate} (default: the estimate's own
+            ``ess`` where it has one, else inf: taken as exact). Each estimate is read as
+            ``(n P + a q) / (n + a)`` with ``a = ess_prior``: its likelihood is mixed with 1 at
+            weight ``a / (n + a)`` on top of the floor.
         **options: :data:`DEFAULTS` -- ``n_particles`` (P, a multiple of ``n_groups``),
             ``n_groups`` (independent populations, >= 2 for an error estimate), ``target_ess``
             (fraction kept per tempering stage), ``n_sweeps`` (Metropolis sweeps per stage),
             ``floor`` (eps), ``state_mix``, ``low_ess_mix`` (b), ``temper`` (tau: every state
             likelihood enters as ``(P_t / q)^tau``, renormalized, :func:`qfg.combine.temper`;
             1 = as the solver says; None: :data:`TEMPER` of the likelihood kind),
-            ``pseudo_count`` (the
+            ``ess_prior`` (a, above; None: :data:`ESS_PRIOR` of the likelihood kind),
+            ``block_moves`` (random similarity moves of the evidence's components and rigid
+            clusters, :func:`_landmark_blocks`), ``pseudo_count`` (the
             marginals' shrinkage toward the prior's state distribution).
 
     Returns:
