@@ -322,8 +322,9 @@ register("joint", map_joint, "every triplet and camera from one joint posterior 
          needs_estimates=False)
 
 
-#: map methods made by configuration inference (their records depend on its options)
-_CONFIG_MAPS = ("config-state", "seen-config")
+#: map methods made by configuration inference (their records depend on its options); the joint
+#: map is one where it has no odometry (its fallback, :data:`JOINT_FALLBACK`)
+_CONFIG_MAPS = ("config-state", "seen-config", "joint")
 
 
 # ------------------------------------------------------------------------------- records
