@@ -60,15 +60,13 @@ from ..geometry import (
     wrap_angle,
 )
 from ._arcs import arc_parameter, log_ray_jacobian
-from ._diagnostics import pareto_k
 from ._input import check_bearings, check_headings
 from ._likelihood import logsumexp
 from ._reference_rb import RB_DEFAULTS as _RB_DEFAULTS
 from ._reference_weights import (  # noqa: F401  (_log_wn: part of this module's interface)
-    _combine,
-    _geometry_flags,
     _log_wn,
     _summaries,
+    final_answer,
 )
 
 __all__ = ["solve_reference", "REFERENCE_DEFAULTS"]
@@ -712,27 +710,8 @@ def _solve(L, pr, part, rng, opts, N, rounds, lam, lam_ray):
                     comps = _fit_pool(Lj, pool[-3:], opts, pr)
                 break
             comps = _fit_pool(Lj, pool[-3:], opts, pr)
-    summ = _combine(finals, N)
-    m = part.n_states
-    reasons = []
-    if summ is None:
-        land, err = np.full(m, 1.0 / m), np.zeros(m)
-        cams, cam_err = np.full((n, m), 1.0 / m), np.zeros((n, m))
-        ess, log_ev = 0.0, None
-        reasons.append("no sample had positive weight")
-    else:
-        land, err, cams, cam_err, ess, log_mean, wn, X, c = summ
-        # the weights are densities in eps units, where the likelihood of the true bearings
-        # (1/sv per factor) and the change of variables phi~ = phi + sv eps (sv per factor)
-        # cancel: their mean is p(measurements) itself (the conditional sampler's estimate of the
-        # same quantity agrees: tests/test_reference_conditional.py)
-        log_ev = log_mean
-        if ess < float(opts["min_ess"]):
-            reasons.append(f"effective sample size {ess:.1f} < {opts['min_ess']:g}")
-        reasons += _geometry_flags(L, X, c, wn)
-    return {
-        "landmark": land, "cameras": cams, "mc_error": err, "cameras_mc_error": cam_err,
-        "ess": float(ess), "ess_rounds": ess_rounds, "n_samples": int(total),
-        "log_evidence": log_ev, "degenerate": bool(reasons), "reason": "; ".join(reasons),
-        "pareto_k": pareto_k(np.concatenate(final_lws)) if final_lws else float("nan"),
-    }
+    # the weights are densities in eps units, where the likelihood of the true bearings (1/sv
+    # per factor) and the change of variables phi~ = phi + sv eps (sv per factor) cancel: their
+    # mean is p(measurements) itself (the conditional sampler's estimate of the same quantity
+    # agrees: tests/test_reference_conditional.py)
+    return final_answer(L, part, finals, N, opts["min_ess"], final_lws, ess_rounds, total)

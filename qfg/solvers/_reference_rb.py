@@ -50,7 +50,7 @@ import numpy as np
 from .. import priors as _priors
 from ..geometry import locus_circle, ray_circle_intersection, wrap_angle
 from ._likelihood import logsumexp
-from ._reference_weights import _combine, _geometry_flags, _log_wn, _summaries
+from ._reference_weights import _log_wn, _summaries, final_answer
 
 __all__ = ["RB_DEFAULTS", "solve_rb", "resect", "fit_trajectories", "log_joint"]
 
@@ -691,8 +691,6 @@ def adapt_c_proposal(L, prior, rng, opts):
 def solve_rb(L, prior, part, rng, opts):
     """The reference's answer by the conditional-Laplace sampler (the dict of
     :func:`qfg.solvers._reference.solve_reference`)."""
-    from ._diagnostics import pareto_k
-
     mix, spent = adapt_c_proposal(L, prior, rng, opts)
     M = int(opts["rb_samples"])
     iters = int(opts["gn_iters"])
@@ -724,29 +722,7 @@ def solve_rb(L, prior, part, rng, opts):
             pis, mus, chols = _fit_mixture(C, w, int(opts["components"]), rng)
             mix = _CMix(np.r_[0.5 * mix.pis, 0.5 * pis], np.concatenate([mix.means, mus]),
                         np.concatenate([mix.chols, chols]), defensive=True)
-    summ = _combine(finals, M)
-    m = part.n_states
-    n = L.n
-    reasons = []
-    k_hat = float("nan")
-    if summ is None:
-        land, err = np.full(m, 1.0 / m), np.zeros(m)
-        cams, cam_err = np.full((n, m), 1.0 / m), np.zeros((n, m))
-        ess, log_ev = 0.0, None
-        reasons.append("no sample had positive weight")
-    else:
-        land, err, cams, cam_err, ess, log_mean, wn, X, c = summ
-        log_ev = log_mean
-        k_hat = pareto_k(np.concatenate(lws))
-        if ess < float(opts["min_ess"]):
-            reasons.append(f"effective sample size {ess:.1f} < {opts['min_ess']:g}")
-        reasons += _geometry_flags(L, X, c, wn)
-    return {
-        "landmark": land, "cameras": cams, "mc_error": err, "cameras_mc_error": cam_err,
-        "ess": float(ess), "ess_rounds": ess_rounds, "n_samples": int(total),
-        "log_evidence": log_ev, "degenerate": bool(reasons), "reason": "; ".join(reasons),
-        "pareto_k": k_hat,
-    }
+    return final_answer(L, part, finals, M, opts["min_ess"], lws, ess_rounds, total)
 
 
 # ---------------------------------------------------------------------------------------------

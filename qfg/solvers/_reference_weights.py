@@ -42,6 +42,37 @@ def _combine(finals, N):
     return land, err, cams, cam_err, float(ess.sum()), log_mean, finals[best][6], \
         finals[best][7], finals[best][8]
 
+def final_answer(L, part, finals, N, min_ess, final_lws, ess_rounds, total) -> dict:
+    """The reference's answer from its final rounds (both samplers): the ESS-weighted
+    combination (:func:`_combine`), flags (ESS under ``min_ess``, :func:`_geometry_flags`), the
+    Pareto k-hat of the final log weights ``final_lws`` (list of arrays), and the uniform
+    answer, flagged, when no sample had positive weight. ``L``: the sampler's layout of all
+    views (``L.n`` views)."""
+    from ._diagnostics import pareto_k
+
+    summ = _combine(finals, N)
+    m = part.n_states
+    reasons, k_hat = [], float("nan")
+    if summ is None:
+        land, err = np.full(m, 1.0 / m), np.zeros(m)
+        cams, cam_err = np.full((L.n, m), 1.0 / m), np.zeros((L.n, m))
+        ess, log_ev = 0.0, None
+        reasons.append("no sample had positive weight")
+    else:
+        land, err, cams, cam_err, ess, log_ev, wn, X, c = summ
+        if final_lws:
+            k_hat = pareto_k(np.concatenate(final_lws))
+        if ess < float(min_ess):
+            reasons.append(f"effective sample size {ess:.1f} < {min_ess:g}")
+        reasons += _geometry_flags(L, X, c, wn)
+    return {
+        "landmark": land, "cameras": cams, "mc_error": err, "cameras_mc_error": cam_err,
+        "ess": float(ess), "ess_rounds": ess_rounds, "n_samples": int(total),
+        "log_evidence": log_ev, "degenerate": bool(reasons), "reason": "; ".join(reasons),
+        "pareto_k": k_hat,
+    }
+
+
 def _binomial_floor(p, ess):
     pt = (p * ess + 1.0) / (ess + 2.0)
     return pt * (1.0 - pt) / ess
