@@ -78,7 +78,8 @@ def discrepancy(rb, rh, sigma_bearing, sigma_heading, tail: BearingTail | None =
     d = -2.0 * (log_bearing(u, sigma_bearing, tail) - log_bearing(0.0, sigma_bearing, tail))
     out = d.reshape(-1, d.shape[-1]).sum(axis=0)
     if rh.size and sigma_heading > 0:
-        out = out + np.sum((np.asarray(rh) / sigma_heading) ** 2, axis=0)
+        with np.errstate(over="ignore"):   # inf: a residual the model cannot explain (p = 0)
+            out = out + np.sum((np.asarray(rh) / sigma_heading) ** 2, axis=0)
     return out
 
 

@@ -804,9 +804,13 @@ def finish(state: SISState, hypotheses: bool = False):
         p_land, p_cams = lm[t] / lm[t].sum(), cm[t] / cm[t].sum(axis=1, keepdims=True)
         pval = float("nan")
         if state.sigma_bearing[t] > 0:
+            # the heading width floored like the bearings' (a sigma of 1e-300 is the noiseless
+            # model to the solver, and its residuals of 1e-16 must not read as a misfit)
+            sh = float(state.sigma_heading[t])
             pval = _model_check.posterior_predictive_p(
                 state.bearings[t], state.headings[t], cam, Lt, wt, float(sv[t]),
-                float(state.sigma_heading[t]), opts.get("bearing_tail"))
+                max(sh, float(opts["bearing_floor"])) if sh > 0 else 0.0,
+                opts.get("bearing_tail"))
         lam = _model_check.widening(pval, opts.get("model_check", 0.0))
         widen = None
         if lam > 0:
