@@ -34,7 +34,7 @@ from functools import lru_cache
 import numpy as np
 from scipy.stats import chi2
 
-from ..geometry import wrap_angle
+from ..geometry import bearing, motion_heading, wrap_angle
 from ._likelihood import BearingTail, log_bearing
 
 #: Draws of the tabulated reference distribution of D under a bearing tail.
@@ -51,18 +51,15 @@ def residuals(bearings, headings, poses, landmark):
     >>> np.round(rb[0, :, 0], 4).tolist(), rh.shape
     ([0.0, 0.0, 0.8854], (0, 1))
     """
-    X, al = poses[..., :2], poses[..., 2]
-    L = np.asarray(landmark, dtype=float)
-    fa = np.arctan2(-X[..., 1], -X[..., 0])
-    fb = np.arctan2(1.0 - X[..., 1], -X[..., 0])
-    fc = np.arctan2(L[None, :, 1] - X[..., 1], L[None, :, 0] - X[..., 0])
-    b = np.asarray(bearings, dtype=float)
-    rb = wrap_angle(b[:, :, None] - (np.stack([fa, fb, fc], axis=1) - al[:, None, :]))
-    n = X.shape[0]
+    P = np.asarray(poses, dtype=float)
+    L = np.broadcast_to(np.asarray(landmark, dtype=float), P.shape[1:2] + (2,))
+    pred = np.stack([bearing(P, np.zeros(2)), bearing(P, np.array([0.0, 1.0])),
+                     bearing(P, L[None])], axis=1)
+    rb = wrap_angle(np.asarray(bearings, dtype=float)[:, :, None] - pred)
+    n = P.shape[0]
     if headings is None or n < 2:
-        return rb, np.zeros((max(n - 1, 0), X.shape[1]))
-    d = X[1:] - X[:-1]
-    g = np.arctan2(d[..., 1], d[..., 0]) - al[:-1]
+        return rb, np.zeros((max(n - 1, 0), P.shape[1]))
+    g = motion_heading(P[:-1], P[1:, :, :2])
     return rb, wrap_angle(np.asarray(headings, dtype=float)[:, None] - g)
 
 
