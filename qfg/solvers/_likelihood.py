@@ -144,12 +144,11 @@ def log_bearing(residual, sigma, tail: BearingTail | None = None):
     >>> bool(np.isclose(log_bearing(0.0, 1.0), -0.5 * np.log(2 * np.pi)))
     True
     """
-    r = np.asarray(residual, dtype=float) / sigma
-    ln = -0.5 * r * r - np.log(sigma) - _HALF_LOG_2PI
+    r = np.asarray(residual, dtype=float)
+    ln = log_gauss(r, sigma) - _HALF_LOG_2PI
     if tail is None:
         return ln
-    k = tail.scale
-    lw = -0.5 * (r / k) ** 2 - np.log(k * sigma) - _HALF_LOG_2PI
+    lw = log_gauss(r, tail.scale * sigma) - _HALF_LOG_2PI
     core = 1.0 - tail.share - tail.outlier
     with np.errstate(divide="ignore"):
         out = np.logaddexp(np.log(core) + ln, np.log(tail.share) + lw if tail.share > 0
@@ -185,9 +184,7 @@ def log_bearing_proposal(x, sigma, tail: BearingTail | None, spread: float):
     >>> bool(np.isclose(log_bearing_proposal(0.3, 0.1, t, 1.0), log_bearing(0.3, 0.1, t)))
     True
     """
-    if tail is None or spread == 1.0:
-        return log_bearing(x, spread * sigma, tail)
-    if tail.outlier <= 0:
+    if tail is None or spread == 1.0 or tail.outlier <= 0:
         return log_bearing(x, spread * sigma, tail)
     x = np.asarray(x, dtype=float)
     # the normal components at spread * sigma; the uniform part only inside (-pi, pi)
