@@ -45,7 +45,14 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..geometry import heading_on_locus, locus_circle, locus_point, ray_circle_intersection, wrap_angle
+from ..geometry import (
+    bearing,
+    heading_on_locus,
+    locus_circle,
+    locus_point,
+    ray_circle_intersection,
+    wrap_angle,
+)
 from . import (
     _arcs,
     _degenerate,
@@ -195,9 +202,7 @@ def _tail_correction(poses, phi_c, sig, L, tail):
     """(J,) log of the tail model's C-bearing likelihood over the normal's at the triangulation
     ``L`` (J, 2): the Laplace value of C's integral (a normal likelihood) moved toward the tail
     model for the intermediate weights (the final weights use the tail model exactly)."""
-    X = poses[..., :2]
-    res = wrap_angle(np.arctan2(L[:, None, 1] - X[..., 1], L[:, None, 0] - X[..., 0])
-                     - poses[..., 2] - phi_c)
+    res = wrap_angle(bearing(poses, L[:, None, :]) - phi_c)
     s = sig[:, None]
     return np.sum(_likelihood.log_bearing(res, s, tail) - _likelihood.log_bearing(res, s), axis=1)
 
