@@ -118,6 +118,26 @@ def test_resume_with_other_options_is_refused_before_loading(root, tmp_path, cap
     assert sorted(p.name for p in out.iterdir()) == before
 
 
+
+def test_run_recorded_with_later_options_at_their_defaults_resumes(root, tmp_path, capsys):
+    """Some runs wrote the later options (``study.LATER_KEYS``) into run.json at their defaults;
+    a run at those defaults leaves them out of its identity. Resuming such a run must work,
+    and a recorded non-default value must still be refused."""
+    out = tmp_path / "out"
+    argv = ["mrclam", str(root / "MRCLAM_Dataset1"), "--output", str(out), "--robots", "2",
+            "--no-progress", *FAST]
+    assert main(argv) == 0
+    meta = json.loads((out / "run.json").read_text())
+    assert not set(study.LATER_KEYS) & set(meta["params"])
+    meta["params"].update({k: study.DEFAULTS[k] for k in study.LATER_KEYS})
+    (out / "run.json").write_text(json.dumps(meta))
+    capsys.readouterr()
+    assert main([*argv, "--resume"]) == 0
+    capsys.readouterr()
+    meta["params"]["heading_drift"] = True
+    (out / "run.json").write_text(json.dumps(meta))
+    _refused(capsys, [*argv, "--resume"], "--resume", "heading_drift")
+
 # ------------------------------------------------------------------------------ item 2: data files
 def _damage(d, how):
     """Damage robot 1's measurement file of dataset ``d`` (plain or .gz): returns the file and

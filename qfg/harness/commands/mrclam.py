@@ -286,6 +286,21 @@ def check_output(out: Path, params: dict, seed: int, resume: bool, overwrite: bo
                               "ones, or pass --overwrite")
 
 
+def _keep_recorded_defaults(out: Path, params: dict) -> None:
+    """Runs recorded while the later options were always written (at their defaults too) keep
+    them in their identity: a later option the recorded run holds at its default, and this run
+    leaves out because it is at its default, is put back, so that such a run resumes."""
+    from qfg.harness.studies import mrclam as study
+
+    try:
+        old = json.loads((out / "run.json").read_text()).get("params") or {}
+    except (OSError, ValueError, AttributeError):
+        return  # check_output and the runner name what is wrong with it
+    for k in study.LATER_KEYS:
+        if k in old and k not in params and old[k] == study.DEFAULTS[k]:
+            params[k] = old[k]
+
+
 def _no_camera_reason(ds, robots) -> str:
     rs = robots or sorted(ds.robots)
     if not any(ds.robot(r).groundtruth is not None for r in rs):
@@ -311,6 +326,8 @@ def _main(args):
     _check_dataset_folder(path)
     params = {"path": str(path.resolve()), **opts}
     out = Path(args.output or f"out/mrclam-{path.resolve().name}")
+    if args.resume:
+        _keep_recorded_defaults(out, params)
     check_output(out, params, args.seed, args.resume, args.overwrite)
     quiet = args.no_progress
 
