@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from qfg import partitions
+from qfg.priors import CallablePrior
 from qfg.geometry import bearing, locus_point
 from qfg.simulation import random_triplet_history
 from qfg.solvers import _reference_rb as R
@@ -122,3 +123,24 @@ def test_conditional_sampler_one_view():
     out = solve_reference([[0.3, 1.2, 0.8]], None, np.deg2rad(2), 0.0, seed=0,
                           sampler="conditional", partition=partitions.get("edc"))
     assert np.isclose(out["landmark"].sum(), 1.0) and out["landmark"].max() < 0.99
+
+
+@pytest.mark.parametrize("kind", ["world", "callable"])
+def test_prior_inside_the_filter_estimates_the_same_integral(kind):
+    # with the prior in the filter's targets (the world box's on every subset of the points, or,
+    # for a user's prior, at the last step only) the filter's Z estimates the integral of the
+    # whole target given C; the filter without it, weighted by the prior of one drawn
+    # trajectory, is another unbiased estimator of the same integral
+    h = random_triplet_history(np.random.default_rng(700203), 6, np.deg2rad(2), np.deg2rad(5))
+    L = _Layout(h.bearings, h.headings, h.sigma_bearing, h.sigma_heading)
+    C = np.repeat(h.truth.C_ab[None], 500, 0)
+    prior = PRIOR if kind == "world" else CallablePrior(PRIOR.log_density)
+    assert (R.intermediate_prior(prior) is None) == (kind == "callable")
+    lz, X, _ = R.particle_trajectories(L, C, np.random.default_rng(0), K=16)
+    old = lz + PRIOR.log_density(np.concatenate([C[:, None], X], 1))
+    new, _, _ = R.particle_trajectories(L, C, np.random.default_rng(1), K=16, prior=prior)
+
+    def log_mean(lw):
+        return float(np.log(np.mean(np.exp(lw - lw.max()))) + lw.max())
+
+    assert abs(log_mean(new) - log_mean(old)) < 0.15, (log_mean(new), log_mean(old))

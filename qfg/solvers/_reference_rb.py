@@ -24,8 +24,10 @@ headings chain consecutive poses. So, for a draw of C:
   each step drawing ``t_j`` from the Gaussian's conditional given ``t_{j+1}`` (backward
   sampling) and weighting by the exact factors of view j and its outgoing heading, twisted by
   the Gaussian message of the earlier views; resampling after every view keeps the error of the
-  Gaussian from compounding over views. The filter's evidence estimate Z (unbiased) times the
-  prior of one drawn trajectory, over q(C), is an exact importance weight;
+  Gaussian from compounding over views. The targets carry the prior of the points seen so far
+  (:func:`intermediate_prior`), the last one the exact prior of the whole configuration, so the
+  world box's coupling of every point (its scale) is corrected view by view, with resampling;
+  the filter's evidence estimate Z (unbiased) over q(C) is an exact importance weight;
 * C is drawn from a 2-D mixture of t components fitted by weighted EM to draws weighted by the
   Laplace marginal ``p(C, X*, alpha*, z) (2 pi)^(3n/2) det(J^T J)^(-1/2)`` (arc Jacobians
   included), reached from the heavy-tailed product prior by adaptive tempering over stages of
@@ -699,12 +701,12 @@ def solve_rb(L, prior, part, rng, opts):
     for _ in range(int(opts["final_rounds"])):
         C = mix.draw(rng, M)
         lqc = mix.log_density(C)
-        logz, X, alpha = particle_trajectories(L, C, rng, int(opts["particles"]), iters)
+        # the prior inside the filter: Z estimates the integral of the whole target given C
+        logz, X, alpha = particle_trajectories(L, C, rng, int(opts["particles"]), iters,
+                                               prior=prior)
         lw = np.full(M, -np.inf)
         ok = np.isfinite(logz) & np.isfinite(lqc)
-        if np.any(ok):
-            pts = np.concatenate([C[ok, None, :], X[ok]], axis=1)
-            lw[ok] = prior.log_density(pts) + logz[ok] - lqc[ok]
+        lw[ok] = logz[ok] - lqc[ok]
         lw = np.where(np.isnan(lw), -np.inf, lw)
         total += M
         s = _summaries(part, X, C, lw)
@@ -729,8 +731,30 @@ def solve_rb(L, prior, part, rng, opts):
 # the trajectory given C: a particle filter twisted by the Laplace approximation
 
 
+def intermediate_prior(prior):
+    """The prior the particle filter's intermediate targets use on the points seen so far (C and
+    the views j..n), or None (no prior before the last step). For the priors whose density on a
+    subset of the points is (up to a constant) its marginal there (:class:`~qfg.priors.WorldBoxPrior`,
+    exchangeable points; the independent :class:`~qfg.priors.ProductPrior` and
+    :class:`~qfg.priors.WindowPrior`), that density, the world box's on ``INTER_N_RHO`` angles
+    (about 8x cheaper; only the last target, which carries the exact prior, makes the answer).
+    Any positive intermediate target keeps the filter exact; a closer one keeps its weights even.
+    """
+    if isinstance(prior, _priors.WorldBoxPrior):
+        if prior.n_rho <= INTER_N_RHO:
+            return prior
+        return _priors.WorldBoxPrior(prior.width, prior.height, prior.d_min, INTER_N_RHO)
+    if isinstance(prior, (_priors.ProductPrior, _priors.WindowPrior)):
+        return prior
+    return None
+
+
+#: Quadrature angles of the world box prior in the particle filter's intermediate targets.
+INTER_N_RHO = 32
+
+
 @_quiet
-def particle_trajectories(L, C, rng, K=8, iters=40):
+def particle_trajectories(L, C, rng, K=8, iters=40, prior=None):
     """Trajectories given C (M, 2) by sequential Monte Carlo backwards along the views (n down
     to 1), K particles per C, using the conditional Laplace approximation in arc coordinates
     both as proposal and as twisting function: the step of view j draws t_j from the Gaussian's
@@ -743,10 +767,18 @@ def particle_trajectories(L, C, rng, K=8, iters=40):
     not, resampling stops the error from compounding over the views (the plain Laplace proposal
     multiplies n such errors).
 
-    Returns log Z (M,), the filter's unbiased estimate of ``int prod factors dX dalpha``, and
-    one trajectory per C drawn from the final particles: X (M, n, 2), alpha (M, n). With the
-    prior of the whole configuration, ``Z prior(C, X) / q(C)`` is an importance weight of the
-    exact target (the expectation of Z f(X) is the integral of the factors times f)."""
+    With ``prior`` given, the targets also carry it: ``gamma_j`` times the prior of C and the
+    views j..n (:func:`intermediate_prior`; none before the last step for other priors), the
+    last target times ``prior(C, X_1..X_n)`` exactly. Its coupling of every point (the world
+    box's scale: a density of about extent^-(2n + 4)) is then corrected view by view with
+    resampling, instead of on one trajectory drawn without it, whose weight varied by 1.3-2.8
+    nats at 20 views with C at the truth (development seeds).
+
+    Returns log Z (M,), the filter's unbiased estimate of ``int prod factors dX dalpha`` (times
+    the prior when given), and one trajectory per C drawn from the final particles: X (M, n,
+    2), alpha (M, n). ``Z / q(C)`` with the prior (``Z prior(C, X) / q(C)`` without) is an
+    importance weight of the exact target (the expectation of Z f(X) is the integral of the
+    target times f)."""
     M, n = C.shape[0], L.n
     tm, _, (Ld, Lo), ok = fit_trajectories(L, C, iters)
     _, _, _, _, (Down, _) = _blocks(L, C, tm, parts=True)
@@ -768,8 +800,11 @@ def particle_trajectories(L, C, rng, K=8, iters=40):
     anc = np.zeros((n, P), dtype=np.int64)
     logZ = np.where(ok, 0.0, -np.inf)
     base = (np.arange(M) * K)[:, None]
-    nxt = None            # (t_{j+1}, X_{j+1}, log phi_{j+1}) of the particles
+    nxt = None            # (t_{j+1}, X_{j+1}, log phi_{j+1}, log prior_{j+1}) of the particles
     lw = None
+    inter = intermediate_prior(prior) if prior is not None else None
+    path = np.zeros((P, n, 2)) if prior is not None else None   # positions of views j..n
+    Cg = C[grp][:, None, :]
     for j in range(n - 1, -1, -1):
         mj = tm[grp, j]
         Lj = Ld[grp, j]
@@ -794,6 +829,13 @@ def particle_trajectories(L, C, rng, K=8, iters=40):
         else:
             lphi = np.zeros(P)
         lwp = f + lphi - lq - (0.0 if nxt is None else nxt[2])
+        lpr = np.zeros(P)
+        if prior is not None:
+            path[:, j] = X
+            pj = prior if j == 0 else inter
+            if pj is not None:
+                lpr = pj.log_density(np.concatenate([Cg, path[:, j:]], axis=1))
+            lwp = lwp + lpr - (0.0 if nxt is None else nxt[3])
         good = valid & (np.abs(dt[:, 2]) < np.pi) & np.isfinite(lwp)
         lw = np.where(good, lwp, -np.inf).reshape(M, K)
         lse = logsumexp(lw, axis=1)
@@ -807,7 +849,9 @@ def particle_trajectories(L, C, rng, K=8, iters=40):
             u = (rng.random((M, 1)) + np.arange(K)[None, :]) / K
             a = (base + np.minimum(_rows_searchsorted(cw, u), K - 1)).ravel()
             anc[j] = a
-            nxt = (tj[a], X[a], lphi[a])
+            nxt = (tj[a], X[a], lphi[a], lpr[a])
+            if path is not None:
+                path = path[a]
     # one trajectory per C by the final weights, traced through the ancestors
     lse = logsumexp(lw, axis=1)
     fin = np.isfinite(lse)
