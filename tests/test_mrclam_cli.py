@@ -138,6 +138,24 @@ def test_run_recorded_with_later_options_at_their_defaults_resumes(root, tmp_pat
     (out / "run.json").write_text(json.dumps(meta))
     _refused(capsys, [*argv, "--resume"], "--resume", "heading_drift")
 
+
+def test_temper_rules_run_from_the_command_line_and_record_their_choice(root, tmp_path, capsys):
+    """``--temper auto`` and ``auto-1se`` (a later phase: --resume makes only the combination
+    again): each records the power it chose; the one-standard-error rule never a larger one."""
+    out = tmp_path / "out"
+    argv = ["mrclam", str(root / "MRCLAM_Dataset1"), "--output", str(out), "--robots", "1,2",
+            "--no-progress", "--map", "seen", *FAST]
+    chosen = {}
+    for rule in ("auto", "auto-1se"):
+        assert main([*argv, "--temper", rule, *(["--resume"] if chosen else [])]) == 0
+        summary = json.loads((out / "summary.json").read_text())["options"]
+        chosen[rule] = summary["temper_chosen"]
+        assert chosen[rule] in study.AUTO_TEMPERS
+        assert len(summary["temper_check"]) == len(study.AUTO_TEMPERS)
+    assert chosen["auto-1se"] <= chosen["auto"]
+    capsys.readouterr()
+    _refused(capsys, [*argv, "--temper", "auto-2se", "--resume"], "--temper")
+
 # ------------------------------------------------------------------------------ item 2: data files
 def _damage(d, how):
     """Damage robot 1's measurement file of dataset ``d`` (plain or .gz): returns the file and

@@ -121,7 +121,8 @@ def register(sub):
                    help="temper each estimate's likelihood part by this power in [0, 1] before "
                         "combining (default 1: none; docs/results/mrclam.md), or auto: the "
                         "power under which the histories of each ordered triplet (passes, "
-                        "robots) agree best, a model check without ground truth")
+                        "robots) agree best, a model check without ground truth; auto-1se: "
+                        "the smallest power that agrees within one standard error of the best")
     p.add_argument("--curve", default="",
                    help="comma-separated view caps (0 = all), e.g. 3,5,8,0: also score the seen "
                         "triplets with each pass cut to that many views (curve.csv, curve figure)")
@@ -146,14 +147,17 @@ def register(sub):
 
 # ------------------------------------------------------------------------------ checks
 def _temper_arg(text: str):
-    """``--temper``: a number, or ``auto`` (checked in range by :func:`check_options`)."""
-    if str(text).strip().lower() == "auto":
-        return "auto"
+    """``--temper``: a number, ``auto`` or ``auto-1se`` (checked in range by
+    :func:`check_options`)."""
+    from qfg.harness.studies.mrclam import TEMPER_RULES
+
+    if str(text).strip().lower() in TEMPER_RULES:
+        return str(text).strip().lower()
     try:
         return float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(
-            f"expected a number in [0, 1] or auto, got {text!r}") from None
+            f"expected a number in [0, 1], auto or auto-1se, got {text!r}") from None
 
 
 def _number(args, name: str, *, lo=None, hi=None, lo_open=False) -> float:
@@ -235,7 +239,7 @@ def check_options(args) -> dict:
         "sigma_distance_ratio": _number(args, "--sigma-distance-ratio", lo=0.0),
         "piece": int(args.piece_size), "seed": int(args.seed),
         # the phases after solving: not part of the run's identity
-        "_after": {"combine": args.combine, "temper": args.temper if args.temper == "auto"
+        "_after": {"combine": args.combine, "temper": args.temper if isinstance(args.temper, str)
                    else _number(args, "--temper", lo=0.0, hi=1.0),
                    "map": map_name, "tensor": tensor, "curve": caps,
                    "method_given": args.method is not None},

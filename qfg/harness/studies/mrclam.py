@@ -510,6 +510,23 @@ def _history_groups(prep: Prepared) -> dict:
     return groups
 
 
+def _pair_agreements(P, groups: dict, q, tau: float) -> tuple[np.ndarray, np.ndarray]:
+    """(per pair of histories of one group: log sum_s t_i t_j / q, the pair's cluster index):
+    a cluster is an unordered landmark set (its orderings' histories share their measurements)."""
+    pairs, keys = [], []
+    for g, ks in groups.items():
+        for i, a in enumerate(ks):
+            for b in ks[i + 1:]:
+                pairs.append((a, b))
+                keys.append(tuple(sorted(g)))
+    if not pairs:
+        return np.zeros(0), np.zeros(0, dtype=np.intp)
+    a, b = np.array(pairs).T
+    T = temper(np.asarray(P, dtype=float), q, tau)
+    cid = np.unique(np.array(keys), axis=0, return_inverse=True)[1].ravel()
+    return np.log(np.sum(T[a] * T[b] / q, axis=1)), cid
+
+
 def cross_pass_agreement(P, groups: dict, q, tau: float) -> tuple[float, int]:
     """How well the histories of one ordered triplet (separate passes, other robots) predict
     each other once tempered by ``tau``: the mean over pairs (i, j) of histories of one group of
@@ -528,27 +545,62 @@ def cross_pass_agreement(P, groups: dict, q, tau: float) -> tuple[float, int]:
     >>> n, round(a1, 3), round(a0, 3)      # confident and contradicting: worse than the prior
     (1, -2.546, 0.0)
     """
-    pairs = [(a, b) for ks in groups.values() for i, a in enumerate(ks) for b in ks[i + 1:]]
-    if not pairs:
-        return 0.0, 0
-    a, b = np.array(pairs).T
-    T = temper(np.asarray(P, dtype=float), q, tau)
-    return float(np.mean(np.log(np.sum(T[a] * T[b] / q, axis=1)))), len(pairs)
+    ag, _ = _pair_agreements(P, groups, q, tau)
+    return (float(np.mean(ag)), int(ag.size)) if ag.size else (0.0, 0)
 
 
-def choose_temper(prep: Prepared, ests: list[_Light], taus=AUTO_TEMPERS) -> tuple[float, list]:
+def clustered_se(values, cluster) -> float:
+    """Standard error of the mean of ``values`` whose members of one ``cluster`` are dependent:
+    ``sqrt(sum_c (sum_{i in c} (v_i - mean))^2) / n`` (the cluster-robust sandwich estimate).
+
+    >>> v = np.array([1.0, 1.0, -1.0, -1.0])
+    >>> round(clustered_se(v, np.array([0, 0, 1, 1])), 3), round(clustered_se(v, np.arange(4)), 3)
+    (0.707, 0.5)
+    """
+    v = np.asarray(values, dtype=float)
+    if v.size < 2:
+        return 0.0
+    res = np.bincount(np.asarray(cluster), weights=v - v.mean())
+    return float(np.sqrt(np.sum(res ** 2)) / v.size)
+
+
+#: ``--temper`` rules of the check over histories: ``auto`` the power with the best agreement;
+#: ``auto-1se`` the smallest power whose agreement is within one (cluster-robust) standard error
+#: of the best, the one-standard-error rule: among powers the passes cannot tell apart, the most
+#: cautious (chosen on the development sets, docs/results/mrclam.md).
+TEMPER_RULES = ("auto", "auto-1se")
+
+
+def choose_temper(prep: Prepared, ests: list[_Light], taus=AUTO_TEMPERS,
+                  rule: str = "auto") -> tuple[float, list]:
     """The model check over histories: the tempering power (of ``taus``) under which the
     histories of each ordered triplet agree best (:func:`cross_pass_agreement`). Passes that
     contradict each other under the model (each confident, on different states) choose a power
-    below 1, which widens every estimate toward the prior; where they agree it stays 1. Returns
-    (the power, [(tau, agreement, pairs), ...]); 1 when no triplet has two histories."""
+    below 1, which widens every estimate toward the prior; where they agree it stays 1. With
+    ``rule="auto-1se"`` the smallest power within one standard error (:func:`clustered_se`, by
+    unordered landmark set) of the best. Returns (the power, [(tau, agreement, pairs, se),
+    ...]); 1 when no triplet has two histories."""
     P = np.array([e.landmark for e in ests], dtype=float)
-    groups = _history_groups(prep)
-    table = [(float(t),) + cross_pass_agreement(P, groups, prep.prior_states, t) for t in taus]
+    return choose_power(P, _history_groups(prep), prep.prior_states, taus, rule)
+
+
+def choose_power(P, groups: dict, q, taus=AUTO_TEMPERS, rule: str = "auto") -> tuple[float, list]:
+    """:func:`choose_temper` on arrays: ``P`` (H, m) the histories' estimates, ``groups``
+    {ordered triplet: [history index, ...]}, ``q`` (m,) the prior's state distribution."""
+    if rule not in TEMPER_RULES:
+        raise ValueError(f"rule: expected one of {TEMPER_RULES}, got {rule!r}")
+    table = []
+    for t in taus:
+        ag, cid = _pair_agreements(P, groups, q, t)
+        table.append((float(t), float(np.mean(ag)) if ag.size else 0.0, int(ag.size),
+                      clustered_se(ag, cid)))
     if not table or table[0][2] == 0:
         return 1.0, table
     best = max(table, key=lambda r: (r[1], r[0]))
-    return best[0], table
+    if rule == "auto":
+        return best[0], table
+    ok = [r[0] for r in table if r[1] >= best[1] - best[3]]
+    return min(ok), table
 
 
 def seen_estimates(prep: Prepared, ests: list[_Light], *, combine: str = "geometric",
@@ -642,12 +694,14 @@ def finish(prep: Prepared, ests: list[_Light], *, combine: str = "geometric",
     say = say or (lambda msg: None)
     method = mrclam_maps.get(map_method)
     temper_check = None
-    if temper == "auto":
-        temper, temper_check = choose_temper(prep, ests)
-        say(f"temper auto: the histories of one ordered triplet agree best at {temper:g} "
-            f"({temper_check[0][2] if temper_check else 0} pairs; agreement at 1: "
+    if temper in TEMPER_RULES:
+        rule = temper
+        temper, temper_check = choose_temper(prep, ests, rule=rule)
+        say(f"temper {rule}: the histories of one ordered triplet "
+            f"{'agree best' if rule == 'auto' else 'agree within one standard error of the best'}"
+            f" at {temper:g} ({temper_check[0][2] if temper_check else 0} pairs; agreement at 1: "
             f"{temper_check[0][1] if temper_check else 0:.3f}, at {temper:g}: "
-            f"{dict((t, a) for t, a, _ in temper_check).get(temper, 0.0):.3f})")
+            f"{dict((r[0], r[1]) for r in temper_check).get(temper, 0.0):.3f})")
     seen, ests, combined = seen_estimates(prep, ests, combine=combine, temper=temper, seed=seed,
                                           tensor=tensor)
     say(f"combined: {len(ests)} histories into {len(seen.triplets)} seen ordered triplets "
