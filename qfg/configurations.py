@@ -61,7 +61,8 @@ from ._validate import as_float_array, as_rng, non_negative, positive_int
 
 __all__ = ["PositionSummary", "summarize_position", "ConfigurationPosterior",
            "infer_configurations", "configuration_marginals", "prior_states",
-           "one_ordering_per_set", "LIKELIHOODS", "DEFAULTS"]
+           "one_ordering_per_set", "LeaveOneOutCheck", "CHECK_GRID", "LIKELIHOODS",
+           "DEFAULTS"]
 
 #: Likelihood kinds of :func:`infer_configurations`.
 LIKELIHOODS = ("state", "metric")
@@ -520,6 +521,27 @@ def _concat_terms(a: _Terms, b: _Terms) -> _Terms:
                   a.evidence + b.evidence)
 
 
+def _term_loglik(t: _Terms, idx, pts, lookup) -> np.ndarray:
+    """(len(idx), P) log L_t of terms ``idx`` (module docstring: state or metric, floored) for
+    the landmark positions ``pts`` = [A, B, C], each (len(idx), P, 2); ``lookup`` maps AB-frame
+    positions to states."""
+    from .geometry import to_frame
+
+    c = to_frame(pts[2], pts[0], pts[1])
+    s = lookup(c)                                                        # (T, P)
+    out = np.take_along_axis(t.logtab[idx], s, axis=1)
+    met = t.metric[idx]
+    if met.any():
+        mi = idx[met]
+        sm = s[met]
+        r = np.exp(_log_mixture(c[met], t.centres[mi], t.logw[mi], t.lin[mi], t.lnorm[mi]))
+        st = np.take_along_axis(t.ratiotab[mi], sm, axis=1)
+        b = t.mix[mi][:, None]
+        e = t.eps[mi][:, None]
+        out[met] = np.log((1.0 - e) * ((1.0 - b) * r + b * st) + e)
+    return out
+
+
 # --------------------------------------------------------------------------- the sampler
 def _landmark_blocks(ijk, n) -> list:
     """Blocks of landmarks the sampler moves as one (``_Sampler.move_blocks``), from the seen
@@ -618,21 +640,7 @@ class _Sampler:
                     hit = ijk[:, a] == lj
                     if hit.any():
                         pts[a][hit] = props[j][None]
-        from .geometry import to_frame
-
-        c = to_frame(pts[2], pts[0], pts[1])
-        s = self._lookup(c)                                              # (T, P)
-        out = np.take_along_axis(t.logtab[idx], s, axis=1)
-        met = t.metric[idx]
-        if met.any():
-            mi = idx[met]
-            sm = s[met]
-            r = np.exp(_log_mixture(c[met], t.centres[mi], t.logw[mi], t.lin[mi], t.lnorm[mi]))
-            st = np.take_along_axis(t.ratiotab[mi], sm, axis=1)
-            b = t.mix[mi][:, None]
-            e = t.eps[mi][:, None]
-            out[met] = np.log((1.0 - e) * ((1.0 - b) * r + b * st) + e)
-        return out
+        return _term_loglik(t, idx, pts, self._lookup)
 
     def coef(self, beta):
         k = self.terms.kind
@@ -840,6 +848,35 @@ class _Sampler:
 
 
 # --------------------------------------------------------------------------- results
+@dataclass(frozen=True, eq=False)
+class LeaveOneOutCheck:
+    """The seen triplets predicted from each other (:meth:`ConfigurationPosterior.loo_check`).
+
+    Attributes:
+        triplets: the seen triplets, in the order of ``log_cpo``.
+        log_cpo: (T,) ``log m_t``, each seen triplet's evidence predicted by the configurations
+            sampled from the other seen triplets, relative to the prior's prediction (0: as well
+            as the prior alone; below 0: worse).
+        widen: the weight ``lam`` in [0, 1] maximizing ``mean_t log((1 - lam) m_t + lam)``: 0 when
+            the seen triplets predict each other at least as well as the prior does.
+        agreement: (mean log m_t, the mean at ``widen``).
+    """
+
+    triplets: tuple
+    log_cpo: np.ndarray
+    widen: float
+    agreement: tuple
+
+    @property
+    def contradicted(self) -> bool:
+        """Whether the seen triplets predict each other worse than the prior alone would."""
+        return self.widen > 0
+
+
+#: The grid of ``widen`` weights :meth:`ConfigurationPosterior.loo_check` maximizes over.
+CHECK_GRID = np.linspace(0.0, 1.0, 101)
+
+
 class ConfigurationPosterior:
     """Weighted samples of the landmarks' world positions given the seen triplets' evidence.
 
@@ -937,7 +974,8 @@ class ConfigurationPosterior:
         roots = [find(i) for i in range(len(par))]
         return np.unique(roots, return_inverse=True)[1].astype(np.intp)
 
-    def marginals(self, triplets=None, *, pseudo_count=None, widen=None, unlinked="sample"):
+    def marginals(self, triplets=None, *, pseudo_count=None, widen=None, unlinked="sample",
+                  check=False):
         """:class:`qfg.inference.Marginals` of ``triplets`` (default: every ordered triplet of
         the landmarks), seen and unseen alike.
 
@@ -960,6 +998,10 @@ class ConfigurationPosterior:
         groups lie) or ``"prior"`` (the prior's state distribution ``q``: "unknown", for data whose
         landmarks the i.i.d. box prior does not describe, e.g. an arena's). ``info["unlinked"]``:
         (n,) bool.
+
+        ``check``: when True, every row is mixed toward ``q`` by the weight
+        :meth:`loo_check` finds (0 when the seen triplets predict each other at least as well as
+        the prior does); ``info["check"]``: the :class:`LeaveOneOutCheck`.
         """
         if unlinked not in ("sample", "prior"):
             raise ValueError(f"unlinked: expected 'sample' or 'prior', got {unlinked!r}")
@@ -1002,11 +1044,65 @@ class ConfigurationPosterior:
         if unlinked == "prior" and cut.any():
             f[cut] = self._q
         info["unlinked"] = cut
+        if check:
+            chk = self.loo_check()
+            f = (1.0 - chk.widen) * f + chk.widen * self._q
+            info["check"] = chk
         info.update(mc_error=se, mc_error_max=float(np.max(se)) if se.size else 0.0,
                     seen=np.array([t in seen for t in ts], dtype=bool),
                     configurations=self)
         return Marginals(tuple(ts), self.partition.name, f, f"configurations-{self.likelihood}",
                          info)
+
+    def loo_check(self) -> LeaveOneOutCheck:
+        """Leave-one-out check of the model against the seen triplets (no ground truth).
+
+        Each seen triplet's evidence is predicted by the configurations the other seen triplets
+        give: with ``L_t`` its likelihood (normalized: mean 1 under the prior), the posterior
+        without ``t`` is the posterior reweighted by ``1 / L_t``, and its prediction of ``t``'s
+        data relative to the prior's is the harmonic mean (the conditional predictive ordinate)
+
+            m_t = E_{pi_-t}[L_t] = 1 / E_pi[1 / L_t]
+
+        (bounded: ``L_t`` is floored). Mixing the configurations with the prior by ``lam`` (every
+        marginal ``(1 - lam) f + lam q``) predicts ``(1 - lam) m_t + lam``; ``widen`` is the ``lam``
+        of :data:`CHECK_GRID` with the best mean log prediction. Under a correct model the seen
+        triplets predict each other better than the prior (``mean(1 / m_t)`` about 1, ``widen``
+        near 0); when they contradict each other under it (wrong estimates, a prior that does
+        not describe the landmarks), ``widen`` grows toward 1: "unknown" instead of a confident
+        answer the evidence does not support.
+
+        >>> post = infer_configurations({(0, 1, 2): np.eye(20)[1] * 0.9 + 0.005,
+        ...                              (0, 1, 3): np.eye(20)[1] * 0.9 + 0.005},
+        ...                             n_particles=400, seed=0)
+        >>> chk = post.loo_check()
+        >>> chk.log_cpo.shape, 0.0 <= chk.widen <= 1.0
+        ((2,), True)
+        """
+        t = self._terms
+        T = len(t.triplets)
+        if T == 0:
+            return LeaveOneOutCheck((), np.zeros(0), 0.0, (0.0, 0.0))
+        lk = self.partition.lookup
+        lookup = ((lambda c: np.asarray(lk(c), dtype=np.int64)) if lk is not None
+                  else self.partition.state_of)
+        w = np.asarray(self.weights, dtype=float)
+        log_cpo = np.empty(T)
+        step = max(1, _CHUNK // self.positions.shape[0])
+        for r0 in range(0, T, step):
+            idx = np.arange(r0, min(T, r0 + step))
+            pts = [self._Xt[t.ijk[idx, a]] for a in range(3)]
+            ll = _term_loglik(t, idx, pts, lookup)                      # (r, P)
+            # log 1 / E_w[exp(-ll)], stably
+            neg = -ll
+            mx = neg.max(axis=1, keepdims=True)
+            log_cpo[idx] = -(mx[:, 0] + np.log(np.exp(neg - mx) @ w))
+        m = np.exp(log_cpo)
+        score = np.mean(np.log((1.0 - CHECK_GRID[:, None]) * m[None] + CHECK_GRID[:, None]),
+                        axis=1)
+        k = int(np.argmax(score))
+        return LeaveOneOutCheck(tuple(t.triplets), log_cpo, float(CHECK_GRID[k]),
+                                (float(score[0]), float(score[k])))
 
     def update(self, evidence, *, seed=None, landmarks=(), ess=None) -> "ConfigurationPosterior":
         """A new posterior with more evidence, tempered in from these particles (cheaper than a
@@ -1156,12 +1252,13 @@ def infer_configurations(evidence, prior="world", *, partition="edc", likelihood
 
 def configuration_marginals(evidence, prior="world", *, triplets=None, partition=None,
                             likelihood="state", seed=None, widen=None, ess=None,
-                            unlinked="sample", **options):
+                            unlinked="sample", check=False, **options):
     """Marginals of ``triplets`` (default: a graph's triplets, else every ordered triplet of the
     landmarks) by configuration inference: :func:`infer_configurations` then
     :meth:`ConfigurationPosterior.marginals` (``widen``: rows the populations disagree on mixed
     toward the prior, see there; ``unlinked``: the answer for triplets across unlinked groups of
-    landmarks, see there). The result's ``info["configurations"]`` holds the
+    landmarks, see there; ``check``: the leave-one-out check's widening,
+    :meth:`ConfigurationPosterior.loo_check`). The result's ``info["configurations"]`` holds the
     samples. ``partition`` defaults to the graph's (else ``"edc"``).
 
     >>> import numpy as np
@@ -1181,4 +1278,4 @@ def configuration_marginals(evidence, prior="world", *, triplets=None, partition
                                 **options)
     if triplets is None and hasattr(evidence, "triplets"):
         triplets = evidence.triplets
-    return post.marginals(triplets, widen=widen, unlinked=unlinked)
+    return post.marginals(triplets, widen=widen, unlinked=unlinked, check=check)
