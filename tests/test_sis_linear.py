@@ -122,6 +122,28 @@ def test_trajectories_walk_the_ancestry_like_a_naive_gather():
         levels = _sis._take_last(levels, keep)
     np.testing.assert_array_equal(_sis.trajectories(levels), full)
     np.testing.assert_array_equal(_sis.trajectories(levels, [4, 0]), full[[4, 0]])
+    np.testing.assert_array_equal(_sis.trajectories(levels, [3], last=2), full[[3], -2:])
+
+
+def test_refits_take_at_most_the_window_of_views(monkeypatch):
+    # a child without a usable C summary is refitted over the latest REFIT_VIEWS views only,
+    # so its cost stays bounded however many views came before; the final weights still use
+    # every view
+    widths = []
+    real = _laplace.laplace_landmark
+
+    def recording(poses, *a, **kw):
+        widths.append(poses.shape[1])
+        return real(poses, *a, **kw)
+
+    monkeypatch.setattr(_laplace, "laplace_landmark", recording)
+    monkeypatch.setattr(_sis, "REFIT_VIEWS", 4)
+    # a bearing tail: every child is refitted at every view
+    hs = _histories(2, 9, seed=814000)
+    es = solve_triplets(hs, method="full", seed=2, bearing_tail=(0.1, 5.0, 0.0),
+                        max_hypotheses=300, n_samples=100)
+    assert widths and max(widths) == 4
+    assert all(np.isfinite(e.landmark).all() and abs(e.landmark.sum() - 1) < 1e-9 for e in es)
 
 
 def _histories(n, k, seed=810000):

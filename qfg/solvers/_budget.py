@@ -4,12 +4,16 @@ ValueError naming the way out instead of a machine out of memory or a call that 
 Every method keeps at most a fixed number of hypotheses per triplet (``max_hypotheses``,
 ``n_landmark_samples``, the reference's draws), each holding one pose per view: memory grows
 linearly with the number of views (:func:`working_bytes`, refused above
-:data:`MEMORY_BUDGET`). Time grows linearly for ``fast-paper`` and ``baseline`` but
-quadratically for the SIS methods (every view integrates C over all views so far and copies the
-trajectories: docs/solvers.md, "More views"), so :func:`work_units` counts pose-views processed
-and :data:`WORK_BUDGET` caps them at what full takes for 100 views (measured under a load of 11:
-full 0.42, 0.90, 3.15, 9.9 s per triplet at 10, 20, 40, 80 views; fast 0.10, 0.39, 1.46 s at 40,
-80, 160 views, so about 15 s for full at 100 views and 9 s for fast at its cap of about 480).
+:data:`MEMORY_BUDGET`). Time grows linearly for ``fast-paper`` and ``baseline``, and for the
+SIS methods too (each child updates its parent's C summary with one line of sight and the
+trajectories are kept as ancestry: docs/solvers.md, "More views"), except that a child without
+a usable C summary is refitted over up to ``_sis.REFIT_VIEWS`` views and Metropolis-Hastings
+moves (``move_steps``) take whole trajectories. :func:`work_units` counts the pose-views the
+worst case processes (every child refitted at every view, moves over whole trajectories) and
+:data:`WORK_BUDGET` caps them at what the old engine, which refitted every child over all
+views, processed for 100 views with full's defaults (then 15 s per triplet under a load of 11;
+now about 10 times fewer pose-views are refitted in the common case, and the bound admits about
+260 views for full and 6000 for fast at their defaults).
 The reference solver takes at most :data:`REFERENCE_MAX_VIEWS` views (its time is linear in
 them, but its ESS falls below 50 beyond).
 """
@@ -28,7 +32,8 @@ MEMORY_BUDGET = 2 * 2**30
 #: of 5-7 at 20 views (issue 20).
 REFERENCE_MAX_VIEWS = 30
 
-#: Most pose-views one triplet may process (:func:`work_units`): full's at 100 views.
+#: Most pose-views one triplet may process (:func:`work_units`): what the engine that refitted
+#: every child over all views processed with full's defaults at 100 views.
 WORK_BUDGET = 3000 * 8 * 100 * 101 // 2
 
 #: Copies of the hypotheses' poses alive at once (children, resampling, the C weights), a
@@ -49,16 +54,24 @@ def working_bytes(method: str, opts: dict, n_triplets: int, n_views: int) -> int
 
 
 def work_units(method: str, opts: dict, n_views: int) -> int:
-    """Pose-views one triplet of ``n_views`` views processes: hypotheses x views summed over the
-    views for the SIS methods (quadratic), hypotheses x views for the others (linear).
+    """Pose-views one triplet of ``n_views`` views processes at worst: for the SIS methods every
+    child refitted over min(i, ``_sis.REFIT_VIEWS``) views at view i (linear in the views beyond
+    that window), plus ``move_steps`` moves of every hypothesis over all i views (quadratic:
+    moves are off by default); hypotheses x views for the others (linear).
 
     >>> from qfg.solvers import DEFAULTS
-    >>> work_units("full", DEFAULTS["full"], 100) == WORK_BUDGET
+    >>> work_units("full", DEFAULTS["full"], 200) < WORK_BUDGET < work_units("full", DEFAULTS["full"], 300)
     True
     """
+    from ._sis import REFIT_VIEWS
+
     n = int(n_views)
     if method in ("full", "fast"):
-        return _rows("full" if method == "full" else "fast", opts, n) * n * (n + 1) // 2
+        w = min(n, REFIT_VIEWS)
+        refit = w * (w + 1) // 2 + (n - w) * REFIT_VIEWS
+        rows = _rows(method, opts, n)
+        moves = opts.get("move_steps", 0) * (rows // opts["motion_samples"]) * n * (n + 1) // 2
+        return rows * refit + moves
     return _rows(method, opts, n) * n
 
 
@@ -93,10 +106,9 @@ def check(method: str, opts: dict, n_triplets: int, n_views: int) -> None:
     work = work_units(method, opts, n_views)
     if work > WORK_BUDGET:
         raise ValueError(f"bearings: {n_views} views would take method {method!r} about "
-                         f"{work / WORK_BUDGET:.1f}x the time budget (what full takes for 100 "
-                         "views, qfg.solvers._budget.WORK_BUDGET): its time grows with the square "
-                         "of the views; solve fewer views (e.g. the latest ones) or smaller "
-                         "budgets (max_hypotheses, n_samples)")
+                         f"{work / WORK_BUDGET:.1f}x the time budget at worst "
+                         "(qfg.solvers._budget.WORK_BUDGET); solve fewer views (e.g. the latest "
+                         "ones) or smaller budgets (max_hypotheses, n_samples, move_steps)")
     need = working_bytes(method, opts, n_triplets, n_views)
     if need > MEMORY_BUDGET:
         raise ValueError(f"bearings: {n_triplets} triplet(s) of {n_views} views would need about "

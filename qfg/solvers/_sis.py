@@ -120,10 +120,11 @@ class SISState(_estimate.TripletBatchSizes):
         return (self.sigma_bearing == 0) & (self.sigma_heading == 0)
 
 
-def trajectories(levels, rows=None) -> np.ndarray:
+def trajectories(levels, rows=None, last=None) -> np.ndarray:
     """(J, i, 3) trajectories of the hypotheses ``rows`` (rows of the last level; None: all)
     of ancestry ``levels`` (pairs (poses (M_t, 3), parent row in level t - 1 (M_t,))), walked
-    back from the last view: O(J i), and no step of the sampler copies the past poses.
+    back from the last view: O(J i), and no step of the sampler copies the past poses. With
+    ``last``, only the latest ``last`` views (J, min(i, last), 3).
 
     >>> lv = ((np.zeros((2, 3)), np.zeros(2, dtype=int)), (np.ones((3, 3)), np.array([1, 0, 1])))
     >>> trajectories(lv, np.array([2])).tolist()
@@ -131,9 +132,10 @@ def trajectories(levels, rows=None) -> np.ndarray:
     """
     pose, up = levels[-1]
     j = np.arange(pose.shape[0]) if rows is None else np.asarray(rows, dtype=np.int64)
-    out = np.empty((j.size, len(levels), 3))
-    for t in range(len(levels) - 1, -1, -1):
-        pose, up = levels[t]
+    n = len(levels) if last is None else min(len(levels), int(last))
+    out = np.empty((j.size, n, 3))
+    for t in range(n - 1, -1, -1):
+        pose, up = levels[len(levels) - n + t]
         out[:, t] = pose[j]
         j = up[j]
     return out
@@ -254,6 +256,12 @@ def _log_intermediate_c(state_like, tid, poses, bearings_c, gens):
         out[hard] = _likelihood.logsumexp(lw, axis=1) - np.log(k)
     return np.where(np.isnan(out), -np.inf, out), summ
 
+
+#: Most views a refit of C takes (the latest ones): a child without a usable C summary (C's
+#: depth unresolved, a bearing tail) is refitted at every view, so its cost is bounded by this
+#: instead of growing with the views. Only the intermediate weights see the window (the final
+#: weights use every view); with up to this many views nothing changes.
+REFIT_VIEWS = 20
 
 #: Whether the motion step updates the parents' C summaries with the new view
 #: (:func:`_update_c`, O(1) per child) instead of refitting C over all views (O(views)); a
@@ -696,15 +704,16 @@ def _extend(state: SISState, phi, psi, spread: float, purpose: int) -> SISState:
     ntid = tid[parent]
 
     def child_poses(rows):
-        """(J, i + 1, 3) trajectories of the children ``rows``: O(i) each, for the few whose C
-        is refitted over all views."""
-        return np.concatenate([trajectories(state.levels, parent[rows]),
+        """(J, w, 3) the latest w = min(i + 1, REFIT_VIEWS) poses of the children ``rows``:
+        O(w) each, for the few whose C is refitted."""
+        return np.concatenate([trajectories(state.levels, parent[rows], REFIT_VIEWS - 1),
                                new_pose[rows][:, None, :]], axis=1)
 
     refit = np.flatnonzero(np.isnan(lw_c))
     if refit.size:
         lw_c[refit], c_sum[refit] = _log_intermediate_c(
-            st, ntid[refit], lambda sel: child_poses(refit[sel]), bearings[..., 2], gens)
+            st, ntid[refit], lambda sel: child_poses(refit[sel]),
+            bearings[:, -REFIT_VIEWS:, 2], gens)
     # the children that pruning drops are never gathered (most of them: the C weights are sharp);
     # _prune then finds all the rest kept and goes on as if it had pruned them itself
     rows = np.flatnonzero(_kept(ntid, lw + lw_c, T, opts["prune_ratio"]))
