@@ -11,7 +11,7 @@ from qfg.geometry import bearing, locus_point
 from qfg.simulation import random_triplet_history
 from qfg.solvers import _reference_rb as R
 from qfg.solvers._prior import resolve_prior
-from qfg.solvers._reference import _Layout, solve_reference
+from qfg.solvers._reference import REFERENCE_DEFAULTS, _Layout, solve_reference
 
 PRIOR = resolve_prior("world")
 
@@ -144,3 +144,51 @@ def test_prior_inside_the_filter_estimates_the_same_integral(kind):
         return float(np.log(np.mean(np.exp(lw - lw.max()))) + lw.max())
 
     assert abs(log_mean(new) - log_mean(old)) < 0.15, (log_mean(new), log_mean(old))
+
+
+def test_local_laplace_ends_at_a_stationary_point_of_the_step_cost():
+    # the filter's per-particle proposal: Gauss-Newton on one view's bearings, its heading to a
+    # fixed next pose and the twist; at its end point the cost's gradient by finite
+    # differences (independent of the analytic Jacobians) vanishes, and the cost is below the
+    # start's
+    h = random_triplet_history(np.random.default_rng(700004), 5, np.deg2rad(2), np.deg2rad(5))
+    L = _Layout(h.bearings, h.headings, h.sigma_bearing, h.sigma_heading)
+    P, j = 40, 2
+    rng = np.random.default_rng(3)
+    C = np.repeat(h.truth.C_ab[None], P, 0)
+    tm, _, _, ok = R.fit_trajectories(L, C[:1])
+    assert ok[0]
+    m = np.repeat(tm[:, j], P, 0)
+    t0 = m + 0.02 * rng.standard_normal((P, 3))
+    Xn = h.truth.poses_ab[j + 1, :2] + 0.01 * rng.standard_normal((P, 2))
+    A = rng.standard_normal((P, 3, 3))
+    Lam = np.einsum("pij,pkj->pik", A, A) * 50.0
+
+    def cost(t):
+        r, _ = R._view_residuals(L, j, C, t, Xn)
+        d = t - m
+        return 0.5 * np.sum(r * r, -1) + 0.5 * np.einsum("pi,pik,pk->p", d, Lam, d)
+
+    t, Lh = R.local_laplace(L, j, C, t0, Xn, m, Lam, steps=20)
+    assert np.all(np.isfinite(Lh)) and np.all(cost(t) <= cost(t0) + 1e-12)
+    e = 1e-6
+    grad = np.stack([(cost(t + e * np.eye(3)[k]) - cost(t - e * np.eye(3)[k])) / (2 * e)
+                     for k in range(3)], -1)
+    # (the regularising precisions only damp the steps: the fixed point is the cost's own)
+    scale = np.sqrt(np.einsum("pii->p", np.einsum("pij,pkj->pik", Lh, Lh)))
+    assert np.all(np.abs(grad) <= 1e-4 * scale[:, None] + 1e-6), grad
+
+
+def test_c_proposal_matches_the_laplace_marginal_it_is_tempered_to():
+    # C's proposal ends fitted to the Laplace marginal (its tempering's last target): a fresh
+    # sample from it, weighted by that marginal, keeps a good share of effective draws. On this
+    # history most of the product prior's draws of C have marginal 0 (no configuration in the
+    # world box admits them); counted against all draws they once held the temperature at 0
+    # for every round (ESS 5 of 1000)
+    h = random_triplet_history(np.random.default_rng(700007), 8, np.deg2rad(2), np.deg2rad(5))
+    L = _Layout(h.bearings, h.headings, h.sigma_bearing, h.sigma_heading)
+    mix, _ = R.adapt_c_proposal(L, PRIOR, np.random.default_rng(0), dict(REFERENCE_DEFAULTS))
+    C = mix.draw(np.random.default_rng(1), 1000)
+    lw = R.laplace_marginal(L, PRIOR, C) - mix.log_density(C)
+    w = np.exp(lw[np.isfinite(lw)] - np.max(lw[np.isfinite(lw)]))
+    assert w.sum() ** 2 / np.sum(w * w) > 300
