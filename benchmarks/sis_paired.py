@@ -45,7 +45,8 @@ def _score(solvers, hs, k, opts):
     dt = (time.perf_counter() - t) / len(hs) * 1e3
     g = [h.truth.state for h in hs]
     lp = np.log(np.clip([e.landmark[s] for e, s in zip(es, g, strict=True)], 1e-4, 1.0))
-    return lp, sum(bool(e.degenerate) for e in es), float(np.median([e.ess for e in es])), dt
+    flagged = [e.reason for e in es if e.degenerate]
+    return lp, len(flagged), float(np.median([e.ess for e in es])), dt, flagged
 
 
 def main(argv=None):
@@ -70,17 +71,21 @@ def main(argv=None):
     print(f"{a.n} geometries (default_rng({a.seed} + i)), {sv:g}/{sw:g} deg, load "
           f"{os.getloadavg()[0]:.1f}", flush=True)
     for k in views:
-        base, _, _, _ = r = _score(old_solvers, h_old, k, {})
+        base, _, _, _, why = r = _score(old_solvers, h_old, k, {})
         print(f"n={k:2d} before      logp {base.mean():.3f} +- "
               f"{base.std(ddof=1) / np.sqrt(a.n):.3f} flagged {r[1]} ESS med {r[2]:.0f} "
               f"{r[3]:.0f} ms", flush=True)
+        for w in why:
+            print(f"      flagged: {w[:110]}")
         for v in a.variants:
-            lp, fl, ess, dt = _score(new_solvers, h_new, k, json.loads(v))
+            lp, fl, ess, dt, why = _score(new_solvers, h_new, k, json.loads(v))
             d = lp - base
             print(f"n={k:2d} after {v:6s} logp {lp.mean():.3f} +- "
                   f"{lp.std(ddof=1) / np.sqrt(a.n):.3f} flagged {fl} ESS med {ess:.0f} "
                   f"{dt:.0f} ms | paired {d.mean():+.3f} +- {d.std(ddof=1) / np.sqrt(a.n):.3f} "
                   f"(load {os.getloadavg()[0]:.1f})", flush=True)
+            for w in why:
+                print(f"      flagged: {w[:110]}")
 
 
 if __name__ == "__main__":

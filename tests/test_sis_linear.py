@@ -262,3 +262,34 @@ def test_both_c_paths_answer_within_monte_carlo_error(monkeypatch):
     cross = np.mean([tv(runs[True, a], runs[False, b]) for a in (3, 4) for b in (3, 4)])
     within = np.mean([tv(runs[x, 3], runs[x, 4]) for x in (True, False)])
     assert cross < 1.3 * within + 0.02
+
+
+def test_the_final_c_proposal_centres_nearer_the_mode_than_the_least_squares_point():
+    # the final C draws centre on the carried summary's mode: nearer the posterior's mode (scipy
+    # least squares over every view's bearing residual) than the lines' unweighted
+    # least-squares point, in units of C's posterior standard deviation
+    h = _histories(2, 8)[1]
+    st = _run(h, 8)[-1]
+    rows = np.flatnonzero(np.isfinite(st.c_sum[:, 0]))[:40]
+    P = st.poses[rows]
+    sig = float(st.sigma_v()[0])
+    at_mode = _sis._final_proposal(st, rows, P)[0]
+    th = P[..., 2] + st.bearings[0, :, 2]
+    lsq = _laplace.triangulate(P[..., :2], th)[0]
+    d_mode, d_lsq = [], []
+    for j in range(rows.size):
+        L, H, _ = _map_laplace(P[j], th[j], sig, lsq[j])
+        for c, out in ((at_mode[j], d_mode), (lsq[j], d_lsq)):
+            e = c - L
+            out.append(np.sqrt(e @ H @ e) / sig)
+    assert np.median(d_mode) < 0.5 * np.median(d_lsq)
+    assert np.median(d_mode) < 0.5
+
+
+def test_final_draws_at_the_mode_raise_the_effective_sample_size(monkeypatch):
+    hs = _histories(8, 8, seed=815000)
+    ess = {}
+    for at_mode in (True, False):
+        monkeypatch.setattr(_sis, "_FINAL_AT_MODE", at_mode)
+        ess[at_mode] = np.array([e.ess for e in solve_triplets(hs, method="full", seed=4)])
+    assert np.median(ess[True]) > 1.5 * np.median(ess[False])
