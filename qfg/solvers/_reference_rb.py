@@ -32,7 +32,7 @@ headings chain consecutive poses. So, for a draw of C:
   Laplace marginal ``p(C, X*, alpha*, z) (2 pi)^(3n/2) det(J^T J)^(-1/2)`` (arc Jacobians
   included), reached from the heavy-tailed product prior by adaptive tempering over stages of
   3, 6, 12, .. views (the tempered target ``q_ref^(1 - b) p^b``, b raised while 30% of the draws
-  stay effective), with defensive shares of a widened mixture and of the product prior
+  where p > 0 stay effective), with defensive shares of a widened mixture and of the product prior
   (support everywhere);
 * draws outside the arc domain or with a heading outside ``(alpha*_j - pi, alpha*_j + pi]``
   get weight 0 (a defective proposal: still exact, the window covers the circle once).
@@ -68,9 +68,6 @@ RB_DEFAULTS = {
     "gn_iters": 40,            # most Levenberg-Marquardt iterations of the conditional mode
     "components": 6,           # components of C's mixture
     "refit": False,            # refit half of C's mixture to each final round's weighted draws
-    "amis": False,             # final rounds by adaptive multiple importance sampling of C
-    "local_steps": 0,          # Gauss-Newton steps of the filter's per-particle Laplace proposal
-                               # (0: the global conditional Gaussian alone)
 }
 
 _LOG2PI = np.log(2 * np.pi)
@@ -635,8 +632,8 @@ def adapt_c_proposal(L, prior, rng, opts):
     first 3 views, then from each stage's marginal to that of twice as many views, up to n
     (each step a geometric bridge ``q_ref^(1 - b) p_k^b`` from the proposal the previous stage
     ended with, or the product prior, to the Laplace marginal p_k of k views, b raised while
-    a share ``tempering_ess`` of the draws stays effective, the t mixture refitted to the
-    weighted draws after every round).
+    a share ``tempering_ess`` of the draws where p_k > 0 stays effective, the t mixture
+    refitted to the weighted draws after every round).
     Returns the mixture and the number of C draws spent."""
     M = int(opts["tempering_samples"])
     keep = float(opts["tempering_ess"])
@@ -702,8 +699,6 @@ def solve_rb(L, prior, part, rng, opts):
     """The reference's answer by the conditional-Laplace sampler (the dict of
     :func:`qfg.solvers._reference.solve_reference`)."""
     mix, spent = adapt_c_proposal(L, prior, rng, opts)
-    if opts["amis"]:
-        return _final_amis(L, prior, part, rng, opts, mix, spent)
     M = int(opts["rb_samples"])
     iters = int(opts["gn_iters"])
     finals, ess_rounds, lws = [], [], []
@@ -713,7 +708,7 @@ def solve_rb(L, prior, part, rng, opts):
         lqc = mix.log_density(C)
         # the prior inside the filter: Z estimates the integral of the whole target given C
         logz, X, alpha = particle_trajectories(L, C, rng, int(opts["particles"]), iters,
-                                               prior=prior, local_steps=int(opts["local_steps"]))
+                                               prior=prior)
         lw = np.full(M, -np.inf)
         ok = np.isfinite(logz) & np.isfinite(lqc)
         lw[ok] = logz[ok] - lqc[ok]
@@ -737,108 +732,8 @@ def solve_rb(L, prior, part, rng, opts):
     return final_answer(L, part, finals, M, opts["min_ess"], lws, ess_rounds, total)
 
 
-def _final_amis(L, prior, part, rng, opts, mix, spent):
-    """The final rounds by adaptive multiple importance sampling of C (Cornuet, Marin, Mira and
-    Robert 2012): round r draws ``rb_samples`` C from q_r; every draw of every round so far is
-    weighted by the deterministic mixture of the proposals used, ``Z(C) / ((1/R) sum_r
-    q_r(C))`` (Z the particle filter's unbiased estimate, prior included), and the next
-    proposal is half the last one, half a t mixture refitted to all these weighted draws (the
-    defensive parts kept). The C proposal fitted to the Laplace marginal can miss the main mode
-    (measured: at 10 views, draws 13-52 nats above the median in Laplace marginal over proposal
-    on 3 of 12 development geometries, ESS 6-8 of 1000 draws per round); the refit puts the
-    next rounds there and the deterministic mixture tempers the early rounds' heavy weights.
-    Rounds stop once the pooled sample's ESS reaches ``ess_goal`` (at most ``final_rounds``)."""
-    M = int(opts["rb_samples"])
-    iters = int(opts["gn_iters"])
-    mixes, Cs, Xs, lzs, ess_rounds = [mix], [], [], [], []
-    total, s, lw = spent, None, None
-    for r in range(int(opts["final_rounds"])):
-        C = mixes[-1].draw(rng, M)
-        logz, X, _ = particle_trajectories(L, C, rng, int(opts["particles"]), iters,
-                                           prior=prior, local_steps=int(opts["local_steps"]))
-        Cs.append(C)
-        Xs.append(X)
-        lzs.append(np.where(np.isfinite(logz), logz, -np.inf))
-        total += M
-        Call, Xall = np.concatenate(Cs), np.concatenate(Xs)
-        lden = logsumexp(np.stack([m.log_density(Call) for m in mixes]), axis=0) \
-            - np.log(len(mixes))
-        lw = np.concatenate(lzs) - lden
-        lw = np.where(np.isfinite(lw), lw, -np.inf)
-        s = _summaries(part, Xall, Call, lw)
-        ess_rounds.append(0.0 if s is None else s[4])
-        if ess_rounds[-1] >= float(opts["ess_goal"]) or r + 1 == int(opts["final_rounds"]):
-            break
-        nxt = mixes[-1]
-        if s is not None:
-            w = np.exp(lw - np.max(lw))
-            pis, mus, chols = _fit_mixture(Call, w, int(opts["components"]), rng)
-            nxt = _CMix(np.r_[0.5 * nxt.pis, 0.5 * pis], np.concatenate([nxt.means, mus]),
-                        np.concatenate([nxt.chols, chols]), defensive=True)
-        mixes.append(nxt)
-    finals = [] if s is None else [s + (Xall, Call)]
-    return final_answer(L, part, finals, M, opts["min_ess"], [] if s is None else [lw],
-                        ess_rounds, total)
-
-
 # ---------------------------------------------------------------------------------------------
 # the trajectory given C: a particle filter twisted by the Laplace approximation
-
-
-def _view_residuals(L, j, Cg, t, Xn):
-    """Whitened residuals (P, m) and their Jacobians (P, m, 3) in view j's coordinates t (P, 3)
-    of the factors the particle filter's step j adds: view j's three bearings (C at Cg (P, 2))
-    and, with Xn (P, 2) the next view's position, the heading out of view j (m = 4; else 3)."""
-    X, dXda, dXdg, _, _ = _pose(L, t[:, 0], t[:, 1], j)
-    res, jac = [], []
-    for k, Pt in enumerate((np.zeros((1, 2)), np.array([[0.0, 1.0]]), Cg)):
-        d = Pt - X
-        r2 = np.maximum(d[:, 0] ** 2 + d[:, 1] ** 2, 1e-300)
-        res.append(wrap_angle(L.phi[j, k] - np.arctan2(d[:, 1], d[:, 0]) + t[:, 2]) / L.sv)
-        jac.append(_jt(np.stack([-d[:, 1] / r2, d[:, 0] / r2, np.ones_like(r2)], -1) / L.sv,
-                       dXda, dXdg))
-    if Xn is not None:
-        d = Xn - X
-        r2 = np.maximum(d[:, 0] ** 2 + d[:, 1] ** 2, 1e-300)
-        res.append(wrap_angle(L.psi[j] - np.arctan2(d[:, 1], d[:, 0]) + t[:, 2]) / L.sw)
-        jac.append(_jt(np.stack([-d[:, 1] / r2, d[:, 0] / r2, np.ones_like(r2)], -1) / L.sw,
-                       dXda, dXdg))
-    return np.stack(res, -1), np.stack(jac, -2)
-
-
-@_quiet
-def local_laplace(L, j, Cg, t0, Xn, m, Lam, steps=2):
-    """The particle filter's per-particle Laplace proposal of step j (a locally optimal proposal
-    linearised at each particle: Doucet, Godsill and Andrieu 2000, section II.D.2): Gauss-Newton
-    from t0 (P, 3) on the step's own factors (:func:`_view_residuals`) plus the twist
-    ``0.5 (t - m)^T Lam (t - m)`` (m (P, 3), Lam (P, 3, 3)) and the proposal's regularising
-    precisions, each step kept only where it lowers that cost. Returns the end point (P, 3)
-    and the Cholesky factor (P, 3, 3) of the Gauss-Newton information there; NaN where a step
-    or the factor failed (the caller falls back to the global conditional there)."""
-    reg = np.diag([ARC_PRECISION, ARC_PRECISION, ALPHA_PRECISION])
-
-    def cost_grad_info(t):
-        r, J = _view_residuals(L, j, Cg, t, Xn)
-        dt = t - m
-        c = 0.5 * np.sum(r * r, -1) + 0.5 * np.einsum("pi,pik,pk->p", dt, Lam, dt)
-        g = np.einsum("pmi,pm->pi", J, r) + np.einsum("pik,pk->pi", Lam, dt)
-        H = np.einsum("pmi,pmk->pik", J, J) + Lam + reg
-        return c, g, H
-
-    t = t0.copy()
-    c, g, H = cost_grad_info(t)
-    for _ in range(steps):
-        Lh = _chol3(H)
-        step = -_bwd3(Lh, _fwd3(Lh, g))
-        tn = t + step
-        cn, gn, Hn = cost_grad_info(tn)
-        valid = _pose(L, tn[:, 0], tn[:, 1], j)[4]
-        acc = valid & np.isfinite(cn) & (cn < c) & np.all(np.isfinite(step), -1)
-        t = np.where(acc[:, None], tn, t)
-        c = np.where(acc, cn, c)
-        g = np.where(acc[:, None], gn, g)
-        H = np.where(acc[:, None, None], Hn, H)
-    return t, _chol3(H)
 
 
 def intermediate_prior(prior):
@@ -862,13 +757,9 @@ def intermediate_prior(prior):
 #: Quadrature angles of the world box prior in the particle filter's intermediate targets.
 INTER_N_RHO = 32
 
-#: Share of the particle filter's draws from the global conditional Gaussian when the
-#: per-particle Laplace proposal (:func:`local_laplace`) is used.
-LOCAL_DEFENSIVE = 0.2
-
 
 @_quiet
-def particle_trajectories(L, C, rng, K=8, iters=40, prior=None, local_steps=0):
+def particle_trajectories(L, C, rng, K=8, iters=40, prior=None):
     """Trajectories given C (M, 2) by sequential Monte Carlo backwards along the views (n down
     to 1), K particles per C, using the conditional Laplace approximation in arc coordinates
     both as proposal and as twisting function: the step of view j draws t_j from the Gaussian's
@@ -928,31 +819,6 @@ def particle_trajectories(L, C, rng, K=8, iters=40, prior=None, local_steps=0):
         tj = mj + dt
         lq = (-0.5 * np.sum(z * z, -1) - 1.5 * _LOG2PI
               + np.sum(np.log(np.diagonal(Lj, axis1=-2, axis2=-1)), axis=1))
-        if local_steps:
-            # a share 1 - LOCAL_DEFENSIVE of the particles from the Laplace approximation of the
-            # step's own target at each particle's next pose (started at the global
-            # conditional's mean), the rest from the global conditional; the density of the
-            # two-part mixture (the defensive part bounds every weight by 1 / LOCAL_DEFENSIVE
-            # times the global conditional's)
-            mu_g = tj - _bwd3(Lj, z)
-            Lam_j = Lam[grp, j] if j > 0 else np.zeros((P, 3, 3))
-            tl, Lh = local_laplace(L, j, C[grp], mu_g, None if nxt is None or L.psi is None
-                                   else nxt[1], mj, Lam_j, local_steps)
-            okl = np.all(np.isfinite(Lh), axis=(1, 2)) & np.all(np.isfinite(tl), -1)
-            okl &= np.all(np.diagonal(Lh, axis1=-2, axis2=-1) > 0, -1)
-            Lh = np.where(okl[:, None, None], Lh, Lj)
-            tl = np.where(okl[:, None], tl, mu_g)
-            loc = okl & (rng.random(P) >= LOCAL_DEFENSIVE)
-            tj = np.where(loc[:, None], tl + _bwd3(Lh, z), tj)
-            dt = tj - mj
-            zg = np.einsum("pki,pk->pi", Lj, tj - mu_g)
-            zl = np.einsum("pki,pk->pi", Lh, tj - tl)
-            lqg = (-0.5 * np.sum(zg * zg, -1) - 1.5 * _LOG2PI
-                   + np.sum(np.log(np.diagonal(Lj, axis1=-2, axis2=-1)), axis=1))
-            lql = (-0.5 * np.sum(zl * zl, -1) - 1.5 * _LOG2PI
-                   + np.sum(np.log(np.diagonal(Lh, axis1=-2, axis2=-1)), axis=1))
-            lq = np.where(okl, np.logaddexp(np.log(LOCAL_DEFENSIVE) + lqg,
-                                            np.log1p(-LOCAL_DEFENSIVE) + lql), lqg)
         X, _, _, logdet, valid = _pose(L, tj[:, 0], tj[:, 1], j)
         X = np.where(valid[:, None], X, 0.0)
         al = tj[:, 2]
