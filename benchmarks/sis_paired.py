@@ -9,8 +9,9 @@ Geometries: ``random_triplet_history(default_rng(S + i), max(VIEWS), sv, sw)`` (
 preset's generator; S defaults to 700000, a development seed, not the preset's), each tree
 building them with its own ``qfg.simulation`` (the same draws); the first n views solved with
 ``seed=1``. Per tree (or variant of the working tree's options) and n: mean log p(truth) of C
-(clipped at 1e-4, natural log) with its standard error, flagged answers, median ESS, ms per
-triplet (one batched call; a shared machine: compare within a run), and the paired difference
+(clipped at 1e-4, natural log) with its standard error, flagged answers (each with its reason),
+median ESS, ms per triplet (one batched call; a shared machine: compare within a run), the expected calibration
+error of the top state and the share with the truth under 1%, and the paired difference
 of every variant against the older tree with its standard error. With no VARIANT the working
 tree runs at its defaults.
 """
@@ -39,6 +40,12 @@ def _first(h, k):
                    truth=None)
 
 
+def _metrics():
+    from qfg import metrics
+
+    return metrics
+
+
 def _score(solvers, hs, k, opts):
     t = time.perf_counter()
     es = solvers.solve_triplets([_first(h, k) for h in hs], method="full", seed=1, **opts)
@@ -46,7 +53,10 @@ def _score(solvers, hs, k, opts):
     g = [h.truth.state for h in hs]
     lp = np.log(np.clip([e.landmark[s] for e, s in zip(es, g, strict=True)], 1e-4, 1.0))
     flagged = [e.reason for e in es if e.degenerate]
-    return lp, len(flagged), float(np.median([e.ess for e in es])), dt, flagged
+    p = np.array([e.landmark for e in es])
+    cal = (f"ECE {_metrics().expected_calibration_error(p, g, kind='top'):.3f} truth<1% "
+           f"{_metrics().truth_under(p, g).mean():.3f}")
+    return lp, len(flagged), float(np.median([e.ess for e in es])), dt, flagged + [cal]
 
 
 def main(argv=None):
@@ -74,7 +84,7 @@ def main(argv=None):
         base, _, _, _, why = r = _score(old_solvers, h_old, k, {})
         print(f"n={k:2d} before      logp {base.mean():.3f} +- "
               f"{base.std(ddof=1) / np.sqrt(a.n):.3f} flagged {r[1]} ESS med {r[2]:.0f} "
-              f"{r[3]:.0f} ms", flush=True)
+              f"{r[3]:.0f} ms {why.pop()}", flush=True)
         for w in why:
             print(f"      flagged: {w[:110]}")
         for v in a.variants:
@@ -82,7 +92,7 @@ def main(argv=None):
             d = lp - base
             print(f"n={k:2d} after {v:6s} logp {lp.mean():.3f} +- "
                   f"{lp.std(ddof=1) / np.sqrt(a.n):.3f} flagged {fl} ESS med {ess:.0f} "
-                  f"{dt:.0f} ms | paired {d.mean():+.3f} +- {d.std(ddof=1) / np.sqrt(a.n):.3f} "
+                  f"{dt:.0f} ms {why.pop()} | paired {d.mean():+.3f} +- {d.std(ddof=1) / np.sqrt(a.n):.3f} "
                   f"(load {os.getloadavg()[0]:.1f})", flush=True)
             for w in why:
                 print(f"      flagged: {w[:110]}")
