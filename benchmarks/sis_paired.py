@@ -3,6 +3,7 @@ the same geometries and solver seeds, one batched call per tree and n.
 
     git archive <commit> qfg | tar -x -C DIR
     python -m benchmarks.sis_paired DIR N VIEWS [VARIANT ...] [--seed S] [--noise 2,5]
+        [--method fast]
     python -m benchmarks.sis_paired /tmp/before 50 3,6,10,20 '{}' --seed 700000
 
 Geometries: ``random_triplet_history(default_rng(S + i), max(VIEWS), sv, sw)`` (the views
@@ -46,9 +47,9 @@ def _metrics():
     return metrics
 
 
-def _score(solvers, hs, k, opts):
+def _score(solvers, hs, k, opts, method="full"):
     t = time.perf_counter()
-    es = solvers.solve_triplets([_first(h, k) for h in hs], method="full", seed=1, **opts)
+    es = solvers.solve_triplets([_first(h, k) for h in hs], method=method, seed=1, **opts)
     dt = (time.perf_counter() - t) / len(hs) * 1e3
     g = [h.truth.state for h in hs]
     lp = np.log(np.clip([e.landmark[s] for e, s in zip(es, g, strict=True)], 1e-4, 1.0))
@@ -67,6 +68,7 @@ def main(argv=None):
     ap.add_argument("variants", nargs="*", default=["{}"])
     ap.add_argument("--seed", type=int, default=700000)
     ap.add_argument("--noise", default="2,5", help="bearing,heading noise in degrees")
+    ap.add_argument("--method", default="full", choices=("full", "fast"))
     a = ap.parse_args(argv)
     views = [int(v) for v in a.views.split(",")]
     sv, sw = (float(x) for x in a.noise.split(","))
@@ -78,17 +80,17 @@ def main(argv=None):
 
     h_old = _histories(old_sim, a.n, max(views), sv, sw, a.seed)
     h_new = _histories(new_sim, a.n, max(views), sv, sw, a.seed)
-    print(f"{a.n} geometries (default_rng({a.seed} + i)), {sv:g}/{sw:g} deg, load "
+    print(f"{a.method}, {a.n} geometries (default_rng({a.seed} + i)), {sv:g}/{sw:g} deg, load "
           f"{os.getloadavg()[0]:.1f}", flush=True)
     for k in views:
-        base, _, _, _, why = r = _score(old_solvers, h_old, k, {})
+        base, _, _, _, why = r = _score(old_solvers, h_old, k, {}, a.method)
         print(f"n={k:2d} before      logp {base.mean():.3f} +- "
               f"{base.std(ddof=1) / np.sqrt(a.n):.3f} flagged {r[1]} ESS med {r[2]:.0f} "
               f"{r[3]:.0f} ms {why.pop()}", flush=True)
         for w in why:
             print(f"      flagged: {w[:110]}")
         for v in a.variants:
-            lp, fl, ess, dt, why = _score(new_solvers, h_new, k, json.loads(v))
+            lp, fl, ess, dt, why = _score(new_solvers, h_new, k, json.loads(v), a.method)
             d = lp - base
             print(f"n={k:2d} after {v:6s} logp {lp.mean():.3f} +- "
                   f"{lp.std(ddof=1) / np.sqrt(a.n):.3f} flagged {fl} ESS med {ess:.0f} "
