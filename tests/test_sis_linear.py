@@ -293,3 +293,39 @@ def test_final_draws_at_the_mode_raise_the_effective_sample_size(monkeypatch):
         monkeypatch.setattr(_sis, "_FINAL_AT_MODE", at_mode)
         ess[at_mode] = np.array([e.ess for e in solve_triplets(hs, method="full", seed=4)])
     assert np.median(ess[True]) > 1.5 * np.median(ess[False])
+
+
+@pytest.mark.parametrize("moves", [0, 1])
+def test_a_retried_triplet_is_merged_with_its_own_ancestry(monkeypatch, moves):
+    # a triplet whose hypotheses all die is proposed again (step's retry) and merged back: the
+    # merged trajectories are those of the retry for it and those of the first proposal for the
+    # other triplet, with the earlier levels still shared (rebuilt flat when moves rewrote the
+    # trajectories)
+    from qfg.solvers._input import get_partition
+
+    hs = _histories(2, 3, seed=816000)
+    opts = _sis._options.resolve_options("full", {"max_hypotheses": 200, "n_samples": 100,
+                                                     "move_steps": moves})
+    st = _sis.start(np.stack([h.bearings[0] for h in hs]), np.full(2, hs[0].sigma_bearing),
+                    np.full(2, hs[0].sigma_heading),
+                    [np.random.SeedSequence(3, spawn_key=(t,)) for t in range(2)], opts,
+                    get_partition("edc"), "full")
+    real = _sis._extend
+    made = {}
+
+    def extend(state, phi, psi, spread, purpose):
+        out = real(state, phi, psi, spread, purpose)
+        if purpose == _sis._seeds.STREAM_CAMERAS and state.n_triplets == 2:
+            out = _sis._take(out, np.flatnonzero(out.tid == 1))   # triplet 0 dies
+        made[purpose] = out
+        return out
+
+    monkeypatch.setattr(_sis, "_extend", extend)
+    nxt = _sis.step(st, np.stack([h.bearings[1] for h in hs]),
+                    np.array([h.headings[0] for h in hs]))
+    assert _sis._seeds.STREAM_RETRY in made and nxt.lost[0] == 0
+    first, retry = made[_sis._seeds.STREAM_CAMERAS], made[_sis._seeds.STREAM_RETRY]
+    np.testing.assert_array_equal(nxt.poses[nxt.tid == 0], retry.poses)
+    np.testing.assert_array_equal(nxt.poses[nxt.tid == 1], first.poses[first.tid == 1])
+    assert (nxt.levels[0][0] is st.levels[0][0]) == (moves == 0)
+    np.testing.assert_array_equal(nxt.lw_c[nxt.tid == 0], retry.lw_c)
