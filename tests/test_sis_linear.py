@@ -146,6 +146,14 @@ def test_refits_take_at_most_the_window_of_views(monkeypatch):
     assert all(np.isfinite(e.landmark).all() and abs(e.landmark.sum() - 1) < 1e-9 for e in es)
 
 
+def test_gather_equals_concatenate_then_index():
+    rng = np.random.default_rng(6)
+    parts = [rng.standard_normal((m, 3)) for m in (4, 0, 7, 2)]
+    full = np.concatenate(parts)
+    for rows in (np.arange(13), np.array([12, 0, 5, 5, 3]), np.array([], dtype=int)):
+        np.testing.assert_array_equal(_sis._gather(parts, rows), full[rows])
+
+
 def _histories(n, k, seed=810000):
     return [random_triplet_history(np.random.default_rng(seed + i), k, np.deg2rad(2.0),
                                    np.deg2rad(5.0)) for i in range(n)]

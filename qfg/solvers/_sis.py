@@ -346,33 +346,43 @@ def _prune(st: SISState, gens) -> SISState:
     keep = _kept(st.tid, st.lw_base + st.lw_c, T, st.opts["prune_ratio"])
     if not keep.all():
         st = _take(st, np.flatnonzero(keep))
+    plan = _resampling(st, st.tid, st.lw_base + st.lw_c, gens)
+    if plan is None:
+        return st
+    idx, over, mean_log, moving = plan
+    new = _take(st, idx)
+    lw_base = np.where(over[new.tid], mean_log[new.tid] - new.lw_c, new.lw_base)
+    st = replace(new, lw_base=lw_base)
+    return _move(st, moving, mean_log) if np.any(moving) else st
+
+
+def _resampling(st: SISState, tid, total, gens):
+    """The resampling :func:`_prune` does after pruning, on hypotheses ``tid`` (N,) with
+    weights ``total`` (N,) (kept by :func:`_kept`) of the triplets of ``st``: None when nothing
+    is resampled, else (rows kept (sorted by triplet), triplets resampled (T,), their mean log
+    weight (T,), triplets to move (T,)). Every survivor of a resampled triplet carries the mean
+    weight. Draws one offset per triplet from ``gens`` every time."""
+    T = st.n_triplets
     cap = st.opts["max_hypotheses"]
-    counts = np.bincount(st.tid, minlength=T)
+    counts = np.bincount(tid, minlength=T)
     # drawn for every triplet every time, so that a triplet's later draws do not depend on others
     off = _offsets(gens)
     # triplets whose hypotheses are moved are resampled to the cap at every view (resample-move:
     # the moves need equal weights, and pruning alone leaves the descendants of few early poses)
     moving = (counts > 0) & (st.opts.get("move_steps", 0) > 0) & (st.n_views >= 2) \
         & _movable(st)
-    if counts.size and (counts.max() > cap or np.any(moving)):
-        over = (counts > cap) | moving
-        total = st.lw_base + st.lw_c
-        idx_over = _systematic(st.tid, total, T, np.where(over, cap, 0), off)
-        keep_under = np.flatnonzero(~over[st.tid])
-        # every survivor of an over-full triplet carries the mean weight, the total is unchanged
-        mx = _segment_max(st.tid, total, T)
-        w = np.exp(total - np.where(np.isfinite(mx), mx, 0.0)[st.tid])
-        with np.errstate(divide="ignore"):
-            mean_log = mx + np.log(np.bincount(st.tid, weights=w, minlength=T) / cap)
-        idx = np.concatenate([keep_under, idx_over])
-        idx = idx[np.argsort(st.tid[idx], kind="stable")]
-        new = _take(st, idx)
-        resampled = over[new.tid]
-        lw_base = np.where(resampled, mean_log[new.tid] - new.lw_c, new.lw_base)
-        st = replace(new, lw_base=lw_base)
-        if np.any(moving):
-            st = _move(st, moving, mean_log)
-    return st
+    if not (counts.size and (counts.max() > cap or np.any(moving))):
+        return None
+    over = (counts > cap) | moving
+    idx_over = _systematic(tid, total, T, np.where(over, cap, 0), off)
+    keep_under = np.flatnonzero(~over[tid])
+    # every survivor of an over-full triplet carries the mean weight, the total is unchanged
+    mx = _segment_max(tid, total, T)
+    w = np.exp(total - np.where(np.isfinite(mx), mx, 0.0)[tid])
+    with np.errstate(divide="ignore"):
+        mean_log = mx + np.log(np.bincount(tid, weights=w, minlength=T) / cap)
+    idx = np.concatenate([keep_under, idx_over])
+    return idx[np.argsort(tid[idx], kind="stable")], over, mean_log, moving
 
 
 #: Noise sigmas (radians) within which the trajectories are moved after resampling: below, the
@@ -680,14 +690,17 @@ def _extend(state: SISState, phi, psi, spread: float, purpose: int) -> SISState:
 
     blocks = [block(lo) for lo in range(0, par.size, _laplace.CHUNK_ROWS)]
     if blocks:
-        j, new_pose, lw, lpx, lw_c, c_sum = (np.concatenate(v) for v in zip(*blocks, strict=True))
+        # the per-child scalars in one array each; poses and C summaries stay in their blocks
+        # until the survivors of pruning and resampling are known (:func:`_gather`)
+        j, lw, lpx, lw_c = (np.concatenate([b[c] for b in blocks]) for c in (0, 2, 3, 4))
+        new_pose, c_sum = [b[1] for b in blocks], [b[5] for b in blocks]
     else:
-        j, new_pose, lw, lpx, lw_c = (np.zeros(0, dtype=int), np.zeros((0, 3)), np.zeros(0),
-                                      np.zeros(0), np.zeros(0))
-        c_sum = np.zeros((0, _laplace.SUMMARY_COLUMNS))
+        j, lw, lpx, lw_c = (np.zeros(0, dtype=int), np.zeros(0), np.zeros(0), np.zeros(0))
+        new_pose, c_sum = [np.zeros((0, 3))], [np.zeros((0, _laplace.SUMMARY_COLUMNS))]
     # same-pose triplets: the one child is the parent's pose again, weight unchanged
     sp = same[ct]
     if np.any(sp):
+        new_pose, c_sum = np.concatenate(new_pose), np.concatenate(c_sum)
         keep = ~sp[j]
         sj = np.flatnonzero(sp)
         sc, ss = _child_c(st, state, par[sj], prev[par[sj]], phi_c, has_sum)
@@ -700,6 +713,7 @@ def _extend(state: SISState, phi, psi, spread: float, purpose: int) -> SISState:
         order = np.argsort(ct[j], kind="stable")
         j, new_pose, lw, lpx, lw_c, c_sum = (j[order], new_pose[order], lw[order], lpx[order],
                                              lw_c[order], c_sum[order])
+        new_pose, c_sum = [new_pose], [c_sum]
     parent = par[j]
     ntid = tid[parent]
 
@@ -707,20 +721,57 @@ def _extend(state: SISState, phi, psi, spread: float, purpose: int) -> SISState:
         """(J, w, 3) the latest w = min(i + 1, REFIT_VIEWS) poses of the children ``rows``:
         O(w) each, for the few whose C is refitted."""
         return np.concatenate([trajectories(state.levels, parent[rows], REFIT_VIEWS - 1),
-                               new_pose[rows][:, None, :]], axis=1)
+                               _gather(new_pose, rows)[:, None, :]], axis=1)
 
     refit = np.flatnonzero(np.isnan(lw_c))
+    refit_sum = None
     if refit.size:
-        lw_c[refit], c_sum[refit] = _log_intermediate_c(
+        lw_c[refit], refit_sum = _log_intermediate_c(
             st, ntid[refit], lambda sel: child_poses(refit[sel]),
             bearings[:, -REFIT_VIEWS:, 2], gens)
-    # the children that pruning drops are never gathered (most of them: the C weights are sharp);
-    # _prune then finds all the rest kept and goes on as if it had pruned them itself
-    rows = np.flatnonzero(_kept(ntid, lw + lw_c, T, opts["prune_ratio"]))
-    st = replace(st, tid=ntid[rows], levels=state.levels + ((new_pose[rows], parent[rows]),),
-                 lw_base=lw[rows],
-                 lp_x=state.lp_x[parent[rows]] + lpx[rows], lw_c=lw_c[rows], c_sum=c_sum[rows])
-    return _prune(st, gens)
+    # pruning and resampling planned on the weights alone: only the children that survive both
+    # are gathered (as _prune would leave them)
+    total = lw + lw_c
+    rows = np.flatnonzero(_kept(ntid, total, T, opts["prune_ratio"]))
+    plan = _resampling(st, ntid[rows], total[rows], gens)
+    base = lw
+    if plan is not None:
+        idx, over, mean_log, moving = plan
+        rows = rows[idx]
+        base = np.where(over[ntid], mean_log[ntid] - lw_c, lw)
+    cs = _gather(c_sum, rows)
+    if refit_sum is not None:
+        at = np.minimum(np.searchsorted(refit, rows), refit.size - 1)
+        hit = refit[at] == rows
+        cs[hit] = refit_sum[at[hit]]
+    st = replace(st, tid=ntid[rows],
+                 levels=state.levels + ((_gather(new_pose, rows), parent[rows]),),
+                 lw_base=base[rows], lp_x=state.lp_x[parent[rows]] + lpx[rows], lw_c=lw_c[rows],
+                 c_sum=cs)
+    if plan is not None and np.any(moving):
+        st = _move(st, moving, mean_log)
+    return st
+
+
+def _gather(parts, rows) -> np.ndarray:
+    """``np.concatenate(parts)[rows]`` without concatenating: the rows of blocks ``parts``
+    (arrays with a common trailing shape)."""
+    rows = np.asarray(rows, dtype=np.int64)
+    if len(parts) == 1:
+        return parts[0][rows]
+    starts = np.cumsum([0] + [p.shape[0] for p in parts])
+    out = np.empty((rows.size,) + parts[0].shape[1:], dtype=parts[0].dtype)
+    order = None if np.all(rows[1:] >= rows[:-1]) else np.argsort(rows, kind="stable")
+    r = rows if order is None else rows[order]
+    bounds = np.searchsorted(r, starts)
+    tmp = out if order is None else np.empty_like(out)
+    for k, part in enumerate(parts):
+        lo, hi = bounds[k], bounds[k + 1]
+        if hi > lo:
+            tmp[lo:hi] = part[r[lo:hi] - starts[k]]
+    if order is not None:
+        out[order] = tmp
+    return out
 
 
 def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
