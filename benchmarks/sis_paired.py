@@ -11,9 +11,9 @@ preset's generator; S defaults to 700000, a development seed, not the preset's),
 building them with its own ``qfg.simulation`` (the same draws); the first n views solved with
 ``seed=1``. Per tree (or variant of the working tree's options) and n: mean log p(truth) of C
 (clipped at 1e-4, natural log) with its standard error, flagged answers (each with its reason),
-median ESS, ms per triplet (one batched call; a shared machine: compare within a run), the expected calibration
-error of the top state and the share with the truth under 1%, and the paired difference
-of every variant against the older tree with its standard error. With no VARIANT the working
+median ESS, ms per triplet (one batched call; a shared machine: compare within a run), the
+expected calibration error of the top state and the share with the truth under 1%, and the
+paired difference of every variant against the older tree with its standard error. With no VARIANT the working
 tree runs at its defaults.
 """
 
