@@ -742,7 +742,9 @@ def intermediate_prior(prior):
     subset of the points is (up to a constant) its marginal there (:class:`~qfg.priors.WorldBoxPrior`,
     exchangeable points; the independent :class:`~qfg.priors.ProductPrior` and
     :class:`~qfg.priors.WindowPrior`), that density, the world box's on ``INTER_N_RHO`` angles
-    (about 8x cheaper; only the last target, which carries the exact prior, makes the answer).
+    (cheaper than 128 by about 10x; only the last target, which carries the exact prior, makes
+    the answer: at 20 views with C at the truth 16 angles gave the ESS of 32 within its
+    scatter between seeds and the filter 25-50% faster, development seed 2, geometries 0-7).
     Any positive intermediate target keeps the filter exact; a closer one keeps its weights even.
     """
     if isinstance(prior, _priors.WorldBoxPrior):
@@ -755,7 +757,7 @@ def intermediate_prior(prior):
 
 
 #: Quadrature angles of the world box prior in the particle filter's intermediate targets.
-INTER_N_RHO = 32
+INTER_N_RHO = 16
 
 
 @_quiet
