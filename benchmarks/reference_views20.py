@@ -13,7 +13,8 @@ triplet at a time, one JSON line per (views, geometry) appended to ``--out``:
 (the old code measured from a git worktree: ``PYTHONPATH=<worktree> .venv/bin/python -m ...``).
 ``--at-truth`` instead runs the reference's particle filter given the true C (400 draws of C at
 the truth, 16 particles each) and prints the ESS of its weights with the prior inside the filter
-and with the prior on one drawn trajectory only (the filter without it), per geometry.
+and with the prior on one drawn trajectory only (the filter without it), and the spread of that
+trajectory's log prior, per geometry.
 """
 
 from __future__ import annotations
@@ -113,11 +114,15 @@ def at_truth(seed, lo, hi, views):
             L = _Layout(h.bearings, h.headings, h.sigma_bearing, h.sigma_heading)
             C = np.repeat(h.truth.C_ab[None], 400, 0)
             lz, X, _ = R.particle_trajectories(L, C, np.random.default_rng(0), 16)
-            outside = lz + prior.log_density(np.concatenate([C[:, None], X], 1))
+            lp = prior.log_density(np.concatenate([C[:, None], X], 1))
+            outside = lz + lp
             inside, _, _ = R.particle_trajectories(L, C, np.random.default_rng(0), 16,
                                                    prior=prior)
+            fin = np.isfinite(lp)
             print(f"n={n} i={i}: ESS of 400 draws at the true C, prior on one trajectory "
-                  f"{ess(outside):.0f}, prior inside the filter {ess(inside):.0f}", flush=True)
+                  f"{ess(outside):.0f}, prior inside the filter {ess(inside):.0f}; log prior of "
+                  f"the drawn trajectories: sd {np.std(lp[fin]):.2f} nats, 0 for "
+                  f"{np.sum(~fin)} of 400", flush=True)
 
 
 def main(argv=None):
