@@ -51,6 +51,10 @@ DEFAULTS = {
                                      # ESS is flagged: it rests on about one trajectory (1st
                                      # percentile on 80 development triplets at 2/5 deg, 3
                                      # views: 13; 5 of 120 answers at 6 and 10 views have 3-5)
+        "c_anchors": False,          # C refitted about its mode at views 4, 8, 16, 32, ...
+                                     # instead of updated (docs/solvers.md, "More views": +0.03
+                                     # at 10 views on development geometries; off: two tail and
+                                     # model-check tests not yet squared with it)
         "prior": "world",
     },
     "fast": {
@@ -71,6 +75,7 @@ DEFAULTS = {
         "model_check": 0.0,
         "min_ess": 1.5,              # less than about one effective draw: flagged (its 1st
                                      # percentile on the same triplets: 1.9)
+        "c_anchors": False,
         "prior": "world",
     },
     "fast-paper": {
@@ -131,7 +136,7 @@ def resolve_options(method: str, options: dict, defaults: dict | None = None) ->
             opts[k] = non_negative(k, opts[k])
             if k in ("match_sigmas", "jacobian_cap") and opts[k] == 0:
                 raise ValueError(f"{k}: expected a number > 0, got 0")
-    for k in ("jacobian", "landmark_volume"):
+    for k in ("jacobian", "landmark_volume", "c_anchors"):
         if k in opts and not isinstance(opts[k], (bool, np.bool_)):
             raise ValueError(f"{k}: expected True or False, got {opts[k]!r}")
     if "prune_ratio" in opts:

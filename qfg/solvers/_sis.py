@@ -217,6 +217,10 @@ def _c_weight(state_like, tid, poses, bearings_c, gens, k, laplace=None):
 #: (C's depth poorly resolved, e.g. lines of sight that nearly coincide) it is sampled.
 _LAPLACE_SPREAD = 0.25
 
+#: Depth spread below which a hypothesis keeps a C summary for the next views to update
+#: (:func:`_child_c`); above it C is refitted over the views at the next view.
+_SUMMARY_SPREAD = _LAPLACE_SPREAD
+
 
 def _log_intermediate_c(state_like, tid, poses, bearings_c, gens):
     """log of C's integral with the per-point prior, for the intermediate weights: Laplace about
@@ -237,11 +241,13 @@ def _log_intermediate_c(state_like, tid, poses, bearings_c, gens):
         P = get(sl)
         lz, Ls, spread, parts = _laplace.laplace_landmark(P, bearings_c[tid[sl]], sig[sl],
                                                           parts=True)
+        if _REFIT_AT_MODE and state_like.opts.get("c_anchors", False):
+            lz, Ls, spread, parts = _at_mode(P, bearings_c[tid[sl]], sig[sl], lz, spread, parts)
         out[sl] = lz + _prior.point_log_prior(prior, Ls)
         if tail is not None:
             out[sl] += _tail_correction(P, bearings_c[tid[sl]], sig[sl], Ls, tail)
         easy = spread < _LAPLACE_SPREAD
-        summ[sl] = _laplace.summary_from_parts(lz, parts, easy)
+        summ[sl] = _laplace.summary_from_parts(lz, parts, spread < _SUMMARY_SPREAD)
         h = np.flatnonzero(~easy)
         hard.append(lo + h)
         lap.append(tuple(v[h] for v in parts))
@@ -263,10 +269,57 @@ def _log_intermediate_c(state_like, tid, poses, bearings_c, gens):
 #: weights use every view); with up to this many views nothing changes.
 REFIT_VIEWS = 20
 
+#: Whether refits take the Laplace approximation about C's mode in the bearing residuals
+#: (:func:`_at_mode`) rather than about the lines' least-squares point, with the option
+#: ``c_anchors`` (a bearing tail's correction is then taken at the mode too).
+_REFIT_AT_MODE = True
+
+
+def _at_mode(P, phi_c, sig, lz, spread, parts):
+    """:func:`._laplace.laplace_landmark`'s outputs moved to C's mode over the views of ``P``
+    (J, n, 3) where C's depth is resolved (:func:`._laplace.refine_mode` from the least-squares
+    point): the Laplace value ``sum_t log N(r_t; sigma) + log(2 pi sigma^2 / sqrt(det H))`` there,
+    as the carried summaries have it. Rows not resolved keep the least-squares values."""
+    easy = np.flatnonzero(spread < _LAPLACE_SPREAD)
+    if not easy.size:
+        return lz, parts[0], spread, parts
+    X, th = P[easy, :, :2], P[easy, :, 2] + phi_c[easy]
+    L, ok, h00, h01, h11, det, r2min = _laplace.refine_mode(X, th, parts[0][easy])
+    res = wrap_angle(np.arctan2(L[:, None, 1] - X[..., 1], L[:, None, 0] - X[..., 0]) - th)
+    s = sig[easy]
+    n = P.shape[1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lzm = (-0.5 * np.sum(res * res, axis=1) / (s * s) - n * (np.log(s) + 0.5 * np.log(2 * np.pi))
+               + np.log(2 * np.pi * s * s) - 0.5 * np.log(det))
+    good = ok & np.isfinite(lzm)
+    e = easy[good]
+    lz, spread = lz.copy(), spread.copy()
+    new = [np.array(v, copy=True) for v in parts]
+    for k, v in enumerate((L, ok, h00, h01, h11, det, r2min)):
+        new[k][e] = v[good]
+    lz[e] = lzm[good]
+    spread[e] = _laplace.depth_spread(True, h00[good], h01[good], h11[good], det[good],
+                                      r2min[good], s[good])
+    return lz, new[0], spread, tuple(new)
+
+
 #: Whether the motion step updates the parents' C summaries with the new view
 #: (:func:`_update_c`, O(1) per child) instead of refitting C over all views (O(views)); a
 #: switch for the tests, which compare both.
 _INCREMENTAL_C = True
+
+
+#: With the option ``c_anchors``: views at which every child's C is refitted over the (latest
+#: REFIT_VIEWS) views about C's mode (:func:`_at_mode`) instead of updated, so that the
+#: summaries' frozen early gradients do not persist: 4, 8, 16, then every 16th view (the refits
+#: then cost at most about 2 x REFIT_VIEWS / 16 pose-views per child and view on average: time
+#: stays linear). False: never (a switch for the tests).
+_ANCHORS = True
+
+
+def _anchor(view: int) -> bool:
+    """Whether ``view`` (1-based) refits every child's C (:data:`_ANCHORS`)."""
+    return bool(_ANCHORS) and view >= 4 and (view in (4, 8) or view % 16 == 0)
 
 
 def _child_c(st, state, parent, pose, phi_c, has_sum):
@@ -284,7 +337,7 @@ def _child_c(st, state, parent, pose, phi_c, has_sum):
         ct = state.tid[parent[rows]]
         new, spread = _laplace.update_landmark(state.c_sum[parent[rows]], pose[rows, :2],
                                                pose[rows, 2] + phi_c[ct], st.sigma_v()[ct])
-        ok = spread < _LAPLACE_SPREAD
+        ok = spread < _SUMMARY_SPREAD
         rows, new = rows[ok], new[ok]
         lw_c[rows] = new[:, 5] + _prior.point_log_prior(st.opts["prior"], new[:, :2])
         summ[rows] = new
@@ -663,7 +716,8 @@ def _extend(state: SISState, phi, psi, spread: float, purpose: int) -> SISState:
                  same_pose=np.concatenate([state.same_pose, same[:, None]], axis=1))
     # children of parents with a C summary: the summary updated with the new line of sight,
     # O(1) per child; the others (and those the update leaves unresolved) refitted over all views
-    incremental = _INCREMENTAL_C and tail is None
+    incremental = _INCREMENTAL_C and tail is None and not (
+        opts.get("c_anchors", False) and _anchor(i + 1))
     has_sum = np.isfinite(state.c_sum[:, 0]) if incremental else np.zeros(tid.size, dtype=bool)
     phi_c = phi[:, 2]
 
