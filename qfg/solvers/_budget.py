@@ -14,8 +14,8 @@ worst case processes (every child refitted at every view, moves over whole traje
 views, processed for 100 views with full's defaults (then 15 s per triplet under a load of 11;
 now about 10 times fewer pose-views are refitted in the common case, and the bound admits about
 260 views for full and 6000 for fast at their defaults).
-The reference solver takes at most :data:`REFERENCE_MAX_VIEWS` views (its time is linear in
-them, but its ESS falls below 50 beyond).
+The reference solver takes at most :data:`REFERENCE_MAX_VIEWS` views (beyond, its time and
+its ESS are not measured to stay useful).
 """
 
 from __future__ import annotations
@@ -23,13 +23,14 @@ from __future__ import annotations
 #: Largest working memory a call may need (bytes); above it the call is refused up front.
 MEMORY_BUDGET = 2 * 2**30
 
-#: Most views the reference solver takes. Its conditional sampler (beyond 5 views) costs time
-#: linear in the views (under a load of about 9: 62 s and 86 s per triplet at 30 and 40 views on
-#: 2 development histories each; docs/priors.md for 6-20 views), but its ESS falls with the
-#: views (65 and 165 at 30, 33 and 37 at 40: every 40-view answer flagged): beyond 30 views it
-#: would spend minutes on answers it must flag (``python -m benchmarks.bench_reference --views-dev 30 40
-#: --triplets 2 --samplers conditional``). The staged sampler alone took 46-157 s with an ESS
-#: of 5-7 at 20 views (issue 20).
+#: Most views the reference solver takes. Its conditional sampler (beyond 5 views) evaluates the
+#: world-box prior on every point seen so far at each filter step (since issue 20's item 2), so
+#: its cost per round grows about quadratically with the views: 27.1 s median per triplet at 30
+#: views on 2 development histories (load 3.0), ESS 272 and 532 (``python -m
+#: benchmarks.bench_reference --views-dev 30 --triplets 2 --samplers conditional``,
+#: docs/priors.md). Before that change its ESS at 30 and 40 views was 65-165 and 33-37 (every
+#: 40-view answer flagged), and the staged sampler alone took 46-157 s with an ESS of 5-7 at 20
+#: views. The cap bounds a call (about half a minute at 30 views in that measurement).
 REFERENCE_MAX_VIEWS = 30
 
 #: Most pose-views one triplet may process (:func:`work_units`): what the engine that refitted
