@@ -101,12 +101,7 @@ def at_truth(seed, lo, hi, views):
 
     prior = resolve_prior("world")
 
-    def ess(lw):
-        lw = lw[np.isfinite(lw)]
-        if lw.size == 0:
-            return 0.0
-        w = np.exp(lw - lw.max())
-        return float(w.sum() ** 2 / np.sum(w * w))
+    ess = R._ess
 
     for n in views:
         for i in range(lo, hi):
