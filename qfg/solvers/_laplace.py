@@ -108,6 +108,19 @@ def depth_spread(ok, h00, h01, h11, det, r2min, sig):
     return np.where(ok, np.sqrt(lam) * sig / np.sqrt(r2min), np.inf)
 
 
+def laplace_value(sum_r2, n, sigma, det):
+    """log of the Laplace approximation of C's integral about a point with squared bearing
+    residuals summing to ``sum_r2`` over ``n`` views and information determinant ``det``:
+    ``sum_t log N(r_t; sigma) + log(2 pi sigma^2 / sqrt(det H))``.
+
+    >>> round(float(laplace_value(0.0, 2, 1.0, 1.0)), 6)   # two views, no residual: -log(2 pi) + log(2 pi)
+    0.0
+    """
+    s = sigma
+    return (-0.5 * sum_r2 / (s * s) - n * (np.log(s) + 0.5 * np.log(2 * np.pi))
+            + np.log(2 * np.pi * s * s) - 0.5 * np.log(det))
+
+
 def laplace_landmark(poses, phi_c, sigma, parts=False):
     """Laplace approximation of C's integral ``log ∫ prod_t N(phi_C,t - f(L, X_t); sigma) dL``
     (normalized Gaussians) about the least-squares triangulation, without the prior:
@@ -132,8 +145,7 @@ def laplace_landmark(poses, phi_c, sigma, parts=False):
         res = wrap_angle(res)
         res *= res
         s = sig[sl]
-        lz[sl] = (-0.5 * sum_views(res) / (s * s) - n * (np.log(s) + 0.5 * np.log(2 * np.pi))
-                  + np.log(2 * np.pi * s * s) - 0.5 * np.log(det))
+        lz[sl] = laplace_value(sum_views(res), n, s, det)
         spread[sl] = depth_spread(ok, h00, h01, h11, det, r2min, s)
         if parts:
             ok_all[sl] = ok

@@ -285,12 +285,10 @@ def _at_mode(P, phi_c, sig, lz, spread, parts):
         return lz, parts[0], spread, parts
     X, th = P[easy, :, :2], P[easy, :, 2] + phi_c[easy]
     L, ok, h00, h01, h11, det, r2min = _laplace.refine_mode(X, th, parts[0][easy])
-    res = wrap_angle(np.arctan2(L[:, None, 1] - X[..., 1], L[:, None, 0] - X[..., 0]) - th)
+    res = wrap_angle(bearing(P[easy], L[:, None, :]) - phi_c[easy])
     s = sig[easy]
-    n = P.shape[1]
     with np.errstate(divide="ignore", invalid="ignore"):
-        lzm = (-0.5 * np.sum(res * res, axis=1) / (s * s) - n * (np.log(s) + 0.5 * np.log(2 * np.pi))
-               + np.log(2 * np.pi * s * s) - 0.5 * np.log(det))
+        lzm = _laplace.laplace_value(np.sum(res * res, axis=1), P.shape[1], s, det)
     good = ok & np.isfinite(lzm)
     e = easy[good]
     lz, spread = lz.copy(), spread.copy()
