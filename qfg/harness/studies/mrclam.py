@@ -510,9 +510,9 @@ def _history_groups(prep: Prepared) -> dict:
     return groups
 
 
-def _pair_agreements(P, groups: dict, q, tau: float) -> tuple[np.ndarray, np.ndarray]:
-    """(per pair of histories of one group: log sum_s t_i t_j / q, the pair's cluster index):
-    a cluster is an unordered landmark set (its orderings' histories share their measurements)."""
+def _history_pairs(groups: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(first, second, cluster index) of every pair of histories of one group; a cluster is an
+    unordered landmark set (its orderings' histories share their measurements)."""
     pairs, keys = [], []
     for g, ks in groups.items():
         for i, a in enumerate(ks):
@@ -520,11 +520,16 @@ def _pair_agreements(P, groups: dict, q, tau: float) -> tuple[np.ndarray, np.nda
                 pairs.append((a, b))
                 keys.append(tuple(sorted(g)))
     if not pairs:
-        return np.zeros(0), np.zeros(0, dtype=np.intp)
+        empty = np.zeros(0, dtype=np.intp)
+        return empty, empty, empty
     a, b = np.array(pairs).T
+    return a, b, np.unique(np.array(keys), axis=0, return_inverse=True)[1].ravel()
+
+
+def _pair_agreements(P, a, b, q, tau: float) -> np.ndarray:
+    """Per pair (a, b) of histories: ``log sum_s t_a t_b / q``, t tempered by ``tau``."""
     T = temper(np.asarray(P, dtype=float), q, tau)
-    cid = np.unique(np.array(keys), axis=0, return_inverse=True)[1].ravel()
-    return np.log(np.sum(T[a] * T[b] / q, axis=1)), cid
+    return np.log(np.sum(T[a] * T[b] / q, axis=1))
 
 
 def cross_pass_agreement(P, groups: dict, q, tau: float) -> tuple[float, int]:
@@ -545,8 +550,10 @@ def cross_pass_agreement(P, groups: dict, q, tau: float) -> tuple[float, int]:
     >>> n, round(a1, 3), round(a0, 3)      # confident and contradicting: worse than the prior
     (1, -2.546, 0.0)
     """
-    ag, _ = _pair_agreements(P, groups, q, tau)
-    return (float(np.mean(ag)), int(ag.size)) if ag.size else (0.0, 0)
+    a, b, _ = _history_pairs(groups)
+    if not a.size:
+        return 0.0, 0
+    return float(np.mean(_pair_agreements(P, a, b, q, tau))), int(a.size)
 
 
 def clustered_se(values, cluster) -> float:
@@ -589,12 +596,14 @@ def choose_power(P, groups: dict, q, taus=AUTO_TEMPERS, rule: str = "auto") -> t
     {ordered triplet: [history index, ...]}, ``q`` (m,) the prior's state distribution."""
     if rule not in TEMPER_RULES:
         raise ValueError(f"rule: expected one of {TEMPER_RULES}, got {rule!r}")
+    a, b, cid = _history_pairs(groups)
+    if not a.size:
+        return 1.0, [(float(t), 0.0, 0, 0.0) for t in taus]
     table = []
     for t in taus:
-        ag, cid = _pair_agreements(P, groups, q, t)
-        table.append((float(t), float(np.mean(ag)) if ag.size else 0.0, int(ag.size),
-                      clustered_se(ag, cid)))
-    if not table or table[0][2] == 0:
+        ag = _pair_agreements(P, a, b, q, t)
+        table.append((float(t), float(np.mean(ag)), int(ag.size), clustered_se(ag, cid)))
+    if not table:
         return 1.0, table
     best = max(table, key=lambda r: (r[1], r[0]))
     if rule == "auto":
