@@ -521,6 +521,13 @@ def _concat_terms(a: _Terms, b: _Terms) -> _Terms:
                   a.evidence + b.evidence)
 
 
+def _lookup_of(part):
+    """The partition's vectorized state lookup of AB-frame positions, without re-checking the
+    inputs (to_frame made them finite); ``state_of`` where the partition has none."""
+    lk = part.lookup
+    return (lambda c: np.asarray(lk(c), dtype=np.int64)) if lk is not None else part.state_of
+
+
 def _term_loglik(t: _Terms, idx, pts, lookup) -> np.ndarray:
     """(len(idx), P) log L_t of terms ``idx`` (module docstring: state or metric, floored) for
     the landmark positions ``pts`` = [A, B, C], each (len(idx), P, 2); ``lookup`` maps AB-frame
@@ -606,10 +613,7 @@ class _Sampler:
         self.Pg = self.P // n_groups
         self.box = np.array([pr.width, pr.height])
         self.of_landmark = [np.flatnonzero(np.any(terms.ijk == l, axis=1)) for l in range(self.n)]
-        # the partition's vectorized lookup without re-checking inputs to_frame made finite
-        lk = part.lookup
-        self._lookup = ((lambda c: np.asarray(lk(c), dtype=np.int64)) if lk is not None
-                        else part.state_of)
+        self._lookup = _lookup_of(part)
         self.ll = self._loglik(np.arange(len(terms.ijk)))
         self.step = np.full(self.n, 0.5)
         self.sim_step = 0.5
@@ -1083,9 +1087,7 @@ class ConfigurationPosterior:
         T = len(t.triplets)
         if T == 0:
             return LeaveOneOutCheck((), np.zeros(0), 0.0, (0.0, 0.0))
-        lk = self.partition.lookup
-        lookup = ((lambda c: np.asarray(lk(c), dtype=np.int64)) if lk is not None
-                  else self.partition.state_of)
+        lookup = _lookup_of(self.partition)
         w = np.asarray(self.weights, dtype=float)
         log_cpo = np.empty(T)
         step = max(1, _CHUNK // self.positions.shape[0])
