@@ -59,7 +59,7 @@ from . import partitions as _partitions
 from . import priors as _priors
 from ._validate import as_float_array, as_rng, non_negative, positive_int
 
-__all__ = ["PositionSummary", "summarize_position", "ConfigurationPosterior",
+__all__ = ["PositionSummary", "summarize_position", "combine_positions", "ConfigurationPosterior",
            "infer_configurations", "configuration_marginals", "prior_states",
            "one_ordering_per_set", "LeaveOneOutCheck", "CHECK_GRID", "LIKELIHOODS",
            "DEFAULTS"]
@@ -313,6 +313,89 @@ def summarize_position(hypotheses, states=None, prior="world", *, partition="edc
     keep = np.isfinite(logw)
     return PositionSummary(st, centres[keep], logw[keep], h * h * cov, ess,
                            ess < LOW_ESS or not keep.any(), part.name, pr.name)
+
+
+def combine_positions(summaries, prior="world", *, temper: float = 1.0, states=None,
+                      n_points: int = 4000, n_components: int = 32, seed=0) -> PositionSummary:
+    """One :class:`PositionSummary` for independent measurements of the same ordered triplet
+    (several passes, each solved alone under the same prior): their likelihood ratios multiply,
+
+        p(c | H_1..H_k)  ∝  prior(c) prod_h r_h(c)^temper,
+
+    with ``r_h`` each summary's :meth:`PositionSummary.ratio` and ``temper`` the power the
+    passes' agreement chose (``qfg mrclam --temper``; 1: none). The product is sampled by
+    importance sampling: ``n_points`` draws from the summaries' kernel mixtures with every
+    kernel's covariance doubled (each pass's posterior, widened, so that the product's region is
+    covered when the passes agree), weighted by the target over that proposal, then summarized
+    by :func:`summarize_position`. The result's ``ess`` is the least of the passes' and of these
+    weights', so that the product of poorly sampled passes, or of passes that disagree (little
+    overlap: few draws carry the weight), is flagged ``low_ess`` and read with more of the state
+    likelihood. ``states``: (m,) the combined state distribution (default: the weighted states
+    of the draws). One summary and ``temper`` 1: that summary (``states`` replaced if given).
+
+    >>> rng = np.random.default_rng(0)
+    >>> a = summarize_position((rng.normal([0.5, 2.0], 0.2, (400, 2)), np.ones(400)), seed=1)
+    >>> b = summarize_position((rng.normal([0.7, 2.0], 0.2, (400, 2)), np.ones(400)), seed=2)
+    >>> ab = combine_positions([a, b], seed=3)
+    >>> bool(0.5 < ab.centres[:, 0].mean() < 0.7), ab.low_ess
+    (True, False)
+    """
+    summ = list(summaries) if not isinstance(summaries, PositionSummary) else [summaries]
+    if not summ or not all(isinstance(s, PositionSummary) for s in summ):
+        raise ValueError("summaries: expected one or more PositionSummary objects")
+    pr = _world_prior(prior)
+    part = _partitions.get(summ[0].partition)
+    for s in summ:
+        if s.partition != part.name or s.prior != pr.name:
+            raise ValueError(f"summaries: a summary for partition {s.partition!r} and prior "
+                             f"{s.prior!r}, expected {part.name!r} and {pr.name!r}")
+    tau = non_negative("temper", temper)
+    if states is not None:
+        st = as_float_array("states", states, ndim=1)
+        if st.shape != (part.n_states,):
+            raise ValueError(f"states: expected shape ({part.n_states},), got {st.shape}")
+        st = st / st.sum()
+    if len(summ) == 1 and tau == 1.0:
+        s = summ[0]
+        return s if states is None else PositionSummary(
+            st, s.centres, s.log_weights, s.bandwidth, s.ess, s.low_ess, s.partition, s.prior)
+    live = [s for s in summ if s.centres.shape[0] > 0]
+    if not live:   # no pass kept a sample: the states alone
+        return PositionSummary(summ[0].states if states is None else st, np.zeros((0, 2)),
+                               np.zeros(0), np.eye(2), 0.0, True, part.name, pr.name)
+    n = positive_int("n_points", n_points)
+    rng = as_rng(seed)
+    # proposal: an equal mixture over passes, each its centres with doubled kernels
+    comp = np.concatenate([np.full(s.centres.shape[0], i) for i, s in enumerate(live)])
+    cen = np.concatenate([s.centres for s in live])
+    share = np.concatenate([np.full(s.centres.shape[0], 1.0 / (len(live) * s.centres.shape[0]))
+                            for s in live])
+    pick = rng.choice(cen.shape[0], size=n, p=share / share.sum())
+    L2 = np.stack([np.linalg.cholesky(2.0 * s.bandwidth) for s in live])
+    pts = cen[pick] + np.einsum("nij,nj->ni", L2[comp[pick]], rng.standard_normal((n, 2)))
+    log_g = np.full(n, -np.inf)
+    for i, s in enumerate(live):
+        lin, lnorm = _chol_inverse(2.0 * s.bandwidth[None])
+        lg = _log_mixture(pts[None], s.centres[None],
+                          np.full((1, s.centres.shape[0]), -np.log(s.centres.shape[0])),
+                          lin, lnorm)[0] - np.log(len(live))
+        log_g = np.logaddexp(log_g, lg)
+    log_t = pr.log_density(pts[:, None, :])
+    for s in live:
+        lin, lnorm = _chol_inverse(s.bandwidth[None])
+        log_t = log_t + tau * _log_mixture(pts[None], s.centres[None], s.log_weights[None],
+                                           lin, lnorm)[0]
+    ok = np.isfinite(log_t) & np.isfinite(log_g)
+    lw = np.where(ok, log_t - np.where(ok, log_g, 0.0), -np.inf)
+    if not np.isfinite(lw).any():   # the passes share no region at all
+        return PositionSummary(live[0].states if states is None else st, np.zeros((0, 2)),
+                               np.zeros(0), np.eye(2), 0.0, True, part.name, pr.name)
+    w = np.exp(lw - lw.max())
+    out = summarize_position((pts, w), None if states is None else st, pr,
+                             partition=part.name, n_components=n_components, seed=rng)
+    ess = min([out.ess] + [s.ess for s in summ])
+    return PositionSummary(out.states, out.centres, out.log_weights, out.bandwidth, ess,
+                           out.low_ess or ess < LOW_ESS, part.name, pr.name)
 
 
 # --------------------------------------------------------------------------- evidence

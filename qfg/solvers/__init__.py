@@ -141,7 +141,7 @@ def _solve(model, meas, part, opts, root):
     return solver._finish()
 
 
-def _solve_fast_batch(metas, part, opts):
+def _solve_fast_batch(metas, part, opts, hypotheses=False):
     b = np.stack([m.bearings for m in metas])
     n = b.shape[1]
     sv = np.array([m.sigma_bearing for m in metas])
@@ -149,7 +149,8 @@ def _solve_fast_batch(metas, part, opts):
     st = _fast.start(b[:, 0], sv, sh, opts, part)
     for i in range(1, n):
         st = _fast.step(st, b[:, i], np.array([m.headings[i - 1] for m in metas]))
-    return [e for e, _ in _fast.finish(st)]
+    out = _fast.finish(st, hypotheses=hypotheses)
+    return out if hypotheses else [e for e, _ in out]
 
 
 def _reference_estimate(meas, part, opts, root) -> TripletEstimate:
@@ -182,7 +183,7 @@ def _reference_estimate(meas, part, opts, root) -> TripletEstimate:
         options=_estimate.public_options(opts))
 
 
-def _solve_sis_batch(model, metas, roots, part, opts):
+def _solve_sis_batch(model, metas, roots, part, opts, hypotheses=False):
     b = np.stack([m.bearings for m in metas])
     sv = np.array([m.sigma_bearing for m in metas])
     sh = np.array([m.sigma_heading for m in metas])
@@ -196,13 +197,18 @@ def _solve_sis_batch(model, metas, roots, part, opts):
     for i in range(1, b.shape[1]):
         st = _sis.step(st, b[:, i], np.array([m.headings[i - 1] for m in metas]),
                        None if d is None else d[:, i - 1])
-    return [e for e, _ in _sis.finish(st)]
+    out = _sis.finish(st, hypotheses=hypotheses)
+    return out if hypotheses else [e for e, _ in out]
 
 
 def solve_triplets(histories, headings=None, *, method: str = "full", partition="edc",
                    sigma_bearing=None, sigma_heading=None, seed=None, distances=None,
-                   sigma_distance_ratio=None, **options) -> list[TripletEstimate]:
-    """Solve many triplets in one call; returns one :class:`TripletEstimate` per triplet.
+                   sigma_distance_ratio=None, hypotheses: bool = False,
+                   **options) -> list[TripletEstimate]:
+    """Solve many triplets in one call; returns one :class:`TripletEstimate` per triplet
+    (``hypotheses=True``: one ``(estimate, Hypotheses)`` pair per triplet, the weighted samples
+    behind it as :meth:`TripletSolver.hypotheses` gives them; None for the reference solver,
+    which keeps none).
 
     ``histories`` is a sequence of TripletHistory objects (their ``distances`` used when
     present), or bearings (T, n, 3) with ``headings`` (T, n - 1), optional ``distances``
@@ -233,15 +239,17 @@ def solve_triplets(histories, headings=None, *, method: str = "full", partition=
         if model in ("fast-paper",) + _SIS:
             groups.setdefault((model, meas.n_views), []).append(t)
         else:
-            out[t] = _solve(model, meas, part, _model_options(method, model, options),
-                            _seeds.child_seed(root, t))[0]
+            pair = _solve(model, meas, part, _model_options(method, model, options),
+                          _seeds.child_seed(root, t))
+            out[t] = tuple(pair) if hypotheses else pair[0]
     for (model, _), idx in groups.items():
         opts = _model_options(method, model, options)
         ms = [metas[t] for t in idx]
         if model == "fast-paper":
-            ests = _solve_fast_batch(ms, part, opts)
+            ests = _solve_fast_batch(ms, part, opts, hypotheses)
         else:
-            ests = _solve_sis_batch(model, ms, [_seeds.child_seed(root, t) for t in idx], part, opts)
+            ests = _solve_sis_batch(model, ms, [_seeds.child_seed(root, t) for t in idx], part,
+                                    opts, hypotheses)
         for t, est in zip(idx, ests, strict=True):
             out[t] = est
     return out

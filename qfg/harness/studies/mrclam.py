@@ -60,6 +60,7 @@ from qfg.combine import (
     product_of_posteriors,
     temper,
 )
+from qfg.configurations import PositionSummary, summarize_position
 from qfg.datasets import mrclam as _mrclam
 from qfg.harness.runner import Study, figure_format, param_spec, save_figure, write_table
 from qfg.partitions import get as get_partition
@@ -305,6 +306,10 @@ class _Light:
     method: str
     degenerate: bool
     model_check: float = float("nan")
+    # C's AB-frame position (qfg.configurations.PositionSummary), kept for the histories whose
+    # landmarks are in ascending order (one ordering per set and pass: the metric configuration
+    # map's evidence); None for the others and for runs recorded before summaries were kept
+    position: object = None
 
 
 # ----------------------------------------------------------------------------- the pipeline
@@ -419,25 +424,24 @@ def solve_piece(prep: Prepared, index: int, *, method: str = "full", seed=0, pie
     opts = {k: v for k, v in prep.solver_options.items() if v}
     if method == "baseline":
         opts.pop("model_check", None)
-    ests = solve_triplets(hs, method=method, partition=prep.partition, seed=ss,
-                          **dict(opts, **solver_options, prior=prep.prior))
-    return [_Light(e.landmark, e.cameras, e.method, bool(e.degenerate),
-                   float(getattr(e, "model_check", float("nan")))) for e in ests]
-
-
-def _solve(hs, method, part, seed, options) -> list[_Light]:
-    """Solve in chunks of :data:`CHUNK`; chunk c gets child c of ``SeedSequence(seed)``."""
-    from qfg.solvers import solve_triplets
-
-    n_chunks = -(-len(hs) // CHUNK)
-    seeds = np.random.SeedSequence(seed).spawn(n_chunks) if n_chunks else []
-    out: list[_Light] = []
-    for c in range(n_chunks):
-        ests = solve_triplets(hs[c * CHUNK:(c + 1) * CHUNK], method=method, partition=part,
-                              seed=seeds[c], **options)
-        out += [_Light(e.landmark, e.cameras, e.method, bool(e.degenerate)) for e in ests]
-        del ests
+    pairs = solve_triplets(hs, method=method, partition=prep.partition, seed=ss,
+                           hypotheses=True, **dict(opts, **solver_options, prior=prep.prior))
+    out = []
+    for k, (h, (e, hyp)) in enumerate(zip(hs, pairs, strict=True)):
+        pos = None
+        if hyp is not None and _ascending(h.landmarks):
+            pos = summarize_position(hyp, e.landmark, prep.prior, partition=prep.partition.name,
+                                     seed=np.random.SeedSequence(int(seed),
+                                                                 spawn_key=(int(index), k, 1)))
+        out.append(_Light(e.landmark, e.cameras, e.method, bool(e.degenerate),
+                          float(getattr(e, "model_check", float("nan"))), pos))
     return out
+
+
+def _ascending(landmarks) -> bool:
+    """Whether a history's landmarks are in ascending order (its set's first ordering)."""
+    a, b, c = (int(x) for x in landmarks)
+    return a < b < c
 
 
 def _exact(p) -> str:
@@ -464,7 +468,9 @@ def piece_rows(prep: Prepared, index: int, ests: list[_Light], piece: int = CHUN
                      "n_views": int(h.n_views), "method": e.method, "degenerate": e.degenerate,
                      "model_check": repr(float(e.model_check)),
                      "landmark": _exact(e.landmark),
-                     "cameras": _exact(e.cameras) if cams else ""})
+                     "cameras": _exact(e.cameras) if cams else "",
+                     "position": (json.dumps(e.position.to_dict()) if e.position is not None
+                                  else "")})
     return rows
 
 
@@ -486,9 +492,11 @@ def estimates_from_rows(prep: Prepared, rows: list[dict]) -> list[_Light]:
                              "the data changed since the run was recorded; pass --overwrite")
         cams = (_unexact(r["cameras"], (h.n_views, m)) if r.get("cameras")
                 else np.full((h.n_views, m), 1.0 / m))
+        pos = r.get("position") or ""
         out.append(_Light(_unexact(r["landmark"]), cams, str(r["method"]),
                           str(r["degenerate"]) == "True" or r["degenerate"] is True,
-                          float(r.get("model_check", "nan"))))
+                          float(r.get("model_check", "nan")),
+                          PositionSummary.from_dict(json.loads(pos)) if pos else None))
     return out
 
 
@@ -624,7 +632,7 @@ def seen_estimates(prep: Prepared, ests: list[_Light], *, combine: str = "geomet
     ds, q_c, q_x = prep.dataset, prep.prior_states, prep.prior_camera_states
     if temper != 1:
         ests = [_Light(_temper(e.landmark, q_c, temper), _temper(e.cameras, q_x, temper),
-                       e.method, e.degenerate, e.model_check) for e in ests]
+                       e.method, e.degenerate, e.model_check, e.position) for e in ests]
     groups = _history_groups(prep)
     combined = {t: _combine(np.array([ests[k].landmark for k in ks]), q_c, combine)
                 for t, ks in groups.items()}
@@ -638,7 +646,9 @@ def seen_estimates(prep: Prepared, ests: list[_Light], *, combine: str = "geomet
         estimates=np.array([e.landmark for e in ests], dtype=float).reshape(-1, m),
         groups=groups, prior_states=q_c, seed=int(seed),
         histories=lambda: list(prep.histories), tensor=tensor, prior=prep.prior,
-        prior_camera_states=prep.prior_camera_states, solver=_solver_of(ests))
+        prior_camera_states=prep.prior_camera_states, solver=_solver_of(ests),
+        positions={k: e.position for k, e in enumerate(ests) if e.position is not None},
+        temper=float(temper))
     return seen, ests, combined
 
 
@@ -744,7 +754,8 @@ def finish(prep: Prepared, ests: list[_Light], *, combine: str = "geometric",
     rows = score_map(prep, seen, result, ests, common)
     if result.cameras is not None:  # the map answered the cameras too (e.g. the joint map)
         answered = str(result.info.get("camera_method", method.name))
-        ests = [_Light(e.landmark, np.asarray(c, dtype=float), answered, e.degenerate)
+        ests = [_Light(e.landmark, np.asarray(c, dtype=float), answered, e.degenerate,
+                       e.model_check, e.position)
                 for e, c in zip(ests, result.cameras, strict=True)]
     rows += _camera_rows([h for _, h in prep.histories], prep.histories, ests,
                          prep.prior_camera_states, prep.partition, common)

@@ -42,7 +42,8 @@ import numpy as np
 
 __all__ = ["SeenEstimates", "MapResult", "MapMethod", "MAP_METHODS", "register", "get",
            "inputs_digest", "save_map", "load_map", "save_seen", "map_pooled", "map_best",
-           "map_seen", "map_configurations", "map_seen_configurations", "map_joint",
+           "map_seen", "map_configurations", "map_configurations_metric", "metric_evidence",
+           "map_seen_configurations", "map_joint",
            "JOINT_FALLBACK", "DEFAULT_MAP"]
 
 
@@ -71,6 +72,11 @@ class SeenEstimates:
         prior_camera_states: (m,) the state distribution of a camera the prior alone gives.
         solver: the single-triplet solver(s) behind the estimates (``"none"``: no solver ran, every
             estimate is the prior alone).
+        positions: ``{history number: PositionSummary}``, C's AB-frame position from the solver's
+            weighted samples (:func:`qfg.configurations.summarize_position`), for the histories
+            whose landmarks are in ascending order (one ordering per set and pass); empty for
+            runs recorded before summaries were kept.
+        temper: the power the histories' estimates were tempered by (1: none).
     """
 
     dataset: object
@@ -87,6 +93,8 @@ class SeenEstimates:
     prior: object = "world"
     prior_camera_states: np.ndarray | None = None
     solver: str = ""
+    positions: Mapping = field(default_factory=dict)
+    temper: float = 1.0
 
     def composition_tensor(self):
         """The composition tensor of the run (the shipped one unless ``--tensor`` gave one)."""
@@ -224,11 +232,47 @@ def map_configurations(seen: SeenEstimates, likelihood: str = "state") -> MapRes
     """Every ordered triplet by configuration inference (:func:`qfg.configurations.
     configuration_marginals`): landmark configurations sampled from the solvers' prior, each seen
     landmark set weighting them by one ordering's combined estimate over the prior's state
-    distribution; every triplet, seen or not, is then read off the same samples."""
-    from qfg.configurations import configuration_marginals, one_ordering_per_set
+    distribution (``likelihood="metric"``: by its passes' summaries of C's AB-frame position,
+    :func:`metric_evidence`); every triplet, seen or not, is then read off the same samples."""
+    from qfg.configurations import one_ordering_per_set
 
+    if likelihood == "metric":
+        return _configuration_map(seen, metric_evidence(seen), "metric")
     evidence = one_ordering_per_set({tuple(t): p for t, p in zip(seen.triplets.tolist(),
                                                                   seen.probabilities, strict=True)})
+    return _configuration_map(seen, evidence, likelihood)
+
+
+def metric_evidence(seen: SeenEstimates) -> dict:
+    """``{triplet: PositionSummary}``, one per seen landmark set (its ascending ordering): the
+    summaries of its passes combined as independent evidence (:func:`qfg.configurations.
+    combine_positions`, the run's tempering power on each pass's likelihood ratio), with the
+    set's combined state estimate as the summary's states. ValueError when the run kept no
+    summaries (recorded before they were, or solved with ``--method none``)."""
+    from qfg.configurations import combine_positions
+
+    if not seen.positions:
+        raise ValueError("--map config-metric: the run's solved pieces keep no summaries of C's "
+                         "position (recorded before qfg kept them, or --method none): solve "
+                         "again with --overwrite and --method full, fast or baseline")
+    row = {tuple(t): i for i, t in enumerate(seen.triplets.tolist())}
+    out = {}
+    for t in sorted(seen.groups):
+        if not t[0] < t[1] < t[2]:
+            continue
+        summ = [seen.positions[k] for k in seen.groups[t] if k in seen.positions]
+        if len(summ) != len(seen.groups[t]):
+            raise ValueError(f"--map config-metric: {len(seen.groups[t]) - len(summ)} of the "
+                             f"histories of triplet {t} keep no position summary")
+        out[t] = combine_positions(summ, seen.prior, temper=seen.temper,
+                                   states=seen.probabilities[row[t]],
+                                   seed=np.random.SeedSequence(int(seen.seed), spawn_key=t))
+    return out
+
+
+def _configuration_map(seen: SeenEstimates, evidence: dict, likelihood: str) -> MapResult:
+    from qfg.configurations import configuration_marginals
+
     seen_keys = {tuple(t) for t in seen.triplets.tolist()}
     wanted = _all_ordered_triplets(seen.dataset.landmark_ids.size)
     res = configuration_marginals(evidence, prior=seen.prior, triplets=[tuple(t) for t in
@@ -250,6 +294,12 @@ def map_configurations(seen: SeenEstimates, likelihood: str = "state") -> MapRes
         info["check_mean_log_cpo"] = float(np.mean(chk.log_cpo)) if chk.log_cpo.size else 0.0
     return MapResult(triplets=wanted, probabilities=np.asarray(res.probabilities, dtype=float),
                      seen=is_seen, reached=~is_seen, info={"likelihood": likelihood, **info})
+
+
+def map_configurations_metric(seen: SeenEstimates) -> MapResult:
+    """:func:`map_configurations` with the metric likelihood: each seen landmark set weights the
+    configurations by its passes' summaries of C's AB-frame position (:func:`metric_evidence`)."""
+    return map_configurations(seen, "metric")
 
 
 def map_seen_configurations(seen: SeenEstimates) -> MapResult:
@@ -326,6 +376,9 @@ register("best", map_best, "full map, unseen triplets by the paper's Algorithm 2
 register("seen", map_seen, "the seen triplets alone (no map)")
 register("config-state", map_configurations,
          "every triplet by configuration inference over the seen estimates (qfg.configurations)")
+register("config-metric", map_configurations_metric,
+         "every triplet by configuration inference over the seen sets' summaries of C's "
+         "AB-frame position (qfg.configurations, metric likelihood)")
 register("seen-config", map_seen_configurations,
          "seen triplets as the solvers combined them, the others by configuration inference")
 register("joint", map_joint, "every triplet and camera from one joint posterior over landmarks "
@@ -335,7 +388,7 @@ register("joint", map_joint, "every triplet and camera from one joint posterior 
 
 #: map methods made by configuration inference (their records depend on its options); the joint
 #: map is one where it has no odometry (its fallback, :data:`JOINT_FALLBACK`)
-_CONFIG_MAPS = ("config-state", "seen-config", "joint")
+_CONFIG_MAPS = ("config-state", "config-metric", "seen-config", "joint")
 
 
 # ------------------------------------------------------------------------------- records
@@ -351,6 +404,13 @@ def inputs_digest(name: str, seen: SeenEstimates, tensor_name: str = "") -> str:
     h.update(np.ascontiguousarray(seen.triplets, dtype=np.int64).tobytes())
     h.update(np.ascontiguousarray(seen.probabilities, dtype=np.float64).tobytes())
     h.update(np.ascontiguousarray(seen.estimates, dtype=np.float64).tobytes())
+    if name == "config-metric":   # made from the position summaries too
+        h.update(repr(float(seen.temper)).encode())
+        for k in sorted(seen.positions):
+            p = seen.positions[k]
+            h.update(np.int64(k).tobytes())
+            for a in (p.centres, p.log_weights, p.bandwidth, np.array([p.ess])):
+                h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
     return h.hexdigest()
 
 
