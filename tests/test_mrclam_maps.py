@@ -149,3 +149,32 @@ def test_seen_config_keeps_the_solvers_seen_rows_and_answers_the_rest(root, tmp_
     seen = {(r["A"], r["B"], r["C"]): r["probabilities"] for r in rows if r["kind"] == "seen"}
     assert seen == pooled                     # the solvers' combined estimates, as written
     assert {r["map"] for r in rows} == {"seen-config"}
+
+
+def test_config_metric_map_uses_the_position_summaries_each_pass_kept(root, tmp_path, capsys):
+    d, out = root / "MRCLAM_Dataset1", tmp_path / "o"
+    args = ["mrclam", str(d), "--method", "fast", "--output", str(out), *FAST]
+    assert main([*args, "--map", "config-metric"]) == 0
+    rows = _rows(out)
+    assert {r["map"] for r in rows} == {"config-metric"}
+    assert len({(r["A"], r["B"], r["C"]) for r in rows}) == len(rows)
+    info = _map_info(out, "config-metric")
+    # a pass whose solver kept no sample (degenerate) weighs by its states alone
+    assert info["likelihood"] == "metric" and 0 < info["n_metric"] <= info["n_seen"]
+    # the records keep one summary per set and pass (the ascending ordering's histories)
+    recs = [r for line in open(out / "records.jsonl") for r in json.loads(line)["rows"]]
+    kept = [r for r in recs if r["position"]]
+    assert kept and all(int(r["A"]) < int(r["B"]) < int(r["C"]) for r in kept)
+    assert len(kept) == sum(int(r["A"]) < int(r["B"]) < int(r["C"]) for r in recs)
+    # records made before summaries were kept: a clear refusal, not a map of nothing
+    lines = []
+    for line in open(out / "records.jsonl"):
+        rec = json.loads(line)
+        for r in rec["rows"]:
+            r["position"] = ""
+        lines.append(json.dumps(rec))
+    (out / "records.jsonl").write_text("\n".join(lines) + "\n")
+    (out / "maps" / "config-metric.npz").unlink()
+    capsys.readouterr()
+    assert _exit_code([*args, "--map", "config-metric", "--resume"]) != 0
+    assert "keep no summaries of C's position" in capsys.readouterr().err
