@@ -37,6 +37,13 @@ REFERENCE_MAX_VIEWS = 30
 #: every child over all views processed with full's defaults at 100 views.
 WORK_BUDGET = 3000 * 8 * 100 * 101 // 2
 
+#: Cost of one pose-view of a rejuvenation evaluation (the chart, the world prior's quadrature
+#: over the whole configuration, C's mode) in pose-views of a C refit: about 1 us against 0.1 us
+#: in a profile of full at 20 views (``cProfile`` of ``solve_triplet(..., rejuvenate=2)``:
+#: ``_sis._joint_target`` and ``_rejuvenation.poses_of`` about 50 ms per evaluation of 3000
+#: trajectories of 16 views).
+REJUVENATION_COST = 10
+
 #: Copies of the hypotheses' poses alive at once (children, resampling, the C weights), a
 #: generous multiple.
 _COPIES = 4
@@ -58,12 +65,15 @@ def work_units(method: str, opts: dict, n_views: int) -> int:
     """Pose-views one triplet of ``n_views`` views processes at worst: for the SIS methods every
     child refitted over min(i, ``_sis.REFIT_VIEWS``) views at view i (linear in the views beyond
     that window), plus ``move_steps`` moves of every hypothesis over all i views (quadratic:
-    moves are off by default); hypotheses x views for the others (linear).
+    moves are off by default), plus the ``rejuvenate`` sweeps' evaluations over whole
+    trajectories at the views of :func:`._rejuvenation.schedule` (linear); hypotheses x views
+    for the others (linear).
 
     >>> from qfg.solvers import DEFAULTS
     >>> work_units("full", DEFAULTS["full"], 200) < WORK_BUDGET < work_units("full", DEFAULTS["full"], 300)
     True
     """
+    from ._rejuvenation import KINDS, work_views
     from ._sis import REFIT_VIEWS
 
     n = int(n_views)
@@ -72,7 +82,12 @@ def work_units(method: str, opts: dict, n_views: int) -> int:
         refit = w * (w + 1) // 2 + (n - w) * REFIT_VIEWS
         rows = _rows(method, opts, n)
         moves = opts.get("move_steps", 0) * (rows // opts["motion_samples"]) * n * (n + 1) // 2
-        return rows * refit + moves
+        # rejuvenation: at its scheduled views (geometric: linear in all), the target over whole
+        # trajectories once and once per proposal of each sweep
+        sweeps = opts.get("rejuvenate", 0)
+        rejuv = REJUVENATION_COST * (1 + sweeps * len(KINDS)) \
+            * (rows // opts["motion_samples"]) * work_views(n) if sweeps else 0
+        return rows * refit + moves + rejuv
     return _rows(method, opts, n) * n
 
 
@@ -109,7 +124,7 @@ def check(method: str, opts: dict, n_triplets: int, n_views: int) -> None:
         raise ValueError(f"bearings: {n_views} views would take method {method!r} about "
                          f"{work / WORK_BUDGET:.1f}x the time budget at worst "
                          "(qfg.solvers._budget.WORK_BUDGET); solve fewer views (e.g. the latest "
-                         "ones) or smaller budgets (max_hypotheses, n_samples, move_steps)")
+                         "ones) or smaller budgets (max_hypotheses, n_samples, move_steps, rejuvenate)")
     need = working_bytes(method, opts, n_triplets, n_views)
     if need > MEMORY_BUDGET:
         raise ValueError(f"bearings: {n_triplets} triplet(s) of {n_views} views would need about "

@@ -40,6 +40,9 @@ DEFAULTS = {
         "bearing_floor": np.deg2rad(0.05),
         "move_steps": 0,             # Metropolis-Hastings moves per hypothesis after resampling
                                      # (resample-move; measured not to help: docs/solvers.md)
+        "rejuvenate": 0,             # sweeps of Metropolis-Hastings moves along the
+                                     # measurements' chart after resampling at views 4, 8, 16, ...
+                                     # (_sis._rejuvenate; docs/solvers.md, "More views")
         "mc_shrinkage": 1.0,         # pseudo-draws of the uniform added to the ESS draws
                                      # (shrink_to_uniform)
         "bearing_tail": None,        # heavy-tailed bearing noise (_likelihood.BearingTail, or
@@ -70,6 +73,7 @@ DEFAULTS = {
         "bearing_floor": np.deg2rad(0.5),   # wider than full's: with its small budget the
                                             # noiseless posterior's narrow peaks are missed
         "move_steps": 0,
+        "rejuvenate": 0,
         "mc_shrinkage": 1.0,
         "bearing_tail": None,
         "model_check": 0.0,
@@ -123,6 +127,8 @@ def resolve_options(method: str, options: dict, defaults: dict | None = None) ->
             opts[k] = positive_int(k, opts[k])
     if "move_steps" in opts:
         opts["move_steps"] = positive_int("move_steps", opts["move_steps"], minimum=0)
+    if "rejuvenate" in opts:
+        opts["rejuvenate"] = positive_int("rejuvenate", opts["rejuvenate"], minimum=0)
     if "refine_levels" in opts:
         opts["refine_levels"] = positive_int("refine_levels", opts["refine_levels"], minimum=0)
     if "motion_spread" in opts:

@@ -13,6 +13,8 @@ STREAM_CAMERAS, STREAM_RESAMPLE, STREAM_LANDMARKS, STREAM_POSTERIOR, STREAM_RETR
 
 
 STREAM_MOVE = 6
+#: the rejuvenation moves (:func:`._sis._rejuvenate`)
+STREAM_REJUVENATE = 7
 
 
 def root_seed(seed) -> np.random.SeedSequence:
@@ -27,3 +29,11 @@ def child_seed(root: np.random.SeedSequence, *key: int) -> np.random.SeedSequenc
 def stream(root: np.random.SeedSequence, *key: int) -> np.random.Generator:
     """The generator of stream ``key`` under ``root`` (e.g. ``(view, STREAM_CAMERAS)``)."""
     return np.random.default_rng(child_seed(root, *key))
+
+
+def per_triplet(gens, counts, draw):
+    """Concatenate ``draw(gen_t, count_t)`` over triplets (generators ``gens``, one per triplet);
+    ``draw`` returns a tuple of arrays with leading axis count_t. Each triplet's draws come from
+    its own generator in a fixed order, so they do not depend on the batch."""
+    parts = [draw(g, int(c)) for g, c in zip(gens, counts, strict=True)]
+    return tuple(np.concatenate([p[k] for p in parts]) for k in range(len(parts[0])))

@@ -72,6 +72,7 @@ from . import (
     _model_check,
     _options,
     _prior,
+    _rejuvenation,
     _seeds,
 )
 
@@ -184,11 +185,7 @@ def _gens(roots, view, purpose):
     return [_seeds.stream(r, view, purpose) for r in roots]
 
 
-def _per_triplet(gens, counts, draw):
-    """Concatenate ``draw(gen_t, count_t)`` over triplets; ``draw`` returns a tuple of arrays
-    with leading axis count_t."""
-    parts = [draw(g, int(c)) for g, c in zip(gens, counts, strict=True)]
-    return tuple(np.concatenate([p[k] for p in parts]) for k in range(len(parts[0])))
+_per_triplet = _seeds.per_triplet
 
 
 def _landmark_draws(gens, tid, n, k, ray_fraction):
@@ -404,7 +401,7 @@ def _prune(st: SISState, gens) -> SISState:
     new = _take(st, idx)
     lw_base = np.where(over[new.tid], mean_log[new.tid] - new.lw_c, new.lw_base)
     st = replace(new, lw_base=lw_base)
-    return _move(st, moving, mean_log) if np.any(moving) else st
+    return _moves(st, moving, mean_log) if np.any(moving) else st
 
 
 def _resampling(st: SISState, tid, total, gens):
@@ -420,8 +417,7 @@ def _resampling(st: SISState, tid, total, gens):
     off = _offsets(gens)
     # triplets whose hypotheses are moved are resampled to the cap at every view (resample-move:
     # the moves need equal weights, and pruning alone leaves the descendants of few early poses)
-    moving = (counts > 0) & (st.opts.get("move_steps", 0) > 0) & (st.n_views >= 2) \
-        & _movable(st)
+    moving = (counts > 0) & _movable(st) & _moves_now(st)
     if not (counts.size and (counts.max() > cap or np.any(moving))):
         return None
     over = (counts > cap) | moving
@@ -513,19 +509,7 @@ def _move(st: SISState, which, mean_log) -> SISState:
     lc = st.lw_c[rows].copy()
     cs = st.c_sum[rows].copy()
     lt, lp = _log_pose_target(st, tid, poses)
-    # per triplet: Cholesky factor of the scaled covariance of its hypotheses (headings
-    # unwrapped about the first hypothesis' so that the spread is not inflated by the wrap)
-    chol = np.zeros((T, D, D))
-    bounds = np.searchsorted(tid, np.arange(T + 1))
-    for t in np.flatnonzero(which):
-        P = poses[bounds[t]:bounds[t + 1]].reshape(-1, n, 3)
-        if P.shape[0] < 2:
-            continue
-        P = P.copy()
-        P[..., 2] = P[0, :, 2] + wrap_angle(P[..., 2] - P[0, :, 2])
-        cov = np.cov(P.reshape(P.shape[0], D), rowvar=False)
-        cov = cov + (1e-12 + 1e-9 * np.trace(cov) / D) * np.eye(D)
-        chol[t] = np.linalg.cholesky(cov) * (_MOVE_SCALE / np.sqrt(D))
+    chol = _rejuvenation.walk_factor(poses, tid, which, _MOVE_SCALE)
     gens = _gens(st.roots, n - 1, _seeds.STREAM_MOVE)
     counts = np.bincount(tid, minlength=T)
     bc = st.bearings[..., 2]
@@ -551,6 +535,119 @@ def _move(st: SISState, which, mean_log) -> SISState:
     flat = tuple((new_poses[:, t].copy(), np.arange(new_poses.shape[0])) for t in range(n))
     lp_x, lw_c, lw_base = st.lp_x.copy(), st.lw_c.copy(), st.lw_base.copy()
     lp_x[rows], lw_c[rows] = lp, lc
+    lw_base[rows] = mean_log[tid] - lc
+    c_sum = st.c_sum.copy()
+    c_sum[rows] = cs
+    return replace(st, levels=flat, lp_x=lp_x, lw_c=lw_c, lw_base=lw_base, c_sum=c_sum)
+
+
+def _moves_now(st: SISState) -> bool:
+    """Whether the hypotheses are moved after this view's resampling: every view from the second
+    with ``move_steps``, the views of :func:`._rejuvenation.scheduled` with ``rejuvenate``."""
+    return bool((st.opts.get("move_steps", 0) > 0 and st.n_views >= 2)
+                or (st.opts.get("rejuvenate", 0) > 0 and _rejuvenation.scheduled(st.n_views)))
+
+
+def _moves(st: SISState, which, mean_log) -> SISState:
+    """The moves of the triplets ``which`` (T,), just resampled to equal weights ``mean_log``."""
+    if st.opts.get("rejuvenate", 0) > 0 and _rejuvenation.scheduled(st.n_views):
+        st = _rejuvenate(st, which, mean_log)
+    if st.opts.get("move_steps", 0) > 0:
+        st = _move(st, which, mean_log)
+    return st
+
+
+#: Proposals of a rejuvenation sweep (:func:`._rejuvenation.sweeps`).
+_KINDS = ("walk", "ridge", "noise")
+#: Diagnostics: a list to which each rejuvenation proposal appends (views, proposal, share of
+#: proposals inside the chart, share accepted); None: nothing recorded.
+_TRACE = None
+
+
+def _joint_target(st: SISState, stc: SISState, tid, poses, gens):
+    """The rejuvenation's target at trajectories ``poses`` (J, n, 3) of triplets ``tid``: the
+    pose likelihoods of :func:`_log_pose_target`, C's integral (:func:`_log_intermediate_c` of
+    ``stc``: the Laplace fit at C's mode, sampled where C's depth is unresolved) and the prior of
+    the whole configuration at C's mode ``L*``,
+
+        log pi = log lik(X) + log Z(X) + log prior([L*, X]) - log p1(L*),
+
+    where C's depth is resolved (the exact joint prior, :func:`._prior.log_joint_prior`, which the
+    per-point priors of the other steps only approximate); the per-point priors elsewhere.
+    Returns (log pi (J,), the prior part as ``lp_x`` carries it (J,), log Z with p1(L*) as
+    ``lw_c`` carries it (J,), C summaries (J, 7))."""
+    lt, lp = _log_pose_target(st, tid, poses)
+    lc, cs = _log_intermediate_c(stc, tid, poses, st.bearings[..., 2], gens)
+    lpx = lp.copy()
+    r = np.flatnonzero(np.isfinite(cs[:, 0]) & np.isfinite(lt))
+    if r.size:
+        L = cs[r, :2]
+        prior = st.opts["prior"]
+        lpx[r] = _prior.log_joint_prior(prior, L, poses[r, :, :2]) \
+            - _prior.point_log_prior(prior, L)
+    out = lt - lp + lpx + lc
+    return np.where(np.isnan(out), -np.inf, out), lpx, lc, cs
+
+
+def _rejuvenate(st: SISState, which, mean_log) -> SISState:
+    """Resample-move along the measurements (:mod:`._rejuvenation`) for the triplets ``which``
+    (T,), just resampled to equal weights: the hypotheses are first reweighted from the
+    intermediate target to :func:`_joint_target` (the exact joint prior at C's mode and C's
+    Laplace fit at its mode in place of the per-point priors and the carried C summaries) and
+    resampled (systematic, per triplet); then ``rejuvenate`` sweeps of Metropolis-Hastings
+    steps per hypothesis target it. A sweep proposes
+
+    * a walk: the whole trajectory (x, y, alpha per view) moved by a Gaussian with ``1 / D``
+      times the covariance of the triplet's hypotheses (D = 3 n,
+      :func:`._rejuvenation.walk_factor`);
+    * a ridge step in the chart of :func:`._rejuvenation.chart_of`: camera 1 moved ``s`` along
+      its arc, every bearing and heading residual held, so the whole trajectory slides along
+      what the A/B bearings and headings leave open and only the priors, the Jacobian and C's
+      integral decide (the move that brings back early poses the resampling lost);
+    * a noise step in that chart: every residual moved by ``s sigma z``, camera 1 held;
+
+    the chart steps accepted on the target times the chart's Jacobian. Step scales ``s`` are
+    drawn log-uniformly per hypothesis (a scale mixture, symmetric whatever the state;
+    :func:`._rejuvenation.sweeps`). The target is invariant, so equal weights stay
+    right; the hypotheses leave with C refitted at its mode (summaries the later views update),
+    ``lp_x`` the target's prior part (the final weights divide it out) and equal total weights.
+    Every draw comes from the triplet's own stream ``(view, STREAM_REJUVENATE)``; vectorised over
+    hypotheses (loops over sweeps, and over views inside the chart)."""
+    T, n = st.n_triplets, st.n_views
+    rows = np.flatnonzero(which[st.tid])
+    if rows.size == 0:
+        return st
+    tid = st.tid[rows]
+    poses = trajectories(st.levels, rows)
+    stc = replace(st, opts={**st.opts, "c_anchors": True})
+    gens = _gens(st.roots, n, _seeds.STREAM_REJUVENATE)
+    counts = np.bincount(tid, minlength=T)
+    cur, lpx, lc, cs = _joint_target(st, stc, tid, poses, gens)
+    # from the intermediate target to the joint one: importance weights, then resampling
+    switch = (lpx + lc) - (st.lp_x[rows] + st.lw_c[rows])
+    idx = _systematic(tid, np.where(np.isfinite(cur), switch, -np.inf), T,
+                      np.where(which, counts, 0), _offsets(gens))
+    keep = np.bincount(tid[idx], minlength=T) > 0
+    # a triplet with no finite reweighted hypothesis keeps its hypotheses unmoved
+    idx = np.sort(np.concatenate([idx, np.flatnonzero(~keep[tid])]))
+    poses, cur, lpx, lc, cs = poses[idx], cur[idx], lpx[idx], lc[idx], cs[idx]
+    movable = which & keep
+
+    def target(k, P):
+        out, *extras = _joint_target(st, stc, tid[k], P, gens)
+        return out, tuple(extras)
+
+    poses, cur, (lpx, lc, cs) = _rejuvenation.sweeps(
+        poses, tid, movable, target, (cur, (lpx, lc, cs)), gens, st.opts["rejuvenate"],
+        st.sigma_bearing, st.sigma_heading, _KINDS, _MOVE_SCALE, _TRACE)
+    # moved trajectories share no ancestors any more: the levels are rebuilt flat (O(N n), as
+    # the moves themselves)
+    allp = trajectories(st.levels)
+    allp[rows] = poses
+    flat = tuple((allp[:, t].copy(), np.arange(allp.shape[0])) for t in range(n))
+    lp_x, lw_c, lw_base = st.lp_x.copy(), st.lw_c.copy(), st.lw_base.copy()
+    lp_x[rows], lw_c[rows] = lpx, lc
+    # equal totals within a triplet (the constant is immaterial: weights are per triplet)
     lw_base[rows] = mean_log[tid] - lc
     c_sum = st.c_sum.copy()
     c_sum[rows] = cs
@@ -802,7 +899,7 @@ def _extend(state: SISState, phi, psi, spread: float, purpose: int) -> SISState:
                  lw_base=base[rows], lp_x=state.lp_x[parent[rows]] + lpx[rows], lw_c=lw_c[rows],
                  c_sum=cs)
     if plan is not None and np.any(moving):
-        st = _move(st, moving, mean_log)
+        st = _moves(st, moving, mean_log)
     return st
 
 
