@@ -27,6 +27,7 @@ def test_chart_round_trip_reproduces_the_trajectory(seed):
     Q, lj, ok = _rejuvenation.poses_of(a1, pa, pb, rh, br)
     assert ok[0] and np.isfinite(lj[0])
     np.testing.assert_allclose(Q, P, atol=1e-9)
+    np.testing.assert_allclose(_rejuvenation.log_jacobian(P), lj, rtol=0, atol=1e-9)
 
 
 def test_chart_jacobian_equals_finite_differences():

@@ -110,6 +110,28 @@ def chart_of(poses):
     return a1, g1, pa, pb, rh, branch
 
 
+def log_jacobian(poses) -> np.ndarray:
+    """(J,) ``log |d(x, y, alpha) / d(a1, pa, pb, rh)|`` of trajectories ``poses`` (J, n, 3)
+    straight from the poses (what :func:`poses_of` returns with them, without the
+    intersections): camera 1's arc term and each step's ray term along its own direction.
+
+    >>> P = np.array([[[-1.0, 0.5, 0.0], [-1.0, 1.0, 0.0]]])
+    >>> a1, _, pa, pb, rh, br = chart_of(P)
+    >>> bool(np.isclose(log_jacobian(P)[0], poses_of(a1, pa, pb, rh, br)[1][0]))
+    True
+    """
+    P = np.asarray(poses, dtype=float)
+    X, al = P[..., :2], P[..., 2]
+    pa = np.arctan2(-X[:, 0, 1], -X[:, 0, 0]) - al[:, 0]
+    g1 = wrap_angle(np.arctan2(1.0 - X[:, 0, 1], -X[:, 0, 0]) - al[:, 0] - pa)
+    out = log_arc_jacobian(X[:, 0], g1, np.zeros(P.shape[0]))
+    if P.shape[1] > 1:
+        d = X[:, 1:] - X[:, :-1]
+        out = out + np.sum(log_ray_jacobian(X[:, 1:], X[:, :-1], np.arctan2(d[..., 1], d[..., 0])),
+                           axis=1)
+    return out
+
+
 def poses_of(a1, pa, pb, rh, branch):
     """Trajectories (J, n, 3) of chart coordinates (:func:`chart_of`), their log Jacobian
     ``log |d(x, y, alpha) / d(a1, pa, pb, rh)|`` (J,) and whether they exist (J,): ``a1`` inside
@@ -222,7 +244,7 @@ def sweeps(poses, tid, movable, target, current, gens, n_sweeps, sigma_bearing, 
     counts = np.bincount(tid, minlength=T)
     moving = movable[tid]
     a1, _, pa, pb, rh, br = chart_of(poses)
-    lj = poses_of(a1, pa, pb, rh, br)[1]
+    lj = log_jacobian(poses)
     sv = np.asarray(sigma_bearing, dtype=float)[tid][:, None]
     sh = np.asarray(sigma_heading, dtype=float)[tid][:, None]
     for _ in range(int(n_sweeps)):
@@ -241,8 +263,7 @@ def sweeps(poses, tid, movable, target, current, gens, n_sweeps, sigma_bearing, 
             if kind == "walk":
                 prop = poses + walk_step(chol, tid, z).reshape(J, n, 3)
                 prop[..., 2] = wrap_angle(prop[..., 2])
-                a2, _, pa2, pb2, rh2, br2 = chart_of(prop)
-                lj2 = poses_of(a2, pa2, pb2, rh2, br2)[1]
+                lj2 = log_jacobian(prop)
                 ok = moving & np.isfinite(lj2)
                 dj = np.zeros(J)
             else:
@@ -254,7 +275,6 @@ def sweeps(poses, tid, movable, target, current, gens, n_sweeps, sigma_bearing, 
                     a2, pa2, pb2, rh2 = (a1, wrap_angle(pa + sv * zs[:, :n]),
                                          wrap_angle(pb + sv * zs[:, n:2 * n]),
                                          wrap_angle(rh + sh * zs[:, 2 * n:]))
-                br2 = br
                 prop, lj2, ok = poses_of(a2, pa2, pb2, rh2, br)
                 ok &= moving
                 with np.errstate(invalid="ignore"):
@@ -277,7 +297,11 @@ def sweeps(poses, tid, movable, target, current, gens, n_sweeps, sigma_bearing, 
             poses[ia], cur[ia], lj[ia] = prop[ia], new[ia], lj2[ia]
             for e, e2 in zip(extras, ex2, strict=True):
                 e[ia] = e2[ka]
-            a1[ia], pa[ia], pb[ia], rh[ia], br[ia] = a2[ia], pa2[ia], pb2[ia], rh2[ia], br2[ia]
+            if kind == "walk":
+                # the chart coordinates of the accepted walks only
+                a1[ia], _, pa[ia], pb[ia], rh[ia], br[ia] = chart_of(prop[ia])
+            else:
+                a1[ia], pa[ia], pb[ia], rh[ia], br[ia] = a2[ia], pa2[ia], pb2[ia], rh2[ia], br[ia]
     return poses, cur, extras
 
 
