@@ -13,7 +13,7 @@ worst case processes (every child refitted at every view, moves over whole traje
 :data:`WORK_BUDGET` caps them at what the old engine, which refitted every child over all
 views, processed for 100 views with full's defaults (then 15 s per triplet under a load of 11;
 now about 10 times fewer pose-views are refitted in the common case, and the bound admits about
-260 views for full and 6000 for fast at their defaults).
+150 views for full at its defaults, 260 with ``rejuvenate=0``, and 6000 for fast).
 The reference solver takes at most :data:`REFERENCE_MAX_VIEWS` views (beyond, its time and
 its ESS are not measured to stay useful).
 """
@@ -38,11 +38,11 @@ REFERENCE_MAX_VIEWS = 30
 WORK_BUDGET = 3000 * 8 * 100 * 101 // 2
 
 #: Cost of one pose-view of a rejuvenation evaluation (the chart, the world prior's quadrature
-#: over the whole configuration, C's mode) in pose-views of a C refit: about 1 us against 0.1 us
-#: in a profile of full at 20 views (``cProfile`` of ``solve_triplet(..., rejuvenate=2)``:
-#: ``_sis._joint_target`` and ``_rejuvenation.poses_of`` about 50 ms per evaluation of 3000
-#: trajectories of 16 views).
-REJUVENATION_COST = 10
+#: over the whole configuration, C's mode) in pose-views of a C refit: 2.2 us against 0.17 us
+#: (ratio 12.9) timed on 3000 trajectories of 16 views of one development triplet
+#: (``_sis._log_intermediate_c`` without ``c_anchors`` against ``_rejuvenation.poses_of`` plus
+#: ``_sis._joint_target``, best of 3, load 5).
+REJUVENATION_COST = 13
 
 #: Copies of the hypotheses' poses alive at once (children, resampling, the C weights), a
 #: generous multiple.
@@ -70,7 +70,7 @@ def work_units(method: str, opts: dict, n_views: int) -> int:
     for the others (linear).
 
     >>> from qfg.solvers import DEFAULTS
-    >>> work_units("full", DEFAULTS["full"], 200) < WORK_BUDGET < work_units("full", DEFAULTS["full"], 300)
+    >>> work_units("full", DEFAULTS["full"], 150) < WORK_BUDGET < work_units("full", DEFAULTS["full"], 160)
     True
     """
     from ._rejuvenation import KINDS, work_views

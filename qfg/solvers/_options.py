@@ -40,9 +40,11 @@ DEFAULTS = {
         "bearing_floor": np.deg2rad(0.05),
         "move_steps": 0,             # Metropolis-Hastings moves per hypothesis after resampling
                                      # (resample-move; measured not to help: docs/solvers.md)
-        "rejuvenate": 0,             # sweeps of Metropolis-Hastings moves along the
-                                     # measurements' chart after resampling at views 4, 8, 16, ...
-                                     # (_sis._rejuvenate; docs/solvers.md, "More views")
+        "rejuvenate": 1,             # sweeps of Metropolis-Hastings moves (resample-move) at
+                                     # views 4, 6, 9, 14, 20, 30, ... (_sis._rejuvenate; 0: off;
+                                     # docs/solvers.md, "More views": closer to the reference
+                                     # and fewer confidently wrong at 10-20 views, 2.5-2.9x the
+                                     # time there, nothing at 3 views)
         "mc_shrinkage": 1.0,         # pseudo-draws of the uniform added to the ESS draws
                                      # (shrink_to_uniform)
         "bearing_tail": None,        # heavy-tailed bearing noise (_likelihood.BearingTail, or

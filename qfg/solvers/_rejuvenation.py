@@ -36,19 +36,21 @@ from ._arcs import log_arc_jacobian, log_ray_jacobian
 from ._seeds import per_triplet
 
 #: Views (1-based) after whose resampling the hypotheses are rejuvenated: ``FIRST_VIEW`` and
-#: every view about ``GROWTH`` times the previous one (4, 8, 16, 32, ... with 2): geometric, so
-#: the moves over whole trajectories cost at most ``GROWTH / (GROWTH - 1)`` times the views'
-#: poses per sweep in all (time stays linear in the views); none at 3 views.
+#: every view about ``GROWTH`` times the previous one (4, 6, 9, 14, 20, 30, ... with 1.5; 4, 8,
+#: 16, ... with 2): geometric, so the moves over whole trajectories cost about
+#: ``GROWTH / (GROWTH - 1)`` times the views' poses per evaluation in all (time stays linear in
+#: the views); none at 3 views. 1.5 with one sweep against 2 with two sweeps (about the same
+#: time) on development geometries: docs/solvers.md, "More views".
 FIRST_VIEW = 4
-GROWTH = 2.0
+GROWTH = 1.5
 
 
 def schedule(n_views: int, growth: float | None = None) -> list:
     """The views up to ``n_views`` after which the hypotheses are rejuvenated: the distinct
     ``round(FIRST_VIEW * growth^k)``, k = 0, 1, ... (``growth`` > 1; default :data:`GROWTH`).
 
-    >>> schedule(40), schedule(20, 1.25)
-    ([4, 8, 16, 32], [4, 5, 6, 8, 10, 12, 15, 19])
+    >>> schedule(40, 1.5), schedule(40, 2.0)
+    ([4, 6, 9, 14, 20, 30], [4, 8, 16, 32])
     """
     g = GROWTH if growth is None else float(growth)
     out, k = [], 0
@@ -65,7 +67,7 @@ def scheduled(view: int) -> bool:
     """Whether the hypotheses are rejuvenated after ``view`` (1-based) (:func:`schedule`).
 
     >>> [v for v in range(1, 40) if scheduled(v)]
-    [4, 8, 16, 32]
+    [4, 6, 9, 14, 20, 30]
     """
     v = int(view)
     return v >= FIRST_VIEW and v in schedule(v)
@@ -73,10 +75,10 @@ def scheduled(view: int) -> bool:
 
 def work_views(n_views: int) -> int:
     """Pose-views one hypothesis processes in the moves of ``n_views`` views, per evaluation of
-    the target: the sum of the scheduled views (at most ``GROWTH / (GROWTH - 1)`` n).
+    the target: the sum of the scheduled views (about ``GROWTH / (GROWTH - 1)`` n at most).
 
-    >>> work_views(3), work_views(10), work_views(16)
-    (0, 12, 28)
+    >>> work_views(3), work_views(10), work_views(20)
+    (0, 19, 53)
     """
     return sum(schedule(int(n_views)))
 
