@@ -1,13 +1,14 @@
 """Full's rejuvenation (option ``rejuvenate``, issue 20 item 2) on development geometries of the
 views20 preset, paired against the defaults and against the reference solver.
 
-    python -m benchmarks.sis_rejuvenation run LO HI VIEWS OUT [VARIANT ...]
-    python -m benchmarks.sis_rejuvenation reference LO HI N OUT
+    python -m benchmarks.sis_rejuvenation run LO HI VIEWS OUT [VARIANT ...] [--run-seed S]
+    python -m benchmarks.sis_rejuvenation reference LO HI N OUT [--run-seed S]
     python -m benchmarks.sis_rejuvenation report OUT [OUT ...] [--ref REF]
 
 Geometries: the views20 preset's, rebuilt as ``qfg.harness.studies.single_triplet.run_task``
 does for its sweep but with the development run seed 2 (``scenario_rng(2, i)``, geometry seed +
-1, 20 views at 2/5 deg, the first n; the preset reports seed 1): geometries LO..HI-1. The solver
+1, 20 views at 2/5 deg, the first n; the preset reports seed 1, which ``--run-seed 1`` rebuilds
+for a look at single cases, not for choices): geometries LO..HI-1. The solver
 seed is the study's own for full (``SeedSequence(solver_root.entropy, spawn_key=(1000 + n,
 METHODS.index("full")))``; the reference's for ``reference``). ``run`` solves every (geometry,
 n) at full's defaults and with each VARIANT (JSON options; keys ``_NAME`` set
@@ -30,14 +31,14 @@ from collections import defaultdict
 import numpy as np
 
 
-def _geometry(i, k):
+def _geometry(i, k, run_seed=2):
     from qfg.harness.runner import scenario_rng
     from qfg.harness.studies.single_triplet import _first_views
     from qfg.partitions import get as get_partition
     from qfg.simulation import random_triplet_history
 
     part = get_partition("edc")
-    rng = scenario_rng(2, i)
+    rng = scenario_rng(run_seed, i)
     geometry_seed = int(rng.integers(2**63))
     root = np.random.SeedSequence(int(rng.integers(2**63)))
     hmax = random_triplet_history(np.random.default_rng(geometry_seed + 1), 20, np.deg2rad(2.0),
@@ -51,13 +52,13 @@ def _seed(root, k, method):
     return np.random.SeedSequence(root.entropy, spawn_key=(1000 + k, METHODS.index(method)))
 
 
-def run(lo, hi, views, out, variants):
+def run(lo, hi, views, out, variants, run_seed=2):
     from qfg.solvers import _rejuvenation, _sis, solve_triplet
 
     with open(out, "a") as fh:
         for i in range(lo, hi):
             for k in views:
-                h, root, part = _geometry(i, k)
+                h, root, part = _geometry(i, k, run_seed)
                 rec = {"g": i, "n": k, "gt": int(h.truth.state)}
                 for name, o in [("default", {})] + [(json.dumps(v, sort_keys=True), v)
                                                     for v in variants]:
@@ -82,12 +83,12 @@ def run(lo, hi, views, out, variants):
             print(i, "done", time.strftime("%H:%M:%S"), flush=True)
 
 
-def reference(lo, hi, k, out):
+def reference(lo, hi, k, out, run_seed=2):
     from qfg.solvers import solve_triplet
 
     with open(out, "a") as fh:
         for i in range(lo, hi):
-            h, root, part = _geometry(i, k)
+            h, root, part = _geometry(i, k, run_seed)
             t0 = time.perf_counter()
             e = solve_triplet(h, method="reference", partition=part,
                               seed=_seed(root, k, "reference"))
@@ -170,11 +171,16 @@ def main(argv=None):
     if not argv or argv[0] not in ("run", "reference", "report"):
         raise SystemExit(__doc__)
     cmd, rest = argv[0], argv[1:]
+    run_seed = 2
+    if "--run-seed" in rest:
+        j = rest.index("--run-seed")
+        run_seed = int(rest[j + 1])
+        rest = rest[:j] + rest[j + 2:]
     if cmd == "run":
         run(int(rest[0]), int(rest[1]), [int(v) for v in rest[2].split(",")], rest[3],
-            [json.loads(v) for v in rest[4:]])
+            [json.loads(v) for v in rest[4:]], run_seed)
     elif cmd == "reference":
-        reference(int(rest[0]), int(rest[1]), int(rest[2]), rest[3])
+        reference(int(rest[0]), int(rest[1]), int(rest[2]), rest[3], run_seed)
     else:
         ref = None
         if "--ref" in rest:

@@ -140,8 +140,10 @@ def test_refits_take_at_most_the_window_of_views(monkeypatch):
     monkeypatch.setattr(_sis, "REFIT_VIEWS", 4)
     # a bearing tail: every child is refitted at every view
     hs = _histories(2, 9, seed=814000)
+    # (the engine's refits: the rejuvenation fits whole trajectories at its own views,
+    # tests/test_sis_rejuvenation.py)
     es = solve_triplets(hs, method="full", seed=2, bearing_tail=(0.1, 5.0, 0.0),
-                        max_hypotheses=300, n_samples=100)
+                        max_hypotheses=300, n_samples=100, rejuvenate=0)
     assert widths and max(widths) == 4
     assert all(np.isfinite(e.landmark).all() and abs(e.landmark.sum() - 1) < 1e-9 for e in es)
 
@@ -215,7 +217,9 @@ def _pose_views_per_step(monkeypatch, incremental, k=16, options=None):
     monkeypatch.setattr(_laplace, "laplace_landmark", counting)
     monkeypatch.setattr(_sis, "_INCREMENTAL_C", incremental)
     h = _histories(1, k, seed=811000)[0]
-    opts = _sis._options.resolve_options("full", options or {})
+    # the engine's own steps: the rejuvenation (rebuilding the levels flat at its views) is
+    # counted in tests/test_sis_rejuvenation.py
+    opts = _sis._options.resolve_options("full", {"rejuvenate": 0, **(options or {})})
     from qfg.solvers._input import get_partition
 
     st = _sis.start(h.bearings[None, 0], np.array([h.sigma_bearing]),
