@@ -41,7 +41,7 @@ def test_intermediate_weights_carry_the_factor(monkeypatch):
     monkeypatch.setattr(_sis, "_MIX_DISTANCE_PROPOSAL", False)
     h = _hist(11, 4)
     kw = dict(method="full", seed=2, n_samples=100, motion_samples=4, max_hypotheses=10**6,
-              prune_ratio=0.0)
+              prune_ratio=0.0, rejuvenate=0)
     a = TripletSolver.solve(replace(h, distances=None), **kw)._state
     b = TripletSolver.solve(h, sigma_distance_ratio=0.2, **kw)._state
     np.testing.assert_array_equal(a.poses, b.poses)

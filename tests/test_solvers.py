@@ -462,7 +462,8 @@ def test_moves_spread_the_resampled_copies_and_keep_the_answer():
     # (path degeneracy undone), while the answer stays that of the same sampler without moves
     # (the moves leave the posterior invariant).
     h = random_triplet_history(np.random.default_rng(900), 6, np.deg2rad(2), np.deg2rad(5))
-    kw = {"n_samples": 200, "motion_samples": 4, "max_hypotheses": 500}
+    # (the rejuvenation, on by default, also spreads them: tests/test_sis_rejuvenation.py)
+    kw = {"n_samples": 200, "motion_samples": 4, "max_hypotheses": 500, "rejuvenate": 0}
     s0 = TripletSolver.solve(h, method="full", seed=3, move_steps=0, **kw)
     s2 = TripletSolver.solve(h, method="full", seed=3, move_steps=2, **kw)
     n0 = np.unique(s0.hypotheses().camera_samples[0, :, 0]).size
