@@ -37,7 +37,7 @@ def test_chart_jacobian_equals_finite_differences():
         a1, pa, pb, rh, br = _coords(P)
         c0 = np.concatenate([a1, pa[0], pb[0], rh[0]])
 
-        def f(c):
+        def f(c, br=br):
             Q = _rejuvenation.poses_of(c[:1], c[None, 1:4], c[None, 4:7], c[None, 7:], br)[0]
             return Q[0].ravel()
 

@@ -231,7 +231,8 @@ def sweeps(poses, tid, movable, target, current, gens, n_sweeps, sigma_bearing, 
     triplets' generators ``gens`` in a fixed order. Returns (poses, log pi, extras).
 
     >>> rng = np.random.default_rng(0)
-    >>> P = np.tile([[[-1.0, 0.3, 0.1], [-1.1, 0.6, 0.2]]], (50, 1, 1)) + 0.01 * rng.standard_normal((50, 2, 3))
+    >>> P0 = np.array([[[-1.0, 0.3, 0.1], [-1.1, 0.6, 0.2]]])
+    >>> P = P0 + 0.01 * rng.standard_normal((50, 2, 3))
     >>> tgt = lambda k, Q: (-0.5 * np.sum(((Q - P[:1]) / 0.01) ** 2, axis=(1, 2)), ())
     >>> Q, lp, _ = sweeps(P, np.zeros(50, dtype=int), np.array([True]), tgt,
     ...                   tgt(None, P), [np.random.default_rng(1)], 2, np.array([0.03]), np.array([0.08]))
