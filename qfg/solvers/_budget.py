@@ -13,7 +13,7 @@ worst case processes (every child refitted at every view, moves over whole traje
 :data:`WORK_BUDGET` caps them at what the old engine, which refitted every child over all
 views, processed for 100 views with full's defaults (then 15 s per triplet under a load of 11;
 now about 10 times fewer pose-views are refitted in the common case, and the bound admits about
-150 views for full at its defaults, 260 with ``rejuvenate=0``, and 6000 for fast).
+153 views for full at its defaults, 262 with ``rejuvenate=0``, and 5900 for fast).
 The reference solver takes at most :data:`REFERENCE_MAX_VIEWS` views (beyond, its time and
 its ESS are not measured to stay useful).
 """
