@@ -661,15 +661,18 @@ def _rejuvenate(st: SISState, which, mean_log) -> SISState:
         st.sigma_bearing, st.sigma_heading, _KINDS, _MOVE_SCALE, _TRACE)
     # moved trajectories share no ancestors any more: the levels are rebuilt flat (O(N n), as
     # the moves themselves)
+    # (a triplet left unmoved keeps its hypotheses' weights and summaries as they were)
+    u = keep[tid]
+    ru = rows[u]
     allp = trajectories(st.levels)
-    allp[rows] = poses
+    allp[ru] = poses[u]
     flat = tuple((allp[:, t].copy(), np.arange(allp.shape[0])) for t in range(n))
     lp_x, lw_c, lw_base = st.lp_x.copy(), st.lw_c.copy(), st.lw_base.copy()
-    lp_x[rows], lw_c[rows] = lpx, lc
+    lp_x[ru], lw_c[ru] = lpx[u], lc[u]
     # equal totals within a triplet (the constant is immaterial: weights are per triplet)
-    lw_base[rows] = mean_log[tid] - lc
+    lw_base[ru] = mean_log[tid[u]] - lc[u]
     c_sum = st.c_sum.copy()
-    c_sum[rows] = cs
+    c_sum[ru] = cs[u]
     return replace(st, levels=flat, lp_x=lp_x, lw_c=lw_c, lw_base=lw_base, c_sum=c_sum)
 
 
