@@ -188,3 +188,31 @@ def test_schedule_is_geometric_and_the_budget_stays_linear():
     assert _budget.work_units("full", opts, 100) > _budget.work_units("full", DEFAULTS["full"], 100)
     with pytest.raises(ValueError, match="views"):
         _budget.check("full", opts, 1, 10_000)
+
+
+class _NoJointPrior:
+    """A prior whose single points have a density but whose configurations of more than one
+    point have none: the rejuvenation's joint target is nowhere finite."""
+
+    name = "no-joint"
+
+    def log_density(self, points):
+        p = np.asarray(points, dtype=float)
+        out = -0.5 * np.sum(p * p, axis=(-2, -1)) / 25.0
+        return out if p.shape[-2] == 1 else np.full(p.shape[:-2], -np.inf)
+
+    def sample(self, seed, n_cameras, size):
+        return 5.0 * np.random.default_rng(seed).standard_normal((size, 1 + n_cameras, 2))
+
+
+def test_a_triplet_with_no_finite_target_is_left_as_it_was():
+    from qfg.priors import Prior
+
+    prior = type("NoJoint", (_NoJointPrior, Prior), {})()
+    h = _history(61, 4)
+    st = _solver_state(h, rejuvenate=0, max_hypotheses=300, prior=prior)
+    st = replace(st, opts={**st.opts, "rejuvenate": 2})
+    moved = _sis._rejuvenate(st, np.array([True]), np.zeros(1))
+    np.testing.assert_array_equal(moved.poses, st.poses)
+    for a in ("lw_base", "lw_c", "lp_x"):
+        np.testing.assert_array_equal(getattr(moved, a), getattr(st, a))
