@@ -374,7 +374,7 @@ def combine_positions(summaries, prior="world", *, temper: float = 1.0, states=N
     L2 = np.stack([np.linalg.cholesky(2.0 * s.bandwidth) for s in live])
     pts = cen[pick] + np.einsum("nij,nj->ni", L2[comp[pick]], rng.standard_normal((n, 2)))
     log_g = np.full(n, -np.inf)
-    for i, s in enumerate(live):
+    for s in live:
         lin, lnorm = _chol_inverse(2.0 * s.bandwidth[None])
         lg = _log_mixture(pts[None], s.centres[None],
                           np.full((1, s.centres.shape[0]), -np.log(s.centres.shape[0])),

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from qfg.configurations import PositionSummary, combine_positions, summarize_position
+from qfg.configurations import combine_positions, summarize_position
 from qfg.priors import WorldBoxPrior
 
 

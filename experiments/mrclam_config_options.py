@@ -1,0 +1,93 @@
+"""Score a recorded ``qfg mrclam`` run's configuration maps under other options (development).
+
+Rebuilds the run's seen estimates from its folder (``run.json``, ``records.jsonl``, the temper
+it chose in ``summary.json``), then makes the configuration map with each variant and prints the
+mean log p(truth) (clip 1e-4) of its seen and unseen triplets, the share of truths under 1 %, the
+share of rows widened mostly to the prior and the largest Monte Carlo error. A variant is
+``KIND[:option=value...]`` with KIND ``state`` or ``metric`` and options of
+:func:`qfg.configurations.configuration_marginals` (``widen=none`` for no widening)::
+
+    python experiments/mrclam_config_options.py out/d2 "metric,metric:widen=none,metric:widen=0.1"
+
+The landmark ground truth is used only to score, as ``qfg mrclam`` does.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from qfg.configurations import configuration_marginals, one_ordering_per_set
+from qfg.graph import truth_states
+from qfg.harness.studies import mrclam as study
+from qfg.harness.studies import mrclam_maps as maps
+from qfg.metrics import log_score
+
+PREP_KEYS = ("robots", "mode", "prior", "partition", "fix_landmarks", "min_travel", "max_gap",
+             "max_views", "spread_views", "sigma_bearing_deg", "sigma_heading_deg", "distances",
+             "sigma_distance_ratio", "bearing_tail", "model_check", "heading_drift")
+
+
+def _value(key, text):
+    if text == "none":
+        return None
+    if key == "unlinked":
+        return text
+    return float(text) if "." in text or "e" in text else int(text)
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if not argv:
+        print(__doc__)
+        return 2
+    out = Path(argv[0])
+    variants = argv[1].split(",") if len(argv) > 1 else ["state", "metric"]
+    params = json.loads((out / "run.json").read_text())["params"]
+    prep = study.prepare_run(params["path"], **{k: params[k] for k in PREP_KEYS if k in params})
+    rows = [r for line in open(out / "records.jsonl") for r in json.loads(line)["rows"]]
+    opts = json.loads((out / "summary.json").read_text())["options"]
+    tau = float(opts.get("temper_chosen") or 1.0)
+    seen, _, _ = study.seen_estimates(prep, study.estimates_from_rows(prep, rows),
+                                      combine=opts.get("combine", "geometric"), temper=tau)
+    ds = prep.dataset
+    wanted = maps._all_ordered_triplets(ds.landmark_ids.size)
+    truth = truth_states(wanted, ds.landmark_xy, prep.partition.name)
+    keys = {tuple(t) for t in seen.triplets.tolist()}
+    is_seen = np.array([tuple(t) in keys for t in wanted.tolist()])
+    print(f"{out}: temper {tau:g}; the prior alone: seen "
+          f"{np.log(prep.prior_states[truth[is_seen]]).mean():.2f}, unseen "
+          f"{np.log(prep.prior_states[truth[~is_seen]]).mean():.2f}")
+    for v in variants:
+        kind, *rest = v.split(":")
+        kw = dict(maps.CONFIG_OPTIONS, widen=maps.CONFIG_WIDEN, unlinked=maps.CONFIG_UNLINKED,
+                  seed=0)
+        for r in rest:
+            k, text = r.split("=")
+            kw[k] = _value(k, text)
+        ev = (maps.metric_evidence(seen) if kind == "metric" else one_ordering_per_set(
+            {tuple(t): p for t, p in zip(seen.triplets.tolist(), seen.probabilities,
+                                         strict=True)}))
+        t0 = time.perf_counter()
+        res = configuration_marginals(ev, prior=seen.prior,
+                                      triplets=[tuple(t) for t in wanted.tolist()],
+                                      partition=prep.partition.name, likelihood=kind,
+                                      check=maps.CONFIG_CHECK, **kw)
+        P = np.asarray(res.probabilities, dtype=float)
+        P = P / P.sum(axis=1, keepdims=True)
+        p = P[np.arange(len(P)), truth]
+        lp = log_score(P, truth)
+        w = np.asarray(res.info.get("widened", np.zeros(len(P))))
+        print(f"{v}: seen {lp[is_seen].mean():.2f} ({np.mean(p[is_seen] < 0.01):.3f}) unseen "
+              f"{lp[~is_seen].mean():.2f} ({np.mean(p[~is_seen] < 0.01):.3f}); widened "
+              f"{np.mean(w > 0.5):.2f}; MC error {np.max(res.info['mc_error']):.2f}; "
+              f"{time.perf_counter() - t0:.0f} s", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
