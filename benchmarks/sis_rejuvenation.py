@@ -11,9 +11,9 @@ does for its sweep but with the development run seed 2 (``scenario_rng(2, i)``, 
 for a look at single cases, not for choices): geometries LO..HI-1. The solver
 seed is the study's own for full (``SeedSequence(solver_root.entropy, spawn_key=(1000 + n,
 METHODS.index("full")))``; the reference's for ``reference``). ``run`` solves every (geometry,
-n) at full's defaults and with each VARIANT (JSON options; keys ``_NAME`` set
-``qfg.solvers._sis.NAME`` and ``R.NAME`` set ``qfg.solvers._rejuvenation.NAME`` for the call,
-e.g. ``'{"rejuvenate": 1, "R.GROWTH": 1.25}'``) and appends one JSON line per (geometry, n) to
+n) at full's defaults and with each VARIANT (JSON options; a key ``_NAME`` sets the constant
+NAME of ``qfg.solvers._sis`` and ``R.NAME`` the constant NAME of ``qfg.solvers._rejuvenation``
+for the call, e.g. ``'{"rejuvenate": 1, "R.GROWTH": 1.25}'``) and appends one JSON line per (geometry, n) to
 OUT. ``report``: per n and variant, mean log p(truth) (clip 1e-4) paired against the defaults
 with its standard error, confidently wrong (p_max > 0.9 on a wrong state), flagged, median ESS,
 the median time ratio; with ``--ref`` (lines of ``reference``), the mean total variation and
