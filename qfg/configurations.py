@@ -1032,6 +1032,38 @@ class ConfigurationPosterior:
         Xt = self._Xt
         return self.partition.state_of(to_frame(Xt[ijk[:, 2]], Xt[ijk[:, 0]], Xt[ijk[:, 1]]))
 
+    def log_likelihoods(self, positions=None) -> np.ndarray:
+        """(T, K) ``log L_t(X_k)``: each seen triplet's floored likelihood term (module docstring;
+        the state kind tempered and floored exactly as the sampler used it) at K configurations.
+
+        ``positions``: (K, n, 2) or (n, 2) world positions, columns in the order of
+        :attr:`landmarks` (default: the sampled configurations). Rows follow the seen triplets of
+        :attr:`evidence`. Any configuration can be scored: the ground truth, to ask whether a
+        miss is the sampler's (the truth's ``sum_t log L_t`` above the particles') or the
+        evidence's (below them). Only AB-frame positions enter, so a similarity transform of a
+        configuration leaves every term unchanged.
+
+        >>> post = infer_configurations({(0, 1, 2): np.eye(20)[1] * 0.9 + 0.005}, n_particles=40,
+        ...                             seed=0)
+        >>> post.log_likelihoods(np.array([[0.0, 0.0], [0.0, 1.0], [-0.5, 0.5]])).shape
+        (1, 1)
+        """
+        if positions is None:
+            Xt = self._Xt
+        else:
+            X = as_float_array("positions", positions)
+            if X.ndim == 2:
+                X = X[None]
+            n = len(self.landmarks)
+            if X.ndim != 3 or X.shape[1:] != (n, 2):
+                raise ValueError(f"positions: expected shape (K, {n}, 2) or ({n}, 2), the "
+                                 f"landmarks' world positions in the order of .landmarks; got "
+                                 f"{np.shape(positions)}")
+            Xt = np.ascontiguousarray(np.transpose(X, (1, 0, 2)))
+        t = self._terms
+        idx = np.arange(len(t.triplets))
+        return _term_loglik(t, idx, [Xt[t.ijk[:, a]] for a in range(3)], _lookup_of(self.partition))
+
     def all_triplets(self) -> list:
         """Every ordered triplet of this configuration's landmarks (n (n-1) (n-2))."""
         L = self.landmarks

@@ -265,3 +265,29 @@ def test_metric_evidence_places_c_where_the_solver_did():
     st = infer_configurations({(0, 1, 2): s.states}, seed=4, n_particles=2000, floor=1e-3)
     cs = to_frame(st.positions[:, 2], st.positions[:, 0], st.positions[:, 1])
     assert np.mean(np.linalg.norm(c - where, axis=1)) < np.mean(np.linalg.norm(cs - where, axis=1))
+
+
+def test_log_likelihoods_are_the_floored_tempered_ratio_at_any_configuration():
+    """log_likelihoods(X) against the formula computed here from the partition's own lookup:
+    log((1 - eps) P'_t(s_t) / q(s_t) + eps), P' the tempered estimate; unchanged by a similarity
+    transform of X; the default scores the particles."""
+    from qfg.partitions import get
+
+    post = infer_configurations(EVIDENCE, n_particles=200, n_sweeps=1, seed=3)
+    rng = np.random.default_rng(7)
+    X = rng.uniform(0, 1, size=(50, 4, 2))
+    got = post.log_likelihoods(X)
+    q = prior_states(WorldBoxPrior(), "edc")
+    part = get("edc")
+    for r, (t, v) in enumerate(post.evidence.items()):
+        s = part.state_of(to_frame(X[:, t[2]], X[:, t[0]], X[:, t[1]]))
+        want = np.log((1 - FLOOR) * (temper(v, q, TEMPER["state"]) / q)[s] + FLOOR)
+        np.testing.assert_allclose(got[r], want, rtol=1e-12)
+    th = 0.7
+    R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+    np.testing.assert_allclose(post.log_likelihoods(2.5 * X @ R.T + [3.0, -1.0]), got,
+                               atol=1e-9)
+    np.testing.assert_array_equal(post.log_likelihoods(), post.log_likelihoods(post.positions))
+    assert post.log_likelihoods(X[0]).shape == (2, 1)
+    with pytest.raises(ValueError, match="positions: expected shape"):
+        post.log_likelihoods(X[:, :3])
