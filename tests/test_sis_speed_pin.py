@@ -2,7 +2,11 @@
 issue 20): the landmark distribution and each camera's mean state index of a few batches (full at
 3 views; with odometry distances, a bearing tail, C anchors at 4 views, noiseless; fast). The
 engine's exact speedups (fused geometry, reused sines and cosines, fewer temporaries) must give
-the same numbers up to float round-off. These values are not a truth: the other test_sis* and
+the same numbers up to float round-off. Round-off (1e-16) is amplified where a ray nearly
+grazes a locus circle (the square root of a small discriminant) and through the exponentiated
+weights, to about 1e-9 here; a changed decision (a pruned or resampled hypothesis, one of 512
+final trajectories) moves a probability by about 1e-3 or more, so 1e-8 tells the two apart.
+These values are not a truth: the other test_sis* and
 test_solver* files check the answers against independent computations; this one checks that a
 rewrite changed nothing.
 
@@ -39,7 +43,7 @@ def test_answers_unchanged(name):
     hs, method, opts = _cases()[name]
     es = solve_triplets(hs, method=method, seed=5, **opts)
     got = np.array([np.concatenate([e.landmark, e.cameras @ np.arange(20.0)]) for e in es])
-    np.testing.assert_allclose(got, np.array(PINNED[name]), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(got, np.array(PINNED[name]), rtol=0, atol=1e-8)
 
 
 PINNED = {

@@ -8,8 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import wrap_angle
-from ._arcs import RAY_CENTRE, ray_log_density_polar, ray_points
+from ._arcs import RAY_CENTRE, ray_log_density_polar, ray_points, wrap
 from ._laplace import CHUNK_ROWS, depth_spread, triangulate
 from ._likelihood import log_bearing, logsumexp, sum_views
 
@@ -90,7 +89,7 @@ def _sample_landmarks_rows(poses, phi_c, sig, kg, kr, draws, laplace=None, tail=
     ddy = L[:, :, 1][None] - X[..., 1].T[:, :, None]
     res = np.arctan2(ddy, ddx)
     res -= theta.T[:, :, None]
-    res = wrap_angle(res)
+    res = wrap(res)
     if tail is None:
         log_lik = -0.5 * sum_views(res * res) / (sig * sig)[:, None] - n * (
             np.log(sig) + 0.5 * np.log(2 * np.pi))[:, None]

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import wrap_angle
+from ._arcs import cos_sin, wrap
 from ._likelihood import sum_views
 
 #: Cap of the Laplace volume of C (log of an area in |AB|^2): near-parallel rays leave C
@@ -54,7 +54,7 @@ def triangulate(X, theta, parts=False):
     y = np.ascontiguousarray(X[..., 1].T)
     th = np.ascontiguousarray(np.asarray(theta, dtype=float).T)
     # least squares over lines with unit normals nv = (-sin, cos): (sum nv nv^T) L = sum nv nv^T o
-    sn, cs = np.sin(th), np.cos(th)
+    cs, sn = cos_sin(th)
     tmp = sn * sn
     a = sum_views(tmp)
     np.multiply(sn, cs, out=tmp)
@@ -142,7 +142,7 @@ def laplace_landmark(poses, phi_c, sigma, parts=False):
             P[..., :2], P[..., 2] + phi_c[sl], parts=True)
         res = np.arctan2(dy, dx, out=dx)
         res -= th
-        res = wrap_angle(res)
+        res = wrap(res)
         res *= res
         s = sig[sl]
         lz[sl] = laplace_value(sum_views(res), n, s, det)
@@ -171,8 +171,18 @@ def summary_from_parts(lz, parts, valid) -> np.ndarray:
     """(J, :data:`SUMMARY_COLUMNS`) summaries from :func:`laplace_landmark`'s ``lz`` and
     ``parts``; rows not ``valid`` are NaN (no summary: the next view refits them)."""
     Ls, ok, h00, h01, h11, det, r2min = parts
-    out = np.column_stack([Ls, h00, h01, h11, lz, r2min])
-    out[~(valid & ok)] = np.nan
+    out = _columns(Ls[:, 0], Ls[:, 1], h00, h01, h11, lz, r2min)
+    bad = ~(valid & ok)
+    if bad.any():
+        out[bad] = np.nan
+    return out
+
+
+def _columns(*cols) -> np.ndarray:
+    """(J, len(cols)) from columns (J,) each (``np.column_stack`` without its temporaries)."""
+    out = np.empty((cols[0].shape[0], len(cols)))
+    for k, c in enumerate(cols):
+        out[:, k] = c
     return out
 
 
@@ -212,7 +222,7 @@ def update_landmark(summary, X, theta, sigma):
             dx, dy = L0 - x0, L1 - x1
             r2 = np.maximum(dx * dx + dy * dy, 1e-150)
             gx, gy = -dy / r2, dx / r2
-            res = wrap_angle(np.arctan2(dy, dx) - theta)
+            res = wrap(np.arctan2(dy, dx) - theta)
             a00, a01, a11 = h00 + gx * gx, h01 + gx * gy, h11 + gy * gy
             det_new = a00 * a11 - a01 * a01
             if it == UPDATE_ITERATIONS:
@@ -229,9 +239,14 @@ def update_landmark(summary, X, theta, sigma):
                   - 0.5 * np.log(2 * np.pi) + 0.5 * np.log(det_old / det_new))
         r2m = np.minimum(r2min, r2)
         spread = depth_spread(np.isfinite(L0) & np.isfinite(L1), a00, a01, a11, det_new, r2m, sig)
-    out = np.column_stack([L0, L1, a00, a01, a11, lz_new, r2m])
-    bad = ~np.all(np.isfinite(out), axis=1)
-    out[bad] = np.nan
+    cols = (L0, L1, a00, a01, a11, lz_new, r2m)
+    out = _columns(*cols)
+    fin = np.isfinite(cols[0])
+    for c in cols[1:]:
+        fin &= np.isfinite(c)
+    bad = ~fin
+    if bad.any():
+        out[bad] = np.nan
     return out, np.where(bad, np.inf, spread)
 
 
@@ -253,7 +268,7 @@ def refine_mode(X, theta, L0, iterations: int = 2):
         dx, dy = L[:, None, 0] - x, L[:, None, 1] - y
         r2 = np.maximum(dx * dx + dy * dy, 1e-150)
         gx, gy = -dy / r2, dx / r2
-        res = wrap_angle(np.arctan2(dy, dx) - theta)
+        res = wrap(np.arctan2(dy, dx) - theta)
         return gx, gy, res, r2
 
     gx, gy, res, r2 = parts(L)

@@ -58,7 +58,6 @@ from ..geometry import (
     heading_on_locus,
     locus_circle,
     locus_point,
-    ray_circle_intersection,
     wrap_angle,
 )
 from . import (
@@ -979,8 +978,7 @@ def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
         lab = _likelihood.log_bearing(nab, s2, tail) \
             - _likelihood.log_bearing_proposal(nab, s2, tail, spread)
         lcorr = lcorr + np.sum(np.where((sb > 0)[:, None], lab, 0.0), axis=1)
-    circ = locus_circle(pa, pb)
-    pts, valid = ray_circle_intersection(prev[par, :2], th, circ.center, circ.radius, circ.side)
+    pts, valid, (ux, uy) = _arcs.ray_locus(prev[par, :2], th, pa, pb)
     mixed = _mixed(state, ct, r, spread)
     if np.any(mixed):
         # the last r // 2 draws of each parent: the step length from the distance ratio
@@ -992,15 +990,21 @@ def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
         p, tt = par[rows], ct[rows]
         t = _prev_step(state, p) * state.distances[tt, -1] / state.distances[tt, -2] \
             * np.exp(state.sigma_distance[tt] * z[rows, 0])
+        circ = locus_circle(pa[rows], pb[rows])
         pts[rows], valid[rows] = _circle_arc_intersection(
-            prev[p, :2], t, circ.center[rows], circ.radius[rows], circ.side[rows])
-    j, b = np.nonzero(valid)
-    X = pts[j, b]
+            prev[p, :2], t, circ.center, circ.radius, circ.side)
+    # the valid (row, slot) pairs in row-major order, as np.nonzero(valid) gives them
+    flat = np.flatnonzero(valid)
+    j = flat >> 1
+    X = pts.reshape(-1, 2)[flat]
+    pj = par[j]
     lpx = _prior.point_log_prior(state.opts["prior"], X)
-    lw = state.lw_base[par[j]] + _arcs.log_ray_jacobian(X, prev[par[j], :2], th[j]) + lpx \
-        + lcorr[j] - np.log(r[ct[j]])
+    lw = state.lw_base[pj] + _arcs.log_ray_jacobian_u(X, prev[pj, :2], ux[j], uy[j]) + lpx
+    if spread != 1.0:
+        lw += lcorr[j]
+    lw -= np.log(r)[ct[j]]
     i = state.n_views
-    if i >= 2 and np.any(state.distances[ct[j], -1] > 0):
+    if i >= 2 and np.any(state.distances[:, -1] > 0) and np.any(state.distances[ct[j], -1] > 0):
         pj, tj = par[j], ct[j]
         lw = lw + log_distance_factor(np.hypot(*(X - prev[pj, :2]).T), _prev_step(state, pj),
                                       state.distances[tj, -1], state.distances[tj, -2],
@@ -1010,8 +1014,10 @@ def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
             pm = par[j[m]]
             lw[m] = state.lw_base[pm] + lpx[m] - np.log(r[ct[j[m]]]) \
                 + _mixture_weight(state, X[m], prev, psi, r, pm)
-    alpha = wrap_angle(np.arctan2(-X[:, 1], -X[:, 0]) - pa[j])
-    return j + offset, np.concatenate([X, alpha[:, None]], axis=-1), lw, lpx
+    pose = np.empty((j.size, 3))
+    pose[:, :2] = X
+    pose[:, 2] = _arcs.wrap(np.arctan2(-X[:, 1], -X[:, 0]) - pa[j])
+    return j + offset, pose, lw, lpx
 
 
 #: Heading noise (radians) up to which the motion step also proposes children from the distance
@@ -1028,7 +1034,8 @@ def _mixed(state: SISState, ct, r, spread) -> np.ndarray:
     :func:`_mixture_weight`: the triplet has a step-length-ratio factor at this view, the
     noise is drawn at the model's width, and its heading noise is within
     (0, :data:`_MIX_MAX_SIGMA_HEADING`]."""
-    if not _MIX_DISTANCE_PROPOSAL or state.n_views < 2 or spread != 1.0:
+    if not _MIX_DISTANCE_PROPOSAL or state.n_views < 2 or spread != 1.0 \
+            or not np.any(state.distances[:, -1] > 0):
         return np.zeros(ct.size, dtype=bool)
     d = state.distances[ct]
     sh = state.sigma_heading[ct]
@@ -1158,7 +1165,10 @@ def finish(state: SISState, hypotheses: bool = False):
         lp = np.empty(L.shape[:2])
         keep_mask = ~state.same_pose[tid]
         # the prior of the distinct points: views taken as "not moved" repeat a camera
-        pat, inv = np.unique(keep_mask, axis=0, return_inverse=True)
+        if keep_mask.all():
+            pat, inv = np.ones((1, n), dtype=bool), np.zeros(tid.size, dtype=np.int64)
+        else:
+            pat, inv = np.unique(keep_mask, axis=0, return_inverse=True)
         for g in range(pat.shape[0]):
             rows = np.flatnonzero(inv.reshape(-1) == g)
             X = poses[rows][:, :, :2][:, pat[g]]
