@@ -76,3 +76,22 @@ def test_log_ray_jacobian_u_equals_log_ray_jacobian():
     assert np.max(np.abs(got - ref)[fin]) < 1e-9
     # a ray starting on its point (t = 0) has none
     assert _arcs.log_ray_jacobian_u(X[:1], X[:1], ux[j[:1]], uy[j[:1]])[0] == -np.inf
+
+
+def test_segment_max_equals_maximum_at():
+    from qfg.solvers._sis import _segment_max
+
+    rng = np.random.default_rng(4)
+    for _ in range(300):
+        T, n = int(rng.integers(1, 8)), int(rng.integers(0, 30))
+        tid = np.sort(rng.integers(0, T, n))
+        x = rng.normal(size=n)
+        x[rng.random(n) < 0.2] = -np.inf
+        for t, v in ((tid, x), (tid[::-1].copy(), x[::-1].copy())):     # sorted, and not
+            ref = np.full(T, -np.inf)
+            np.maximum.at(ref, t, v)
+            assert np.array_equal(_segment_max(t, v, T), ref)
+            base = rng.normal(size=T)
+            ref = base.copy()
+            np.maximum.at(ref, t, v)
+            assert np.array_equal(_segment_max(t, v, T, out=base), ref)
