@@ -40,13 +40,9 @@ def _value(key, text):
     return float(text) if "." in text or "e" in text else int(text)
 
 
-def main(argv=None) -> int:
-    argv = sys.argv[1:] if argv is None else argv
-    if not argv:
-        print(__doc__)
-        return 2
-    out = Path(argv[0])
-    variants = argv[1].split(",") if len(argv) > 1 else ["state", "metric"]
+def load_run(out: Path):
+    """``(prep, seen, tau)`` of a recorded run's folder: its prepared dataset, its seen
+    estimates combined as the run combined them, and the tempering power it chose."""
     params = json.loads((out / "run.json").read_text())["params"]
     prep = study.prepare_run(params["path"], **{k: params[k] for k in PREP_KEYS if k in params})
     rows = [r for line in open(out / "records.jsonl") for r in json.loads(line)["rows"]]
@@ -54,6 +50,17 @@ def main(argv=None) -> int:
     tau = float(opts.get("temper_chosen") or 1.0)
     seen, _, _ = study.seen_estimates(prep, study.estimates_from_rows(prep, rows),
                                       combine=opts.get("combine", "geometric"), temper=tau)
+    return prep, seen, tau
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if not argv:
+        print(__doc__)
+        return 2
+    out = Path(argv[0])
+    variants = argv[1].split(",") if len(argv) > 1 else ["state", "metric"]
+    prep, seen, tau = load_run(out)
     ds = prep.dataset
     wanted = maps._all_ordered_triplets(ds.landmark_ids.size)
     truth = truth_states(wanted, ds.landmark_xy, prep.partition.name)

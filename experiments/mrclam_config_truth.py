@@ -20,18 +20,16 @@ The ground truth is used only to score, as ``qfg mrclam`` does.
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
 from qfg.configurations import infer_configurations, one_ordering_per_set
-from qfg.harness.studies import mrclam as study
 from qfg.harness.studies import mrclam_maps as maps
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from mrclam_config_options import PREP_KEYS  # noqa: E402
+from mrclam_config_options import load_run  # noqa: E402
 
 
 def main(argv=None) -> int:
@@ -41,13 +39,7 @@ def main(argv=None) -> int:
         return 2
     out = Path(argv[0])
     seed = int(argv[1]) if len(argv) > 1 else 0
-    params = json.loads((out / "run.json").read_text())["params"]
-    prep = study.prepare_run(params["path"], **{k: params[k] for k in PREP_KEYS if k in params})
-    rows = [r for line in open(out / "records.jsonl") for r in json.loads(line)["rows"]]
-    opts = json.loads((out / "summary.json").read_text())["options"]
-    tau = float(opts.get("temper_chosen") or 1.0)
-    seen, _, _ = study.seen_estimates(prep, study.estimates_from_rows(prep, rows),
-                                      combine=opts.get("combine", "geometric"), temper=tau)
+    prep, seen, tau = load_run(out)
     ev = one_ordering_per_set({tuple(t): p for t, p in zip(seen.triplets.tolist(),
                                                            seen.probabilities, strict=True)})
     post = infer_configurations(ev, prior=seen.prior, partition=prep.partition.name, seed=seed,
