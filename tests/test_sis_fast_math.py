@@ -95,3 +95,21 @@ def test_segment_max_equals_maximum_at():
             ref = base.copy()
             np.maximum.at(ref, t, v)
             assert np.array_equal(_segment_max(t, v, T, out=base), ref)
+
+
+def test_logaddexp_equals_numpy():
+    from qfg.solvers._likelihood import logaddexp
+
+    rng = np.random.default_rng(5)
+    a, b = rng.normal(0.0, 30.0, (2, 100_000))
+    special = np.array([-np.inf, np.inf, 0.0, -745.0, 700.0])
+    a = np.concatenate([a, np.repeat(special, 5)])
+    b = np.concatenate([b, np.tile(special, 5)])
+    with np.errstate(invalid="ignore"):
+        ref = np.logaddexp(a, b)
+    got = logaddexp(a, b)
+    assert np.array_equal(np.isfinite(got), np.isfinite(ref))
+    assert np.array_equal(got[~np.isfinite(ref)], ref[~np.isfinite(ref)])
+    fin = np.isfinite(ref)
+    assert np.max(np.abs(got[fin] - ref[fin]) / np.maximum(1.0, np.abs(ref[fin]))) < 1e-15
+    assert np.isnan(logaddexp(np.nan, 1.0))

@@ -10,7 +10,7 @@ import numpy as np
 
 from ._arcs import RAY_CENTRE, ray_log_density_polar, ray_points, wrap
 from ._laplace import CHUNK_ROWS, depth_spread, triangulate
-from ._likelihood import log_bearing, logsumexp, sum_views
+from ._likelihood import log_bearing, logaddexp, logsumexp, sum_views
 
 
 def sample_landmarks(rng, poses, phi_c, sigma, k: int, ray_fraction: float, draws=None,
@@ -111,5 +111,5 @@ def _sample_landmarks_rows(poses, phi_c, sig, kg, kr, draws, laplace=None, tail=
         r = np.sqrt(ddx, out=ddx)
         lr = ray_log_density_polar(res, r, tau.T[:, :, None], sq[None, :, None])
         logs.append(np.log(kr / k) + logsumexp(lr, axis=0) - np.log(n))
-    log_q = logs[0] if len(logs) == 1 else np.logaddexp(logs[0], logs[1])
+    log_q = logs[0] if len(logs) == 1 else logaddexp(logs[0], logs[1])
     return L, log_q, log_lik, spread
