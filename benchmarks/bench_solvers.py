@@ -14,7 +14,9 @@ ratio of plain times (linear in views: 3.3 at 10, 6.7 at 20).
 
 ``python -m benchmarks.bench_solvers --against DIR [--method full]`` times a solver against an
 older tree's ``qfg`` package in DIR (``git archive <commit> qfg | tar -x -C DIR``), interleaved in
-one process: the ratio survives the shared machine's load.
+one process: the ratio survives the shared machine's load (also as process time, and in units of
+the fixed workload); ``--set JSON`` gives the working tree other options (the older tree's
+defaults otherwise).
 
 ``python -m benchmarks.bench_solvers --logsumexp`` times the solvers' ``logsumexp``
 (:mod:`qfg.solvers._likelihood`) against ``scipy.special.logsumexp`` on the shapes the solvers
@@ -36,13 +38,16 @@ def _histories(n, seed=2024):
 
 
 def _batched(method, hs, repeats):
+    """(median, min) seconds per triplet over ``repeats`` calls, and the fixed workload's
+    seconds (the mean of its best-of-5 before and after the calls)."""
     solve_triplets(hs[:5], method=method, seed=0)          # warm-up
     per = []
+    w0 = _workload()
     for r in range(repeats):
         t = time.perf_counter()
         solve_triplets(hs, method=method, seed=r)
         per.append((time.perf_counter() - t) / len(hs))
-    return float(np.median(per)), float(min(per))
+    return float(np.median(per)), float(min(per)), 0.5 * (w0 + _workload())
 
 
 def _single(method, hs):
@@ -126,10 +131,12 @@ def run():
     load = os.getloadavg()[0]
     for method, T, reps, target in (("full", 50, 3, "<= 10"), ("fast", 50, 3, "<= 2"),
                                     ("fast-paper", 200, 5, "")):
-        med, best = _batched(method, hs[:T], reps)
+        med, best, w = _batched(method, hs[:T], reps)
         rows.append({"name": f"{method}, batched ({T} triplets per call)", "value": 1e3 * med,
                      "unit": "ms/triplet", "target": target,
-                     "note": f"median of {reps} calls; min {1e3 * best:.2f} ms; load {load:.1f}"})
+                     "note": f"median of {reps} calls; min {1e3 * best:.2f} ms; "
+                             f"{med / w:.3g} workloads (workload {1e3 * w:.1f} ms); "
+                             f"load {load:.1f}"})
     for method, n in (("baseline", 20), ("reference", 5)):
         med, p90 = _single(method, hs[:n])
         rows.append({"name": f"{method}, single call", "value": 1e3 * med, "unit": "ms/triplet",
@@ -184,12 +191,18 @@ def compare(src, method="full", T=50, repeats=5, seed=2024, extra=None):
                              - np.array([e.landmark for e in runs["after"](0)]))))
     runs["fast-paper"](0)
     times = {k: [] for k in runs}
+    cpu = {k: [] for k in runs}
+    work = [_workload()]
     for r in range(repeats):
         for k, f in runs.items():
-            t = time.perf_counter()
+            t, c = time.perf_counter(), time.process_time()
             f(r + 1)
             times[k].append(1e3 * (time.perf_counter() - t) / T)
+            cpu[k].append(1e3 * (time.process_time() - c) / T)
+        work.append(_workload())
     out = {k: float(np.median(v)) for k, v in times.items()}
+    out.update({f"{k} cpu": float(np.median(v)) for k, v in cpu.items()})
+    out["workload"] = 1e3 * float(np.median(work))
     out["max_landmark_difference"] = dp
     return out
 
@@ -249,3 +262,8 @@ if __name__ == "__main__":
           f"{r['after']:.2f}, ratio {r['before'] / r['after']:.2f}; fast-paper "
           f"{r['fast-paper']:.2f} ms (after / fast-paper {r['after'] / r['fast-paper']:.1f}); "
           f"largest landmark difference {r['max_landmark_difference']:.1e}")
+    w = r["workload"]
+    print(f"process time: before {r['before cpu']:.2f} ms/triplet, after {r['after cpu']:.2f}, "
+          f"ratio {r['before cpu'] / r['after cpu']:.2f}; workload {w:.1f} ms (median of "
+          f"{a.repeats + 1}): before {r['before'] / w:.2f} workloads, after "
+          f"{r['after'] / w:.2f}")
