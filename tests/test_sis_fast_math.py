@@ -113,3 +113,19 @@ def test_logaddexp_equals_numpy():
     fin = np.isfinite(ref)
     assert np.max(np.abs(got[fin] - ref[fin]) / np.maximum(1.0, np.abs(ref[fin]))) < 1e-15
     assert np.isnan(logaddexp(np.nan, 1.0))
+
+
+def test_logsumexp_over_a_few_columns_equals_the_reduction():
+    from qfg.solvers._likelihood import logsumexp
+
+    rng = np.random.default_rng(6)
+    for k in range(1, 10):
+        a = rng.normal(0.0, 5.0, (500, k))
+        a[rng.random(a.shape) < 0.2] = -np.inf
+        mx = np.max(a, axis=1, keepdims=True)
+        ok = np.isfinite(mx)
+        with np.errstate(divide="ignore"):
+            ref = np.where(ok, mx + np.log(np.sum(np.exp(a - np.where(ok, mx, 0.0)), axis=1,
+                                                  keepdims=True)), -np.inf)[:, 0]
+        got = logsumexp(a, axis=1)
+        assert np.array_equal(got, ref) if k < 8 else np.allclose(got, ref, rtol=1e-15)
