@@ -964,7 +964,8 @@ def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
     log per-point prior) of the K children whose ray meets the drawn locus arc."""
     ct = state.tid[par]
     sb, sh = state.sigma_bearing[ct], state.sigma_heading[ct]
-    th = prev[par, 2] + psi[ct] + spread * sh * z[:, 0]
+    pp = prev[par]
+    th = pp[:, 2] + psi[ct] + spread * sh * z[:, 0]
     tail = state.opts.get("bearing_tail")
     if tail is None:
         pa = phi[ct, 0] + spread * sb * z[:, 1]
@@ -976,7 +977,7 @@ def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
     # likelihood over proposal of the drawn noise: N(x; s) / N(x; spread s) per drawn component
     # (exactly 0 when the noise is drawn at the model's width)
     if spread == 1.0:
-        lcorr = np.zeros(z.shape[0])
+        lcorr = None
     elif tail is None:
         noisy = np.stack([sh, sb, sb], axis=1) > 0
         lcorr = np.sum(np.where(noisy, -0.5 * z[:, :3] ** 2 * (spread * spread - 1.0)
@@ -988,7 +989,7 @@ def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
         lab = _likelihood.log_bearing(nab, s2, tail) \
             - _likelihood.log_bearing_proposal(nab, s2, tail, spread)
         lcorr = lcorr + np.sum(np.where((sb > 0)[:, None], lab, 0.0), axis=1)
-    pts, valid, (ux, uy) = _arcs.ray_locus(prev[par, :2], th, pa, pb)
+    pts, valid, (ux, uy) = _arcs.ray_locus(pp[:, :2], th, pa, pb)
     mixed = _mixed(state, ct, r, spread)
     if np.any(mixed):
         # the last r // 2 draws of each parent: the step length from the distance ratio
@@ -1009,8 +1010,8 @@ def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
     X = pts.reshape(-1, 2)[flat]
     pj = par[j]
     lpx = _prior.point_log_prior(state.opts["prior"], X)
-    lw = state.lw_base[pj] + _arcs.log_ray_jacobian_u(X, prev[pj, :2], ux[j], uy[j]) + lpx
-    if spread != 1.0:
+    lw = state.lw_base[pj] + _arcs.log_ray_jacobian_u(X, pp[j, :2], ux[j], uy[j]) + lpx
+    if lcorr is not None:
         lw += lcorr[j]
     lw -= np.log(r)[ct[j]]
     i = state.n_views
