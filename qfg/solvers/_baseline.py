@@ -20,8 +20,25 @@ with zero noise exact (one draw). ``1 / |det J|`` is singular (integrably) where
 camera are concyclic; a candidate that happens to fall next to that circle is capped at
 ``jacobian_cap`` x the median over candidates, so that no single candidate dominates.
 
+**The prior of the whole configuration.** The product above holds when the prior is a product
+of per-point priors. A world prior is not: C and the cameras share one frame (A, B and every point
+placed in one world box), so a configuration whose cameras stand many |AB| away is unlikely
+*once* (|AB| must then be small against the box), not once per view. With ``joint_samples`` =
+M > 0 (the default) the answer is the posterior under the prior's joint density
+``prior.log_density([C, X_1..X_n])``, by importance sampling on the product's terms:
+
+    P(L | Z) ~ prior_1(L) prod_i density_i(L) * E_{k_i ~ pi_i}[ r(L, X*_{1,k_1}, .., X*_{n,k_n}) ]
+
+with ``pi_i(k) ~ p_1(X*_k) / |det J(X*_k)|`` (view i's noise draws as weighted above),
+``r = prior(L, X_1..X_n) / (prior_1(L) prod_i prior_1(X_i))`` and the expectation estimated by M
+tuples of draws per candidate (unbiased: the product's terms are the importance proposal). With
+``joint_samples=0`` the product of per-point priors is used (the paper's model, eqs. slamInd1/2).
+On tight landmark clusters seen from afar (MRCLAM dataset 5) the product counts the small-|AB|
+penalty once per view and pulls every camera, and C with them, toward A and B.
+
 The camera-state posterior of view i is ``sum_L P(L | Z) R_i(L, s)``, ``R_i(L, s)`` the share of
-density_i(L) whose resected camera is in state s. Headings are never read. A view with a
+density_i(L) whose resected camera is in state s (with the joint prior: of the tuples, weighted
+by r). Headings are never read. A view with a
 degenerate locus (camera on line AB with zero noise) has no resection; it is ignored and flagged.
 A view repeating the previous view's bearings is taken as the same camera (not moved): it adds
 no evidence and is flagged.
@@ -29,6 +46,7 @@ no evidence and is flagged.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -54,6 +72,8 @@ class BaselineState:
     shares: tuple              # per view: (N, m) R_i, or None for an ignored view
     cameras: tuple             # per view: ((N, K, 3) resected poses, (N, K) contributions)
     reasons: tuple
+    counted: tuple = ()        # per view: whether it entered lw (not ignored, not a repeat)
+    point_lp: tuple = ()       # per view: (N, K) per-point log prior of the resected poses
 
 
 def _candidates(rng, n, prior):
@@ -151,7 +171,8 @@ def step(state: BaselineState, phi, heading=None) -> BaselineState:
         # the same bearings again: the camera taken as not moved, one camera seen twice, so the
         # view adds no independent evidence (counting it again would square its likelihood)
         return replace(state, meas=meas, shares=state.shares + (state.shares[-1],),
-                       cameras=state.cameras + (state.cameras[-1],))
+                       cameras=state.cameras + (state.cameras[-1],),
+                       counted=state.counted + (False,), point_lp=state.point_lp + (None,))
     sv = float(meas.sigma_bearing)
     k = 1 if sv == 0 else opts["noise_samples"]
     rng = _seeds.stream(state.root, i, _seeds.STREAM_CAMERAS)
@@ -162,12 +183,14 @@ def step(state: BaselineState, phi, heading=None) -> BaselineState:
         z, rng.random((k, 3)), rng.random((k, 3)), sv, tail))
     L = state.candidates
     poses, logdet, ok = resect(L, draws)
-    lc = _prior.point_log_prior(opts["prior"], poses[..., :2]) - logdet
+    lp = _prior.point_log_prior(opts["prior"], poses[..., :2])
+    lc = lp - logdet
     lc = np.where(ok, lc, -np.inf)
     fin = np.isfinite(lc)
     if not np.any(fin):
         return replace(state, meas=meas, shares=state.shares + (None,),
-                       cameras=state.cameras + ((poses, lc),),
+                       cameras=state.cameras + ((poses, lc),), counted=state.counted + (False,),
+                       point_lp=state.point_lp + (None,),
                        reasons=state.reasons + (f"view {i + 1}: no camera pose sees A, B and any "
                                                 "candidate C at these bearings (ignored)",))
     # cap the integrable 1/|det J| singularity relative to the typical candidate
@@ -183,7 +206,74 @@ def step(state: BaselineState, phi, heading=None) -> BaselineState:
         shares[good] = np.bincount(idx, weights=p.ravel(),
                                    minlength=s.shape[0] * part.n_states).reshape(-1, part.n_states)
     return replace(state, meas=meas, lw=state.lw + ld, shares=state.shares + (shares,),
-                   cameras=state.cameras + ((poses, lc),))
+                   cameras=state.cameras + ((poses, lc),), counted=state.counted + (True,),
+                   point_lp=state.point_lp + (lp,))
+
+
+def _sources(state: BaselineState) -> list:
+    """Per view, the counted view whose camera it is (itself; a repeat: the view it repeats), or
+    None for an ignored view."""
+    src = []
+    for t, c in enumerate(state.counted):
+        if c:
+            src.append(t)
+        elif t and state.shares[t] is not None and state.cameras[t] is state.cameras[t - 1]:
+            src.append(src[-1])
+        else:
+            src.append(None)
+    return src
+
+
+def _quadrature(prior):
+    """The prior whose joint density the correction evaluates: a
+    :class:`qfg.priors.WorldBoxPrior` with more than :data:`._prior.SOLVER_N_RHO` quadrature
+    angles is evaluated with that many (the same box; the solvers' resolution for the world
+    prior, within ~0.02 nats; N x M configurations per triplet at 128 angles cost 10x more)."""
+    if isinstance(prior, _priors.WorldBoxPrior) and prior.n_rho > _prior.SOLVER_N_RHO:
+        return _coarse_box(prior.width, prior.height, prior.d_min)
+    return prior
+
+
+@functools.lru_cache(maxsize=8)
+def _coarse_box(width, height, d_min):
+    return _priors.WorldBoxPrior(width=width, height=height, d_min=d_min,
+                                 n_rho=_prior.SOLVER_N_RHO)
+
+
+def joint_correction(state: BaselineState, n_tuples: int):
+    """The prior of the whole configuration against the product of per-point priors
+    (module docstring): per candidate L, ``log mean_m r(L, X_{1,m}..X_{n,m})`` over ``n_tuples``
+    tuples, view i's camera X_{i,m} drawn from its noise draws with probabilities ``pi_i``
+    (its normalized contributions). Returns ``(correction (N,), {view: tuple poses (N, M, 3)},
+    tuple weights (N, M))`` (the weights: r normalized per candidate); a candidate without weight
+    gets correction 0 (its product weight is already 0)."""
+    prior, L = state.opts["prior"], state.candidates
+    N, M = L.shape[0], int(n_tuples)
+    rng = _seeds.stream(state.root, 0, _seeds.STREAM_POSTERIOR)
+    alive = np.isfinite(state.lw)
+    logp1 = np.repeat(_prior.point_log_prior(prior, L)[:, None], M, axis=1)
+    picks, X = {}, []
+    for t, c in enumerate(state.counted):
+        if not c:
+            continue
+        poses, lc = state.cameras[t]
+        cum = np.cumsum(_likelihood.normalize_log(lc), axis=1)              # (N, K)
+        u = rng.random((N, M)) * cum[:, -1:]
+        idx = np.minimum((cum[:, None, :] <= u[..., None]).sum(axis=-1), cum.shape[1] - 1)
+        Xt = np.take_along_axis(poses, idx[..., None], axis=1)             # (N, M, 3)
+        Xt = np.where(alive[:, None, None], Xt, 0.0)    # a dead candidate's poses may be junk
+        picks[t] = Xt
+        X.append(Xt[..., :2])
+        logp1 += np.take_along_axis(state.point_lp[t], idx, axis=1)
+    if not X:
+        return np.zeros(N), picks, np.full((N, M), 1.0 / M)
+    lj = _prior.log_joint_prior(_quadrature(prior), np.broadcast_to(L[:, None, :], (N, M, 2)),
+                                np.stack(X, axis=2))
+    with np.errstate(invalid="ignore"):
+        r = lj - logp1
+    r = np.where(np.isfinite(logp1) & ~np.isnan(r), r, -np.inf)
+    corr = np.where(alive, _likelihood.logsumexp(r, axis=1) - np.log(M), 0.0)
+    return corr, picks, _likelihood.normalize_log(r)
 
 
 def finish(state: BaselineState):
@@ -197,15 +287,37 @@ def finish(state: BaselineState):
     rep = _degenerate.repeated_views(meas.bearings)
     if np.any(rep):
         reasons.append(_degenerate.repeated_reason(rep))
-    w = _likelihood.normalize_log(state.lw)
+    M = int(opts.get("joint_samples", 0))
+    joint = M > 0 and any(state.counted)
+    lw = state.lw
+    if joint:
+        corr, picks, a = joint_correction(state, M)
+        lw = lw + corr
+    w = _likelihood.normalize_log(lw)
     landmark, ok = _histograms.state_histogram(part, state.candidates, w)
     N = state.candidates.shape[0]
-    K = max(c[0].shape[1] for c in state.cameras)
+    K = M if joint else max(c[0].shape[1] for c in state.cameras)
     cam_samples = np.zeros((n, N * K, 3))
     cam_w = np.zeros((n, N * K))
     if not ok:
         reasons.append("no C candidate is consistent with every view")
         cams = np.full((n, m), 1.0 / m)
+    elif joint:
+        # each view's camera from the tuples, weighted by the joint prior's ratio r
+        cams = np.full((n, m), 1.0 / m)
+        for t, src in enumerate(_sources(state)):
+            if src is None:
+                continue
+            Xt = picks[src]
+            st = part.state_of(Xt[..., :2])                                  # (N, M)
+            idx = (np.arange(N)[:, None] * m + st).ravel()
+            R = np.bincount(idx, weights=a.ravel(), minlength=N * m).reshape(N, m)
+            cams[t] = w @ R
+            cam_samples[t] = Xt.reshape(-1, 3)
+            cam_w[t] = (w[:, None] * a).ravel()
+        cams = cams / cams.sum(axis=1, keepdims=True)
+        s = cam_w.sum(axis=1, keepdims=True)
+        cam_w = np.where(s > 0, cam_w / np.where(s > 0, s, 1.0), 0.0)
     else:
         cams = np.stack([np.full(m, 1.0 / m) if R is None else w @ R for R in state.shares])
         cams = cams / cams.sum(axis=1, keepdims=True)

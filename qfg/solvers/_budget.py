@@ -102,8 +102,10 @@ def _rows(method, opts, n_views) -> int:
     if method == "fast-paper":
         return 2 * opts["max_hypotheses"]
     if method == "baseline":
-        # candidates x resected poses per view, plus the (candidates, states) camera shares
-        return opts["n_landmark_samples"] * (opts["noise_samples"] + 8)
+        # candidates x resected poses per view, plus the (candidates, states) camera shares, plus
+        # the joint prior's tuples (a pose per view each, and their stacked positions)
+        return opts["n_landmark_samples"] * (opts["noise_samples"] + 8
+                                             + 2 * opts.get("joint_samples", 0))
     # the reference: the staged sampler's draws per round (up to grow x n_samples), or the
     # conditional sampler's particles (rb_samples x particles, each a pose per view, plus its
     # per-C Gauss-Newton blocks of 3 x 3 per view, about 4 particles' worth each)

@@ -104,6 +104,9 @@ DEFAULTS = {
         "noise_samples": 16,         # measurement-noise draws per view (1 when sigma = 0)
         "jacobian_cap": 30.0,        # cap on 1/|det J| relative to the median candidate
         "bearing_tail": None,        # as full's: the noise draws come from the mixture
+        "joint_samples": 16,         # tuples of the views' draws per candidate for the prior of
+                                     # the whole configuration (0: a product of per-point
+                                     # priors, the paper's model; _baseline, docs/solvers.md)
         "prior": "world",
     },
 }
@@ -122,6 +125,8 @@ def resolve_options(method: str, options: dict, defaults: dict | None = None) ->
     opts.update(options)
     if "motion" in opts and opts["motion"] not in ("sample", "match"):
         raise ValueError(f"motion: expected 'sample' or 'match', got {opts['motion']!r}")
+    if "joint_samples" in opts:
+        opts["joint_samples"] = positive_int("joint_samples", opts["joint_samples"], minimum=0)
     for k in ("n_samples", "max_hypotheses", "one_view_samples", "n_landmark_samples",
               "motion_samples", "noise_samples", "refine_cells", "refine_factor",
               "posterior_samples", "landmark_samples"):
