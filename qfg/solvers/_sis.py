@@ -832,7 +832,15 @@ def _extend(state: SISState, phi, psi, spread: float, purpose: int) -> SISState:
         return (z,) if tail is None else (z, rng.random((m, 2)), rng.random((m, 2)))
 
     gens = _gens(state.roots, i, purpose)
-    z, *uv = _per_triplet(gens, counts, draw)
+    if tail is None:
+        # the same draws as _per_triplet(gens, counts, draw), written in place (no
+        # concatenation of a million rows)
+        z, uv = np.empty((int(counts.sum()), 3)), []
+        ends = np.cumsum(counts)
+        for g, lo, hi in zip(gens, ends - counts, ends, strict=True):
+            g.standard_normal(out=z[lo:hi])
+    else:
+        z, *uv = _per_triplet(gens, counts, draw)
     if uv:
         # columns: [heading, A, B] noise; then A/B component choices and outlier places
         z = np.concatenate([z, uv[0], uv[1]], axis=1)
