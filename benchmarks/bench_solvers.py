@@ -16,7 +16,7 @@ ratio of plain times (linear in views: 3.3 at 10, 6.7 at 20).
 older tree's ``qfg`` package in DIR (``git archive <commit> qfg | tar -x -C DIR``), interleaved in
 one process: the ratio survives the shared machine's load (also as process time, and in units of
 the fixed workload); ``--set JSON`` gives the working tree other options (the older tree's
-defaults otherwise).
+defaults otherwise), ``--views N`` other numbers of views than 3.
 
 ``python -m benchmarks.bench_solvers --logsumexp`` times the solvers' ``logsumexp``
 (:mod:`qfg.solvers._likelihood`) against ``scipy.special.logsumexp`` on the shapes the solvers
@@ -31,10 +31,10 @@ from qfg.simulation import random_triplet_history
 from qfg.solvers import solve_triplet, solve_triplets
 
 
-def _histories(n, seed=2024):
+def _histories(n, seed=2024, views=3):
     ss = np.random.SeedSequence(seed)
-    return [random_triplet_history(np.random.default_rng(c), 3, np.deg2rad(2.0), np.deg2rad(5.0))
-            for c in ss.spawn(n)]
+    return [random_triplet_history(np.random.default_rng(c), views, np.deg2rad(2.0),
+                                   np.deg2rad(5.0)) for c in ss.spawn(n)]
 
 
 def _batched(method, hs, repeats):
@@ -162,7 +162,7 @@ def _load_tree(src, name="qfg_before"):
     return mod
 
 
-def compare(src, method="full", T=50, repeats=5, seed=2024, extra=None):
+def compare(src, method="full", T=50, repeats=5, seed=2024, extra=None, views=3):
     """Time per triplet of ``method`` in the working tree and in an older tree ``src`` (its
     ``qfg`` package), interleaved in one process on the same histories (the benchmark's), with
     the older tree's default options (options it lacks at the working tree's defaults), next to
@@ -180,8 +180,8 @@ def compare(src, method="full", T=50, repeats=5, seed=2024, extra=None):
     new_opts = {**DEFAULTS[method], **old_opts, **(extra or {})}
     ss = np.random.SeedSequence(seed)
     kids = ss.spawn(T)
-    h_new = _histories(T, seed)
-    h_old = [old_sim.random_triplet_history(np.random.default_rng(c), 3, np.deg2rad(2.0),
+    h_new = _histories(T, seed, views)
+    h_old = [old_sim.random_triplet_history(np.random.default_rng(c), views, np.deg2rad(2.0),
                                             np.deg2rad(5.0)) for c in kids]
     runs = {"before": lambda s: old_solvers.solve_triplets(h_old, method=method, seed=s,
                                                            **old_opts),
@@ -252,12 +252,15 @@ if __name__ == "__main__":
     ap.add_argument("--triplets", type=int, default=50)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--set", default="{}", help="JSON options for the working tree only")
+    ap.add_argument("--views", type=int, default=3, help="views per triplet (default 3)")
     a = ap.parse_args()
     load = os.getloadavg()[0]
     import json
 
-    r = compare(a.against, a.method, a.triplets, a.repeats, extra=json.loads(a.set))
-    print(f"{a.method}, {a.triplets} triplets per call, median of {a.repeats} (load {load:.1f} "
+    r = compare(a.against, a.method, a.triplets, a.repeats, extra=json.loads(a.set),
+                views=a.views)
+    print(f"{a.method}, {a.views} views, {a.triplets} triplets per call, median of {a.repeats} "
+          f"(load {load:.1f} "
           f"-> {os.getloadavg()[0]:.1f}): before {r['before']:.2f} ms/triplet, after "
           f"{r['after']:.2f}, ratio {r['before'] / r['after']:.2f}; fast-paper "
           f"{r['fast-paper']:.2f} ms (after / fast-paper {r['after'] / r['fast-paper']:.1f}); "
