@@ -607,12 +607,15 @@ def _joint_target(st: SISState, stc: SISState, tid, poses, gens, prior=None):
     lc, cs = _log_intermediate_c(stc, tid, poses, st.bearings[..., 2], gens)
     lpx = lp.copy()
     r = np.flatnonzero(np.isfinite(cs[:, 0]) & np.isfinite(lt))
-    if r.size:
-        L = cs[r, :2]
-        lpx[r] = _prior.log_joint_prior(st.opts["prior"] if prior is None else prior, L,
-                                        poses[r, :, :2]) \
-            - _prior.point_log_prior(st.opts["prior"], L)
-    out = lt - lp + lpx + lc
+    # a trajectory outside the prior's support gives -inf - (-inf); the NaN is read as -inf
+    # below, so numpy's warning would only alarm a user
+    with np.errstate(invalid="ignore"):
+        if r.size:
+            L = cs[r, :2]
+            lpx[r] = _prior.log_joint_prior(st.opts["prior"] if prior is None else prior, L,
+                                            poses[r, :, :2]) \
+                - _prior.point_log_prior(st.opts["prior"], L)
+        out = lt - lp + lpx + lc
     return np.where(np.isnan(out), -np.inf, out), lpx, lc, cs
 
 
