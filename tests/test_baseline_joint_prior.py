@@ -10,11 +10,10 @@ import numpy as np
 import pytest
 
 from qfg.geometry import bearing
-from qfg.priors import WindowPrior, WorldBoxPrior
-from qfg.solvers import solve_triplet
-from qfg.solvers._baseline import joint_correction, start
-from qfg.solvers import _input, _options, _seeds
 from qfg.partitions import get as get_partition
+from qfg.priors import WindowPrior, WorldBoxPrior
+from qfg.solvers import _input, _options, _seeds, solve_triplet
+from qfg.solvers._baseline import joint_correction, start, step
 
 
 def _far_views(C, cams, sigma, seed):
@@ -91,8 +90,6 @@ def test_a_product_prior_needs_no_correction():
     opts = _options.resolve_options("baseline", {"prior": win, "n_landmark_samples": 256})
     meas = _input.measurements(b, None, 0.01, 0.0)
     st = start(meas, _seeds.root_seed(0), opts, get_partition("edc"))
-    from qfg.solvers._baseline import step
-
     st = step(st, b[1])
     corr, picks, w = joint_correction(st, 8)
     alive = np.isfinite(st.lw)
