@@ -72,7 +72,8 @@ class BaselineState:
     shares: tuple              # per view: (N, m) R_i, or None for an ignored view
     cameras: tuple             # per view: ((N, K, 3) resected poses, (N, K) contributions)
     reasons: tuple
-    counted: tuple = ()        # per view: whether it entered lw (not ignored, not a repeat)
+    source: tuple = ()         # per view: the counted view whose camera it is (itself when it
+                               # entered lw; a repeat: the view it repeats), or None (ignored)
     point_lp: tuple = ()       # per view: (N, K) per-point log prior of the resected poses
 
 
@@ -172,7 +173,8 @@ def step(state: BaselineState, phi, heading=None) -> BaselineState:
         # view adds no independent evidence (counting it again would square its likelihood)
         return replace(state, meas=meas, shares=state.shares + (state.shares[-1],),
                        cameras=state.cameras + (state.cameras[-1],),
-                       counted=state.counted + (False,), point_lp=state.point_lp + (None,))
+                       source=state.source + (state.source[-1],),
+                       point_lp=state.point_lp + (None,))
     sv = float(meas.sigma_bearing)
     k = 1 if sv == 0 else opts["noise_samples"]
     rng = _seeds.stream(state.root, i, _seeds.STREAM_CAMERAS)
@@ -189,7 +191,7 @@ def step(state: BaselineState, phi, heading=None) -> BaselineState:
     fin = np.isfinite(lc)
     if not np.any(fin):
         return replace(state, meas=meas, shares=state.shares + (None,),
-                       cameras=state.cameras + ((poses, lc),), counted=state.counted + (False,),
+                       cameras=state.cameras + ((poses, lc),), source=state.source + (None,),
                        point_lp=state.point_lp + (None,),
                        reasons=state.reasons + (f"view {i + 1}: no camera pose sees A, B and any "
                                                 "candidate C at these bearings (ignored)",))
@@ -206,22 +208,8 @@ def step(state: BaselineState, phi, heading=None) -> BaselineState:
         shares[good] = np.bincount(idx, weights=p.ravel(),
                                    minlength=s.shape[0] * part.n_states).reshape(-1, part.n_states)
     return replace(state, meas=meas, lw=state.lw + ld, shares=state.shares + (shares,),
-                   cameras=state.cameras + ((poses, lc),), counted=state.counted + (True,),
+                   cameras=state.cameras + ((poses, lc),), source=state.source + (i,),
                    point_lp=state.point_lp + (lp,))
-
-
-def _sources(state: BaselineState) -> list:
-    """Per view, the counted view whose camera it is (itself; a repeat: the view it repeats), or
-    None for an ignored view."""
-    src = []
-    for t, c in enumerate(state.counted):
-        if c:
-            src.append(t)
-        elif t and state.shares[t] is not None and state.cameras[t] is state.cameras[t - 1]:
-            src.append(src[-1])
-        else:
-            src.append(None)
-    return src
 
 
 def _quadrature(prior):
@@ -253,8 +241,8 @@ def joint_correction(state: BaselineState, n_tuples: int):
     alive = np.isfinite(state.lw)
     logp1 = np.repeat(_prior.point_log_prior(prior, L)[:, None], M, axis=1)
     picks, X = {}, []
-    for t, c in enumerate(state.counted):
-        if not c:
+    for t, src in enumerate(state.source):
+        if src != t:
             continue
         poses, lc = state.cameras[t]
         cum = np.cumsum(_likelihood.normalize_log(lc), axis=1)              # (N, K)
@@ -288,7 +276,7 @@ def finish(state: BaselineState):
     if np.any(rep):
         reasons.append(_degenerate.repeated_reason(rep))
     M = int(opts.get("joint_samples", 0))
-    joint = M > 0 and any(state.counted)
+    joint = M > 0 and any(src == t for t, src in enumerate(state.source))
     lw = state.lw
     if joint:
         corr, picks, a = joint_correction(state, M)
@@ -305,7 +293,7 @@ def finish(state: BaselineState):
     elif joint:
         # each view's camera from the tuples, weighted by the joint prior's ratio r
         cams = np.full((n, m), 1.0 / m)
-        for t, src in enumerate(_sources(state)):
+        for t, src in enumerate(state.source):
             if src is None:
                 continue
             Xt = picks[src]
