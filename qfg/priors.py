@@ -102,6 +102,15 @@ def _points(points) -> np.ndarray:
     return p
 
 
+def _shared_args(points, shared):
+    P = as_float_array("points", points, min_ndim=4, last_dim=2)
+    S = as_float_array("shared", shared, min_ndim=3, last_dim=2)
+    if P.ndim != 4 or S.ndim != 3 or S.shape[0] != P.shape[0] or P.shape[2] + S.shape[1] < 1:
+        raise ValueError(f"points, shared: expected shapes (N, K, p, 2) and (N, s, 2) with "
+                         f"p + s >= 1, got {P.shape} and {S.shape}")
+    return P, S
+
+
 def _sample_args(n_cameras, size):
     return positive_int("n_cameras", n_cameras, minimum=0), positive_int("size", size, minimum=0)
 
@@ -125,6 +134,21 @@ class Prior:
 
     def sample(self, seed, n_cameras: int, size: int) -> np.ndarray:  # pragma: no cover
         raise NotImplementedError
+
+    def log_density_shared(self, points, shared) -> np.ndarray:
+        """``log_density`` of the configurations ``[points[j, i], shared[j]]``: ``points``
+        (N, K, p, 2) the leading points of K configurations per group, ``shared`` (N, s, 2) the
+        trailing points every configuration of group j shares (p + s >= 1) -> (N, K). The same
+        values as ``log_density`` of the concatenated configurations; a prior may compute the
+        shared points' part once per group (:class:`WorldBoxPrior` does).
+
+        >>> p = WindowPrior()
+        >>> p.log_density_shared(np.zeros((1, 2, 1, 2)), np.ones((1, 1, 2))).shape
+        (1, 2)
+        """
+        P, S = _shared_args(points, shared)
+        S = np.broadcast_to(S[:, None], (S.shape[0], P.shape[1]) + S.shape[1:])
+        return self.log_density(np.concatenate([P, S], axis=-2))
 
     def __repr__(self):
         return f"{type(self).__name__}(name={self.name!r})"
@@ -206,7 +230,6 @@ class WorldBoxPrior(Prior):
 
     def _log_density_flat(self, q):
         N, k = q.shape[:2]
-        W, H, M = self.width, self.height, self.n_rho
         # work on the configuration {A, B, q_1..q_k} (A = 0, B = i) scaled by c >= 1 so that huge
         # inputs cannot overflow; only s1 scales (s1 = s1' / c), the ratios alpha, beta, u0
         # below are scale-free
@@ -214,21 +237,18 @@ class WorldBoxPrior(Prior):
         qx, qy = q[..., 0] / c[:, None], q[..., 1] / c[:, None]
         by = 1.0 / c
         # x coordinate after rotation by rho: x cos - y sin; extents over the points, accumulated
-        # point by point on (N, M) arrays (a reduction over a short trailing axis is much slower)
-        cs, sn = self._cos[None, :], self._sin[None, :]
-        pb = -by[:, None] * sn                                        # A projects to 0
+        # point by point on (M, N) arrays (rho first: the sums and maxima over rho below are then
+        # elementwise over rows, much faster than reductions over a short trailing axis)
+        cs, sn = self._cos[:, None], self._sin[:, None]
+        pb = -by[None, :] * sn                                        # A projects to 0
         hi, lo = np.maximum(0.0, pb), np.minimum(0.0, pb)
         pj = np.empty_like(hi)
         for j in range(k):
-            np.multiply(qx[:, j:j + 1], cs, out=pj)
-            pj -= qy[:, j:j + 1] * sn
+            np.multiply(qx[:, j], cs, out=pj)
+            pj -= qy[:, j] * sn
             np.maximum(hi, pj, out=hi)
             np.minimum(lo, pj, out=lo)
-        xr = np.subtract(hi, lo, out=hi)                              # (N, M)
-        yr = np.roll(xr, -M // 2, axis=1)                             # xr(rho + pi/2) = yr(rho)
-        with np.errstate(divide="ignore"):
-            s1 = np.minimum(np.where(xr > 0, W / np.where(xr > 0, xr, 1.0), np.inf),
-                            np.where(yr > 0, H / np.where(yr > 0, yr, 1.0), np.inf))
+        xr = np.subtract(hi, lo, out=hi)                              # (M, N)
         # least pairwise distance among A, B and the q_j (A-B is 1), in the scaled configuration
         px = [np.zeros(N), np.zeros(N)] + [qx[:, j] for j in range(k)]
         py = [np.zeros(N), by] + [qy[:, j] for j in range(k)]
@@ -237,6 +257,101 @@ class WorldBoxPrior(Prior):
             for j in range(i + 1, k + 2):
                 dx, dy = px[i] - px[j], py[i] - py[j]
                 np.minimum(d2, dx * dx + dy * dy, out=d2)
+        return self._from_extents(xr, d2, c, k)
+
+    def log_density_shared(self, points, shared) -> np.ndarray:
+        """:meth:`Prior.log_density_shared`: the shared points' rotated extents and pairwise
+        distances are computed once per group, then each configuration adds its own points
+        (the same values as :meth:`log_density`, to the bit where no leading point lies
+        farther from A than every shared point; otherwise the configuration is evaluated
+        whole).
+
+        >>> p = WorldBoxPrior(n_rho=32)
+        >>> L, X = np.array([[[[0.4, 0.5]], [[2.0, -1.0]]]]), np.array([[[1.0, 2.0], [-1.5, 0.3]]])
+        >>> a = p.log_density_shared(L, X)
+        >>> b = p.log_density(np.concatenate([L, np.broadcast_to(X[:, None], (1, 2, 2, 2))], 2))
+        >>> bool(np.array_equal(a, b))
+        True
+        """
+        P, S = _shared_args(points, shared)
+        N, K = P.shape[:2]
+        out = np.empty((N, K))
+        step = max(1, _CHUNK_ELEMENTS // (self.n_rho * max(K, 1)))
+        for i in range(0, N, step):
+            out[i:i + step] = self._log_density_shared_flat(P[i:i + step], S[i:i + step])
+        return out
+
+    def _log_density_shared_flat(self, P, S):
+        N, K, p = P.shape[:3]
+        s, M = S.shape[1], self.n_rho
+        if N * K == 0:
+            return np.zeros((N, K))
+        # _log_density_flat's scale c = max(1, max |q|) is the group's whenever no leading point
+        # lies farther out than the shared ones: then every step below is the same arithmetic
+        # on the same numbers, and the values are the same to the bit; the other configurations
+        # are evaluated whole
+        cS = np.maximum(1.0, np.max(np.abs(S), axis=(1, 2)) if s else np.zeros(N))    # (N,)
+        own = (np.max(np.abs(P), axis=(2, 3)) <= cS[:, None]) if p else np.ones((N, K), bool)
+        P0, P = P, np.where(own[..., None, None], P, 0.0)
+        Px, Py = P[..., 0] / cS[:, None, None], P[..., 1] / cS[:, None, None]      # (N, K, p)
+        Sx, Sy = S[..., 0] / cS[:, None], S[..., 1] / cS[:, None]                  # (N, s)
+        by = 1.0 / cS
+        cs, sn = self._cos[:, None], self._sin[:, None]
+        # the group's extents over rho: A (0), B, the shared points; (M, N)
+        pb = -by[None, :] * sn
+        hi_s, lo_s = np.maximum(0.0, pb), np.minimum(0.0, pb)
+        pj = np.empty_like(hi_s)
+        for j in range(s):
+            np.multiply(Sx[:, j], cs, out=pj)
+            pj -= Sy[:, j] * sn
+            np.maximum(hi_s, pj, out=hi_s)
+            np.minimum(lo_s, pj, out=lo_s)
+        hi = np.repeat(hi_s, K, axis=1).reshape(M, N, K)
+        lo = np.repeat(lo_s, K, axis=1).reshape(M, N, K)
+        cs3, sn3 = cs[:, :, None], sn[:, :, None]
+        pk = np.empty_like(hi)
+        for j in range(p):
+            np.multiply(Px[:, :, j], cs3, out=pk)
+            pk -= Py[:, :, j] * sn3
+            np.maximum(hi, pk, out=hi)
+            np.minimum(lo, pk, out=lo)
+        xr = np.subtract(hi, lo, out=hi).reshape(M, N * K)
+        # least pairwise distance: among the group's points once, then each configuration's own
+        gx = [np.zeros(N), np.zeros(N)] + [Sx[:, j] for j in range(s)]
+        gy = [np.zeros(N), by] + [Sy[:, j] for j in range(s)]
+        d2s = np.full(N, np.inf)
+        for i in range(s + 2):
+            for j in range(i + 1, s + 2):
+                dx, dy = gx[i] - gx[j], gy[i] - gy[j]
+                np.minimum(d2s, dx * dx + dy * dy, out=d2s)
+        d2 = np.repeat(d2s, K).reshape(N, K)
+        for i in range(p):
+            xi, yi = Px[:, :, i], Py[:, :, i]
+            for j in range(s + 2):
+                dx, dy = xi - gx[j][:, None], yi - gy[j][:, None]
+                np.minimum(d2, dx * dx + dy * dy, out=d2)
+            for j in range(i + 1, p):
+                dx, dy = xi - Px[:, :, j], yi - Py[:, :, j]
+                np.minimum(d2, dx * dx + dy * dy, out=d2)
+        out = self._from_extents(xr, d2.reshape(-1), np.repeat(cS, K), p + s).reshape(N, K)
+        if not own.all():
+            g, i = np.nonzero(~own)
+            rest = np.concatenate([P0[g, i], S[g]], axis=1)
+            out[g, i] = self.log_density(rest)
+        return out
+
+    def _from_extents(self, xr, d2, c, k):
+        """The log density from the scaled configurations' x extents ``xr`` (M, N) over the
+        rotations rho, their least squared pairwise distance ``d2`` (N,) and scale ``c`` (N,),
+        for k points besides A and B."""
+        W, H, M = self.width, self.height, self.n_rho
+        yr = np.roll(xr, -M // 2, axis=0)                             # xr(rho + pi/2) = yr(rho)
+        if xr.size and np.min(xr) > 0:
+            s1 = np.minimum(W / xr, H / yr)
+        else:
+            with np.errstate(divide="ignore"):
+                s1 = np.minimum(np.where(xr > 0, W / np.where(xr > 0, xr, 1.0), np.inf),
+                                np.where(yr > 0, H / np.where(yr > 0, yr, 1.0), np.inf))
         delta = np.sqrt(d2)                                           # (N,)
         with np.errstate(divide="ignore"):
             s0 = np.where(delta > 0, self.d_min / np.where(delta > 0, delta, 1.0),
@@ -245,27 +360,30 @@ class WorldBoxPrior(Prior):
         # with u = s / s1, α = s1 xr / W <= 1, β = s1 yr / H <= 1, u0 = s0 / s1
         a = 2 * k + 1
         al, be = s1 * xr / W, s1 * yr / H
-        u0 = np.minimum(s0[:, None] / s1, 1.0)
+        u0 = np.minimum(s0 / s1, 1.0)
+
+        ab, aab = al + be, al * be
 
         def G(u):
-            return 1.0 / (a + 1) - (al + be) * u / (a + 2) + al * be * u * u / (a + 3)
+            return 1.0 / (a + 1) - ab * u / (a + 2) + aab * u * u / (a + 3)
 
         # u0^(a+1) by repeated squaring (it underflows to 0 for the usual tiny u0: d_min much
         # smaller than the scale, and then the G(u0) term is skipped)
         with np.errstate(under="ignore"):
             u0p = _int_power(u0, a + 1)
-        inner = G(1.0)
+        inner = 1.0 / (a + 1) - ab / (a + 2) + aab / (a + 3)                 # G(1)
         if np.any(u0p > 0):
             inner -= u0p * G(u0)
         np.maximum(inner, 0.0, out=inner)
-        # the sum over rho of s1^(a+1) inner, with s1 relative to its largest value per row:
-        # max s1 / min s1 over rho is at most sqrt(2) max(W, H) / min(W, H) (every rotation has
-        # an extent >= diameter / sqrt(2)), so the powers cannot underflow for a sane box
-        s1max = np.max(s1, axis=1)
+        # the sum over rho of s1^(a+1) inner, with s1 relative to its largest value per
+        # configuration: max s1 / min s1 over rho is at most sqrt(2) max(W, H) / min(W, H) (every
+        # rotation has an extent >= diameter / sqrt(2)), so the powers cannot underflow for a
+        # sane box
+        s1max = np.max(s1, axis=0)
         okm = np.isfinite(s1max) & (s1max > 0)
-        rel = s1 / np.where(okm, s1max, 1.0)[:, None]
+        rel = s1 / np.where(okm, s1max, 1.0)
         with np.errstate(under="ignore"):
-            ssum = np.sum(_int_power(rel, a + 1) * inner, axis=1)
+            ssum = np.sum(_int_power(rel, a + 1) * inner, axis=0)
         ok = okm & (ssum > 0)
         # trapezoid weight pi / M; the joint density of the k + 2 world points is (W H)^-(k+2)
         # and rho in [0, 2 pi) covers [0, pi) twice: normalized up to P(all pairs >= d_min)

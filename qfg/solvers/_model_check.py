@@ -32,7 +32,7 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
-from scipy.stats import chi2
+from scipy.special import chdtrc
 
 from ..geometry import bearing, motion_heading, wrap_angle
 from ._likelihood import BearingTail, log_bearing
@@ -43,8 +43,9 @@ REFERENCE_DRAWS = 20_000
 
 def residuals(bearings, headings, poses, landmark):
     """Residuals of the measurements at configurations: ``bearings`` (n, 3), ``headings``
-    (n - 1,) or None, ``poses`` (n, K, 3) camera poses (x, y, alpha), ``landmark`` (K, 2) C.
-    Returns (bearing residuals (n, 3, K), heading residuals (n - 1, K)), wrapped to (-pi, pi].
+    (n - 1,) or None, ``poses`` (n, K, 3) camera poses (x, y, alpha), ``landmark`` (K, 2) C
+    (None: ``bearings`` (n, 2) of A and B only). Returns (bearing residuals (n, 3, K), heading
+    residuals (n - 1, K)), wrapped to (-pi, pi].
 
     >>> P = np.array([[[-1.0, 0.0, 0.0]]])       # one view at (-1, 0) facing +x
     >>> rb, rh = residuals(np.array([[0.0, np.pi / 4, 0.1]]), None, P, np.array([[0.0, -1.0]]))
@@ -52,9 +53,11 @@ def residuals(bearings, headings, poses, landmark):
     ([0.0, 0.0, 0.8854], (0, 1))
     """
     P = np.asarray(poses, dtype=float)
-    L = np.broadcast_to(np.asarray(landmark, dtype=float), P.shape[1:2] + (2,))
-    pred = np.stack([bearing(P, np.zeros(2)), bearing(P, np.array([0.0, 1.0])),
-                     bearing(P, L[None])], axis=1)
+    ab = [bearing(P, np.zeros(2)), bearing(P, np.array([0.0, 1.0]))]
+    if landmark is not None:
+        ab.append(bearing(P, np.broadcast_to(np.asarray(landmark, dtype=float),
+                                             P.shape[1:2] + (2,))[None]))
+    pred = np.stack(ab, axis=1)
     rb = wrap_angle(np.asarray(bearings, dtype=float)[:, :, None] - pred)
     n = P.shape[0]
     if headings is None or n < 2:
@@ -110,25 +113,56 @@ def reference_sf(D, n_bearings: int, n_headings: int, tail: BearingTail | None =
     """
     D = np.asarray(D, dtype=float)
     if tail is None:
-        return chi2.sf(D, n_bearings + n_headings)
+        return chdtrc(n_bearings + n_headings, D)    # chi2.sf's function, without its wrapper
     tab = _reference_table(int(n_bearings), int(n_headings), tail, float(sigma_bearing))
     above = tab.size - np.searchsorted(tab, D, side="left")
     return (above + 1.0) / (tab.size + 1.0)
 
 
 def posterior_predictive_p(bearings, headings, poses, landmark, weights, sigma_bearing,
-                           sigma_heading, tail: BearingTail | None = None) -> float:
+                           sigma_heading, tail: BearingTail | None = None,
+                           per_pose: int = 1) -> float:
     """The posterior predictive p-value of the measurements given a weighted posterior sample
     (``poses`` (n, K, 3) with ``landmark`` (K, 2), ``weights`` (K,) summing to 1); NaN when the
-    sample is empty. See the module docstring."""
+    sample is empty. See the module docstring. With ``per_pose`` r > 1 the sample holds r
+    landmarks per trajectory: ``poses`` (n, K / r, 3), trajectory j's landmarks
+    ``landmark[j r:(j + 1) r]`` (its A, B and heading residuals are computed once).
+
+    >>> P = np.array([[[-1.0, 0.0, 0.0]], [[-1.0, 1.0, 0.0]]])     # two views, one trajectory
+    >>> b = np.array([[0.0, np.pi / 4, 0.0], [-np.pi / 4, 0.0, 0.0]])
+    >>> L = np.array([[1.0, 0.0], [1.0, 0.1]])
+    >>> a = posterior_predictive_p(b, [0.5], P, L, [0.5, 0.5], 0.01, 0.1, per_pose=2)
+    >>> c = posterior_predictive_p(b, [0.5], np.repeat(P, 2, axis=1), L, [0.5, 0.5], 0.01, 0.1)
+    >>> bool(np.isclose(a, c))
+    True
+    """
     w = np.asarray(weights, dtype=float)
     if w.size == 0 or not np.any(w > 0):
         return float("nan")
-    keep = w > 0
-    rb, rh = residuals(bearings, headings, poses[:, keep], np.asarray(landmark)[keep])
-    D = discrepancy(rb, rh, sigma_bearing, sigma_heading, tail)
-    sf = reference_sf(D, rb.shape[0] * 3, rh.shape[0] if sigma_heading > 0 else 0, tail,
-                      sigma_bearing)
+    if per_pose == 1:
+        keep = w > 0
+        rb, rh = residuals(bearings, headings, poses[:, keep], np.asarray(landmark)[keep])
+        D = discrepancy(rb, rh, sigma_bearing, sigma_heading, tail)
+        n_b, n_h = rb.shape[0] * 3, rh.shape[0]
+    else:
+        P, L = np.asarray(poses, dtype=float), np.asarray(landmark, dtype=float)
+        n, J = P.shape[:2]
+        if L.shape[0] != J * per_pose or w.size != J * per_pose:
+            raise ValueError(f"landmark, weights: expected {J} x per_pose = {J * per_pose} rows, "
+                             f"got {L.shape[0]} and {w.size}")
+        # A, B and the headings per trajectory; C per (trajectory, landmark)
+        rb, rh = residuals(np.asarray(bearings, dtype=float)[:, :2], headings, P, None)
+        d = discrepancy(rb, rh, sigma_bearing, sigma_heading, tail)
+        dx = L[:, 0] - np.repeat(P[..., 0], per_pose, axis=1)
+        dy = L[:, 1] - np.repeat(P[..., 1], per_pose, axis=1)
+        rc = wrap_angle(np.asarray(bearings, dtype=float)[:, 2:3] - wrap_angle(
+            np.arctan2(dy, dx) - np.repeat(P[..., 2], per_pose, axis=1)))
+        D = np.repeat(d, per_pose) + discrepancy(rc[:, None], np.zeros((0, rc.shape[1])),
+                                                 sigma_bearing, 0.0, tail)
+        keep = w > 0
+        D = D[keep]
+        n_b, n_h = n * 3, rh.shape[0]
+    sf = reference_sf(D, n_b, n_h if sigma_heading > 0 else 0, tail, sigma_bearing)
     return float(np.sum(w[keep] * sf) / np.sum(w[keep]))
 
 

@@ -1162,6 +1162,15 @@ def _final_proposal(state: SISState, idx, poses):
                  for a, b in zip(ref, tri, strict=True))
 
 
+def _log_joint_prior_shared(prior, L, X) -> np.ndarray:
+    """(N, k) the joint prior of [L[j, i], X[j]]: ``L`` (N, k, 2) the C draws of N trajectories
+    ``X`` (N, n, 2), whose cameras' part a :class:`qfg.priors.Prior` computes once per
+    trajectory (``log_density_shared``)."""
+    if isinstance(prior, _priors.Prior):
+        return prior.log_density_shared(L[:, :, None, :], X)
+    return _prior.log_joint_prior(prior, L, np.broadcast_to(X[:, None], L.shape[:2] + X.shape[1:]))
+
+
 def finish(state: SISState, hypotheses: bool = False):
     """One (estimate, hypotheses or None) pair per triplet: the final weighted sample of
     (trajectory, C), weighted by the prior of the whole configuration:
@@ -1194,8 +1203,7 @@ def finish(state: SISState, hypotheses: bool = False):
         for g in range(pat.shape[0]):
             rows = np.flatnonzero(inv.reshape(-1) == g)
             X = poses[rows][:, :, :2][:, pat[g]]
-            lp[rows] = _prior.log_joint_prior(opts["prior"], L[rows],
-                                              np.broadcast_to(X[:, None], (rows.size, k) + X.shape[1:]))
+            lp[rows] = _log_joint_prior_shared(opts["prior"], L[rows], X)
         with np.errstate(invalid="ignore"):
             lw = lp + log_lik - log_q - (state.lw_c[idx] + state.lp_x[idx])[:, None]
         lw = np.where(np.isnan(lw), -np.inf, lw)
@@ -1248,9 +1256,10 @@ def finish(state: SISState, hypotheses: bool = False):
             # model to the solver, and its residuals of 1e-16 must not read as a misfit)
             sh = float(state.sigma_heading[t])
             pval = _model_check.posterior_predictive_p(
-                state.bearings[t], state.headings[t], cam, Lt, wt, float(sv[t]),
+                state.bearings[t], state.headings[t],
+                np.transpose(poses[cb[t]:cb[t + 1]], (1, 0, 2)), Lt, wt, float(sv[t]),
                 max(sh, float(opts["bearing_floor"])) if sh > 0 else 0.0,
-                opts.get("bearing_tail"))
+                opts.get("bearing_tail"), per_pose=k)
         lam = _model_check.widening(pval, opts.get("model_check", 0.0))
         widen = None
         if lam > 0:
