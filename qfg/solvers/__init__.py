@@ -193,7 +193,7 @@ def _solve_sis_batch(model, metas, roots, part, opts, hypotheses=False):
         d = np.stack([np.zeros(b.shape[1] - 1) if m.distances is None else m.distances
                       for m in metas])
         sd = np.array([m.sigma_distance_ratio or 0.0 for m in metas])
-    st = _sis.start(b[:, 0], sv, sh, roots, opts, part, model, sd)
+    st = _sis.start(b[:, 0], sv, sh, roots, opts, part, model, sd, n_views=b.shape[1])
     for i in range(1, b.shape[1]):
         st = _sis.step(st, b[:, i], np.array([m.headings[i - 1] for m in metas]),
                        None if d is None else d[:, i - 1])

@@ -56,6 +56,7 @@ DEFAULTS = {
                                      # ESS is flagged: it rests on about one trajectory (1st
                                      # percentile on 80 development triplets at 2/5 deg, 3
                                      # views: 13; 5 of 120 answers at 6 and 10 views have 3-5)
+        "few_views_budget": None,    # budget options used up to _sis.FEW_VIEWS views (set below)
         "c_anchors": False,          # C refitted about its mode at views 4, 8, 16, 32, ...
                                      # instead of updated (docs/solvers.md, "More views": +0.03
                                      # at 10 views on development geometries; off: two tail and
@@ -82,6 +83,7 @@ DEFAULTS = {
         "min_ess": 1.5,              # less than about one effective draw: flagged (its 1st
                                      # percentile on the same triplets: 1.9)
         "c_anchors": False,
+        "few_views_budget": None,
         "prior": "world",
     },
     "fast-paper": {
@@ -110,6 +112,25 @@ DEFAULTS = {
         "prior": "world",
     },
 }
+
+
+#: Options ``few_views_budget`` may set.
+FEW_VIEWS_KEYS = ("n_samples", "motion_samples", "max_hypotheses", "landmark_samples",
+                  "posterior_samples")
+
+
+def _few_views_budget(value):
+    """``few_views_budget``: None, or a dict of :data:`FEW_VIEWS_KEYS` to positive ints."""
+    if value is None or (isinstance(value, dict) and not value):
+        return None
+    if not isinstance(value, dict):
+        raise ValueError(f"few_views_budget: expected None or a dict of budget options "
+                         f"({', '.join(FEW_VIEWS_KEYS)}), got {value!r}")
+    bad = sorted(set(value) - set(FEW_VIEWS_KEYS))
+    if bad:
+        raise ValueError(f"few_views_budget: {bad[0]!r} is not a budget option; known: "
+                         f"{', '.join(FEW_VIEWS_KEYS)}")
+    return {k: positive_int(f"few_views_budget[{k!r}]", v) for k, v in value.items()}
 
 
 def resolve_options(method: str, options: dict, defaults: dict | None = None) -> dict:
@@ -161,6 +182,8 @@ def resolve_options(method: str, options: dict, defaults: dict | None = None) ->
         raise ValueError(f"kernel: expected 'bearing' or 'combined', got {opts['kernel']!r}")
     if opts.get("resection", "centroid") not in RESECTIONS:
         raise ValueError(f"resection: expected one of {RESECTIONS}, got {opts['resection']!r}")
+    if "few_views_budget" in opts:
+        opts["few_views_budget"] = _few_views_budget(opts["few_views_budget"])
     opts["prior"] = resolve_prior(opts["prior"])
     if "bearing_tail" in opts:
         opts["bearing_tail"] = as_tail(opts["bearing_tail"])

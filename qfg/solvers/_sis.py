@@ -102,6 +102,9 @@ class SISState(_estimate.TripletBatchSizes):
                                # NaN rows: none, the next view refits them over all views)
     same_pose: np.ndarray      # (T, i) views taken as "camera did not move"
     lost: np.ndarray           # (T,) view (1-based) at which nothing survived, 0 if alive
+    full_opts: dict | None = None  # the caller's options while ``opts`` is their few-views
+                               # budget (:data:`FEW_VIEWS`): the next view rebuilds the
+                               # hypotheses with these; None: ``opts`` are the caller's
 
     @property
     def poses(self) -> np.ndarray:
@@ -693,11 +696,27 @@ def _take(st: SISState, idx) -> SISState:
                    lp_x=st.lp_x[idx], lw_c=st.lw_c[idx], c_sum=st.c_sum[idx])
 
 
+#: Views up to which the option ``few_views_budget`` replaces the budget (docs/solvers.md,
+#: "Issue 20, item 2 (time)").
+FEW_VIEWS = 3
+
+
 def start(bearings0, sigma_bearing, sigma_heading, roots, opts, part, method,
-          sigma_distance_ratio=None) -> SISState:
+          sigma_distance_ratio=None, n_views=None) -> SISState:
     """First view of T triplets: bearings0 (T, 3), sigmas (T,), roots: T SeedSequences;
     ``sigma_distance_ratio`` (T,) the noise of the log ratio of the distances :func:`step` is
-    given (None: no distances)."""
+    given (None: no distances). ``n_views``: how many views the triplets will have, when the
+    caller knows (None: not known).
+
+    With the option ``few_views_budget`` (a dict of budget options) the views up to
+    :data:`FEW_VIEWS` are solved with that budget, unless ``n_views`` says more views will
+    come; the view after :data:`FEW_VIEWS` then first solves the earlier views again with the
+    caller's options (:func:`_rebuild`), so an answer after n views depends on n and the seed
+    only, whether the views came one at a time or together."""
+    few = opts.get("few_views_budget")
+    full_opts = None
+    if few and (n_views is None or n_views <= FEW_VIEWS):
+        full_opts, opts = opts, {**opts, **few}
     b0 = np.asarray(bearings0, dtype=float).reshape(-1, 3)
     T = b0.shape[0]
     sb = np.asarray(sigma_bearing, dtype=float).reshape(T)
@@ -740,7 +759,7 @@ def start(bearings0, sigma_bearing, sigma_heading, roots, opts, part, method,
                   lp_x=_prior.point_log_prior(opts["prior"], X),
                   lw_c=np.zeros(tid.size), same_pose=np.zeros((T, 1), dtype=bool),
                   c_sum=np.full((tid.size, _laplace.SUMMARY_COLUMNS), np.nan),
-                  lost=np.zeros(T, dtype=int))
+                  lost=np.zeros(T, dtype=int), full_opts=full_opts)
     st = _prune(st, gens)
     alive = np.bincount(st.tid, minlength=T) > 0
     return replace(st, lost=np.where(alive, 0, 1))
@@ -752,6 +771,8 @@ def step(state: SISState, phi, psi, distance=None) -> SISState:
     child's weight carries :func:`log_distance_factor` of its step and its parent's last step.
     A triplet whose hypotheses all die (every ray misses its locus arc) is proposed again with
     the noise drawn ``RETRY_SPREAD`` times wider (importance-weighted), before it is given up."""
+    if state.full_opts is not None and state.n_views >= FEW_VIEWS:
+        state = _rebuild(state)
     phi = np.asarray(phi, dtype=float).reshape(-1, 3)
     psi = np.asarray(psi, dtype=float).reshape(-1)
     T, i = state.n_triplets, state.n_views
@@ -767,6 +788,18 @@ def step(state: SISState, phi, psi, distance=None) -> SISState:
         st = _merge(st, sub, np.flatnonzero(retry), state, np.flatnonzero(retry[state.tid]))
         alive = np.bincount(st.tid, minlength=T) > 0
     return replace(st, lost=np.where((state.lost == 0) & ~alive, i + 1, state.lost))
+
+
+def _rebuild(state: SISState) -> SISState:
+    """The state's views solved again from the first with the caller's options
+    (``state.full_opts``): the same streams and steps as if the few-views budget had never
+    been used."""
+    st = start(state.bearings[:, 0], state.sigma_bearing, state.sigma_heading, state.roots,
+               state.full_opts, state.part, state.method, state.sigma_distance,
+               n_views=state.n_views + 1)
+    for i in range(1, state.n_views):
+        st = step(st, state.bearings[:, i], state.headings[:, i - 1], state.distances[:, i - 1])
+    return st
 
 
 #: Noise spread of the second proposal for a triplet that lost every hypothesis.
@@ -1227,6 +1260,8 @@ def finish(state: SISState, hypotheses: bool = False):
     unresolved = np.bincount(tid, weights=cw * (spread > _degenerate.DEPTH_SPREAD), minlength=T)
     lb = np.searchsorted(flat_tid, np.arange(T + 1))
     sv = state.sigma_v()
+    # the estimate reports the caller's options (their few-views budget among them)
+    shown = opts if state.full_opts is None else state.full_opts
     cb = np.searchsorted(tid, np.arange(T + 1))
     out = []
     for t in range(T):
@@ -1238,7 +1273,8 @@ def finish(state: SISState, hypotheses: bool = False):
             v = int(state.lost[t])
             reasons.append(f"view {v}: no hypothesis survived (rays miss the locus arcs)"
                            if v else "every hypothesis has zero weight")
-            out.append(_estimate.uniform_estimate(state.method, part, n, "; ".join(reasons), opts))
+            out.append(_estimate.uniform_estimate(state.method, part, n, "; ".join(reasons),
+                                                  shown))
             continue
         if n >= 2 and unresolved[t] > 0.5 and not any("coincide" in r for r in reasons):
             reasons.append("lines of sight to C (nearly) coincide: its depth along them is set "
@@ -1268,7 +1304,7 @@ def finish(state: SISState, hypotheses: bool = False):
                            f"predictive p = {pval:.2g} < {opts['model_check']:g}; widened toward "
                            f"the prior's states by {lam:.2f}")
         est, hyp = _estimate.make_estimate(
-            state.method, part, n, p_land, p_cams, hypotheses=hyp, reasons=reasons, opts=opts,
+            state.method, part, n, p_land, p_cams, hypotheses=hyp, reasons=reasons, opts=shown,
             mc_error=_histograms.weighted_state_error(part, Lt, wt), model_check=pval,
             widen=widen)
         out.append((est, hyp if hypotheses else None))
