@@ -2,7 +2,7 @@
 benchmark's batch (``bench_solvers``' histories: 50 three-view triplets at 2/5 deg), best of 3
 calls, per view ("@2", "@3": the extension to that view; "@fin": the final weights).
 
-    python -m benchmarks.sis_stages [--triplets 50] [--method full]
+    python -m benchmarks.sis_stages [--triplets 50] [--method full] [--set JSON]
     python -m benchmarks.sis_stages --primitives
 
 ``--primitives``: nanoseconds per element of the elementwise numpy functions the engine uses, on
@@ -24,7 +24,7 @@ _SIS_STAGES = ("_children", "_child_c", "_log_intermediate_c", "_per_triplet", "
                "_gather", "trajectories", "_c_weight", "_final_proposal")
 
 
-def stages(n=50, method="full"):
+def stages(n=50, method="full", options=None):
     """(total seconds, {stage@view: seconds}) of the fastest of 3 calls."""
     from qfg.solvers import _landmarks, _laplace, _model_check, _prior, _sis, solve_triplets
 
@@ -56,12 +56,13 @@ def stages(n=50, method="full"):
         timed(mod, name)
     try:
         hs = _histories(n)
-        solve_triplets(hs[:5], method=method, seed=0)
+        options = options or {}
+        solve_triplets(hs[:5], method=method, seed=0, **options)
         best = None
         for r in range(3):
             acc.clear()
             t = time.thread_time()
-            solve_triplets(hs, method=method, seed=r + 1)
+            solve_triplets(hs, method=method, seed=r + 1, **options)
             tot = time.thread_time() - t
             if best is None or tot < best[0]:
                 best = (tot, dict(acc))
@@ -100,12 +101,15 @@ def main(argv=None):
     ap.add_argument("--triplets", type=int, default=50)
     ap.add_argument("--method", default="full")
     ap.add_argument("--primitives", action="store_true")
+    ap.add_argument("--set", default="{}", help="JSON options of the solver")
     a = ap.parse_args(argv)
     if a.primitives:
         for k, v in primitives().items():
             print(f"  {k:10s} {v:6.2f} ns per element")
         return
-    tot, acc = stages(a.triplets, a.method)
+    import json
+
+    tot, acc = stages(a.triplets, a.method, json.loads(a.set))
     print(f"{a.method}: {1e3 * tot / a.triplets:.2f} ms per triplet (thread time, best of 3)")
     for k, v in sorted(acc.items(), key=lambda kv: (str(kv[0].split("@")[-1]), -kv[1])):
         print(f"  {k:32s} {1e3 * v / a.triplets:6.2f} ms/triplet {100 * v / tot:5.1f}%")

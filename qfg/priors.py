@@ -87,7 +87,8 @@ def _int_power(x, p: int) -> np.ndarray:
     out, base = None, x
     while True:
         if p & 1:
-            out = base.copy() if out is None else out * base
+            # (base is rebound, never written: out may alias it unless it is x itself)
+            out = (base.copy() if base is x else base) if out is None else out * base
         p >>= 1
         if not p:
             return out
@@ -100,15 +101,6 @@ def _points(points) -> np.ndarray:
         raise ValueError(f"points: expected at least one point (shape (..., k, 2), k >= 1), "
                          f"got shape {p.shape}")
     return p
-
-
-def _shared_args(points, shared):
-    P = as_float_array("points", points, min_ndim=4, last_dim=2)
-    S = as_float_array("shared", shared, min_ndim=3, last_dim=2)
-    if P.ndim != 4 or S.ndim != 3 or S.shape[0] != P.shape[0] or P.shape[2] + S.shape[1] < 1:
-        raise ValueError(f"points, shared: expected shapes (N, K, p, 2) and (N, s, 2) with "
-                         f"p + s >= 1, got {P.shape} and {S.shape}")
-    return P, S
 
 
 def _sample_args(n_cameras, size):
@@ -134,21 +126,6 @@ class Prior:
 
     def sample(self, seed, n_cameras: int, size: int) -> np.ndarray:  # pragma: no cover
         raise NotImplementedError
-
-    def log_density_shared(self, points, shared) -> np.ndarray:
-        """``log_density`` of the configurations ``[points[j, i], shared[j]]``: ``points``
-        (N, K, p, 2) the leading points of K configurations per group, ``shared`` (N, s, 2) the
-        trailing points every configuration of group j shares (p + s >= 1) -> (N, K). The same
-        values as ``log_density`` of the concatenated configurations; a prior may compute the
-        shared points' part once per group (:class:`WorldBoxPrior` does).
-
-        >>> p = WindowPrior()
-        >>> p.log_density_shared(np.zeros((1, 2, 1, 2)), np.ones((1, 1, 2))).shape
-        (1, 2)
-        """
-        P, S = _shared_args(points, shared)
-        S = np.broadcast_to(S[:, None], (S.shape[0], P.shape[1]) + S.shape[1:])
-        return self.log_density(np.concatenate([P, S], axis=-2))
 
     def __repr__(self):
         return f"{type(self).__name__}(name={self.name!r})"
@@ -259,87 +236,6 @@ class WorldBoxPrior(Prior):
                 np.minimum(d2, dx * dx + dy * dy, out=d2)
         return self._from_extents(xr, d2, c, k)
 
-    def log_density_shared(self, points, shared) -> np.ndarray:
-        """:meth:`Prior.log_density_shared`: the shared points' rotated extents and pairwise
-        distances are computed once per group, then each configuration adds its own points
-        (the same values as :meth:`log_density`, to the bit where no leading point lies
-        farther from A than every shared point; otherwise the configuration is evaluated
-        whole).
-
-        >>> p = WorldBoxPrior(n_rho=32)
-        >>> L, X = np.array([[[[0.4, 0.5]], [[2.0, -1.0]]]]), np.array([[[1.0, 2.0], [-1.5, 0.3]]])
-        >>> a = p.log_density_shared(L, X)
-        >>> b = p.log_density(np.concatenate([L, np.broadcast_to(X[:, None], (1, 2, 2, 2))], 2))
-        >>> bool(np.array_equal(a, b))
-        True
-        """
-        P, S = _shared_args(points, shared)
-        N, K = P.shape[:2]
-        out = np.empty((N, K))
-        step = max(1, _CHUNK_ELEMENTS // (self.n_rho * max(K, 1)))
-        for i in range(0, N, step):
-            out[i:i + step] = self._log_density_shared_flat(P[i:i + step], S[i:i + step])
-        return out
-
-    def _log_density_shared_flat(self, P, S):
-        N, K, p = P.shape[:3]
-        s, M = S.shape[1], self.n_rho
-        if N * K == 0:
-            return np.zeros((N, K))
-        # _log_density_flat's scale c = max(1, max |q|) is the group's whenever no leading point
-        # lies farther out than the shared ones: then every step below is the same arithmetic
-        # on the same numbers, and the values are the same to the bit; the other configurations
-        # are evaluated whole
-        cS = np.maximum(1.0, np.max(np.abs(S), axis=(1, 2)) if s else np.zeros(N))    # (N,)
-        own = (np.max(np.abs(P), axis=(2, 3)) <= cS[:, None]) if p else np.ones((N, K), bool)
-        P0, P = P, np.where(own[..., None, None], P, 0.0)
-        Px, Py = P[..., 0] / cS[:, None, None], P[..., 1] / cS[:, None, None]      # (N, K, p)
-        Sx, Sy = S[..., 0] / cS[:, None], S[..., 1] / cS[:, None]                  # (N, s)
-        by = 1.0 / cS
-        cs, sn = self._cos[:, None], self._sin[:, None]
-        # the group's extents over rho: A (0), B, the shared points; (M, N)
-        pb = -by[None, :] * sn
-        hi_s, lo_s = np.maximum(0.0, pb), np.minimum(0.0, pb)
-        pj = np.empty_like(hi_s)
-        for j in range(s):
-            np.multiply(Sx[:, j], cs, out=pj)
-            pj -= Sy[:, j] * sn
-            np.maximum(hi_s, pj, out=hi_s)
-            np.minimum(lo_s, pj, out=lo_s)
-        hi = np.repeat(hi_s, K, axis=1).reshape(M, N, K)
-        lo = np.repeat(lo_s, K, axis=1).reshape(M, N, K)
-        cs3, sn3 = cs[:, :, None], sn[:, :, None]
-        pk = np.empty_like(hi)
-        for j in range(p):
-            np.multiply(Px[:, :, j], cs3, out=pk)
-            pk -= Py[:, :, j] * sn3
-            np.maximum(hi, pk, out=hi)
-            np.minimum(lo, pk, out=lo)
-        xr = np.subtract(hi, lo, out=hi).reshape(M, N * K)
-        # least pairwise distance: among the group's points once, then each configuration's own
-        gx = [np.zeros(N), np.zeros(N)] + [Sx[:, j] for j in range(s)]
-        gy = [np.zeros(N), by] + [Sy[:, j] for j in range(s)]
-        d2s = np.full(N, np.inf)
-        for i in range(s + 2):
-            for j in range(i + 1, s + 2):
-                dx, dy = gx[i] - gx[j], gy[i] - gy[j]
-                np.minimum(d2s, dx * dx + dy * dy, out=d2s)
-        d2 = np.repeat(d2s, K).reshape(N, K)
-        for i in range(p):
-            xi, yi = Px[:, :, i], Py[:, :, i]
-            for j in range(s + 2):
-                dx, dy = xi - gx[j][:, None], yi - gy[j][:, None]
-                np.minimum(d2, dx * dx + dy * dy, out=d2)
-            for j in range(i + 1, p):
-                dx, dy = xi - Px[:, :, j], yi - Py[:, :, j]
-                np.minimum(d2, dx * dx + dy * dy, out=d2)
-        out = self._from_extents(xr, d2.reshape(-1), np.repeat(cS, K), p + s).reshape(N, K)
-        if not own.all():
-            g, i = np.nonzero(~own)
-            rest = np.concatenate([P0[g, i], S[g]], axis=1)
-            out[g, i] = self.log_density(rest)
-        return out
-
     def _from_extents(self, xr, d2, c, k):
         """The log density from the scaled configurations' x extents ``xr`` (M, N) over the
         rotations rho, their least squared pairwise distance ``d2`` (N,) and scale ``c`` (N,),
@@ -347,7 +243,8 @@ class WorldBoxPrior(Prior):
         W, H, M = self.width, self.height, self.n_rho
         yr = np.roll(xr, -M // 2, axis=0)                             # xr(rho + pi/2) = yr(rho)
         if xr.size and np.min(xr) > 0:
-            s1 = np.minimum(W / xr, H / yr)
+            s1 = np.divide(W, xr)
+            np.minimum(s1, np.divide(H, yr), out=s1)
         else:
             with np.errstate(divide="ignore"):
                 s1 = np.minimum(np.where(xr > 0, W / np.where(xr > 0, xr, 1.0), np.inf),
@@ -359,21 +256,35 @@ class WorldBoxPrior(Prior):
         # ∫_{s0}^{s1} s^a (W - s xr)(H - s yr) ds = s1^(a+1) W H ∫_{u0}^1 u^a (1 - αu)(1 - βu) du
         # with u = s / s1, α = s1 xr / W <= 1, β = s1 yr / H <= 1, u0 = s0 / s1
         a = 2 * k + 1
-        al, be = s1 * xr / W, s1 * yr / H
-        u0 = np.minimum(s0 / s1, 1.0)
-
-        ab, aab = al + be, al * be
-
-        def G(u):
-            return 1.0 / (a + 1) - ab * u / (a + 2) + aab * u * u / (a + 3)
-
+        # (written with in-place operations: the same arithmetic as the formulas in the
+        # comments, without a fresh (M, N) array per step)
+        al = np.multiply(s1, xr)
+        al /= W                                                       # α = s1 xr / W
+        be = np.multiply(s1, yr, out=yr)
+        be /= H                                                       # β = s1 yr / H
+        u0 = np.divide(s0, s1)
+        np.minimum(u0, 1.0, out=u0)                                   # u0 = min(s0 / s1, 1)
+        ab = np.add(al, be)
+        aab = np.multiply(al, be, out=al)
+        c1 = 1.0 / (a + 1)
+        # G(u) = 1 / (a + 1) - (α + β) u / (a + 2) + α β u^2 / (a + 3)
+        inner = np.divide(ab, a + 2)
+        np.subtract(c1, inner, out=inner)
+        inner += np.divide(aab, a + 3, out=be)                        # G(1)
         # u0^(a+1) by repeated squaring (it underflows to 0 for the usual tiny u0: d_min much
         # smaller than the scale, and then the G(u0) term is skipped)
         with np.errstate(under="ignore"):
             u0p = _int_power(u0, a + 1)
-        inner = 1.0 / (a + 1) - ab / (a + 2) + aab / (a + 3)                 # G(1)
-        if np.any(u0p > 0):
-            inner -= u0p * G(u0)
+            if np.any(u0p > 0):
+                g = np.multiply(ab, u0, out=ab)
+                g /= a + 2
+                np.subtract(c1, g, out=g)
+                h = np.multiply(aab, u0, out=aab)
+                h *= u0
+                h /= a + 3
+                g += h                                                # G(u0)
+                g *= u0p
+                inner -= g
         np.maximum(inner, 0.0, out=inner)
         # the sum over rho of s1^(a+1) inner, with s1 relative to its largest value per
         # configuration: max s1 / min s1 over rho is at most sqrt(2) max(W, H) / min(W, H) (every
@@ -381,9 +292,11 @@ class WorldBoxPrior(Prior):
         # sane box
         s1max = np.max(s1, axis=0)
         okm = np.isfinite(s1max) & (s1max > 0)
-        rel = s1 / np.where(okm, s1max, 1.0)
+        rel = np.divide(s1, np.where(okm, s1max, 1.0), out=s1)
         with np.errstate(under="ignore"):
-            ssum = np.sum(_int_power(rel, a + 1) * inner, axis=0)
+            relp = _int_power(rel, a + 1)
+            relp *= inner
+            ssum = np.sum(relp, axis=0)
         ok = okm & (ssum > 0)
         # trapezoid weight pi / M; the joint density of the k + 2 world points is (W H)^-(k+2)
         # and rho in [0, 2 pi) covers [0, pi) twice: normalized up to P(all pairs >= d_min)

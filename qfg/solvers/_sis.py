@@ -1195,15 +1195,6 @@ def _final_proposal(state: SISState, idx, poses):
                  for a, b in zip(ref, tri, strict=True))
 
 
-def _log_joint_prior_shared(prior, L, X) -> np.ndarray:
-    """(N, k) the joint prior of [L[j, i], X[j]]: ``L`` (N, k, 2) the C draws of N trajectories
-    ``X`` (N, n, 2), whose cameras' part a :class:`qfg.priors.Prior` computes once per
-    trajectory (``log_density_shared``)."""
-    if isinstance(prior, _priors.Prior):
-        return prior.log_density_shared(L[:, :, None, :], X)
-    return _prior.log_joint_prior(prior, L, np.broadcast_to(X[:, None], L.shape[:2] + X.shape[1:]))
-
-
 def finish(state: SISState, hypotheses: bool = False):
     """One (estimate, hypotheses or None) pair per triplet: the final weighted sample of
     (trajectory, C), weighted by the prior of the whole configuration:
@@ -1236,7 +1227,8 @@ def finish(state: SISState, hypotheses: bool = False):
         for g in range(pat.shape[0]):
             rows = np.flatnonzero(inv.reshape(-1) == g)
             X = poses[rows][:, :, :2][:, pat[g]]
-            lp[rows] = _log_joint_prior_shared(opts["prior"], L[rows], X)
+            lp[rows] = _prior.log_joint_prior(opts["prior"], L[rows],
+                                              np.broadcast_to(X[:, None], (rows.size, k) + X.shape[1:]))
         with np.errstate(invalid="ignore"):
             lw = lp + log_lik - log_q - (state.lw_c[idx] + state.lp_x[idx])[:, None]
         lw = np.where(np.isnan(lw), -np.inf, lw)
