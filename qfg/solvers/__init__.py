@@ -36,7 +36,7 @@ from typing import Sequence
 
 import numpy as np
 
-from . import _baseline, _budget, _degenerate, _estimate, _fast, _input, _options, _seeds, _sis
+from . import _baseline, _budget, _degenerate, _estimate, _fast, _input, _options, _populations, _seeds, _sis
 from ._estimate import Hypotheses, TripletEstimate
 from ._options import DEFAULTS, METHODS
 
@@ -184,6 +184,11 @@ def _reference_estimate(meas, part, opts, root) -> TripletEstimate:
 
 
 def _solve_sis_batch(model, metas, roots, part, opts, hypotheses=False):
+    # each triplet K times in the batch, once per independent population (_populations)
+    K = _populations.count(opts, metas[0].n_views)
+    n = len(metas)
+    metas = [m for m in metas for _ in range(K)]
+    roots = [r for root in roots for r in _populations.roots(root, K)]
     b = np.stack([m.bearings for m in metas])
     sv = np.array([m.sigma_bearing for m in metas])
     sh = np.array([m.sigma_heading for m in metas])
@@ -193,11 +198,13 @@ def _solve_sis_batch(model, metas, roots, part, opts, hypotheses=False):
         d = np.stack([np.zeros(b.shape[1] - 1) if m.distances is None else m.distances
                       for m in metas])
         sd = np.array([m.sigma_distance_ratio or 0.0 for m in metas])
-    st = _sis.start(b[:, 0], sv, sh, roots, opts, part, model, sd, n_views=b.shape[1])
+    st = _sis.start(b[:, 0], sv, sh, roots, _populations.split_options(opts, K), part, model,
+                    sd, n_views=b.shape[1])
     for i in range(1, b.shape[1]):
         st = _sis.step(st, b[:, i], np.array([m.headings[i - 1] for m in metas]),
                        None if d is None else d[:, i - 1])
     out = _sis.finish(st, hypotheses=hypotheses)
+    out = [_populations.merge(out[t * K:(t + 1) * K], opts) for t in range(n)]
     return out if hypotheses else [e for e, _ in out]
 
 
@@ -399,6 +406,8 @@ class TripletSolver:
         self._root, self._sb, self._sh, self._sd = root, float(sb), float(sh), sd
         self._state = None
         self._cache = None
+        self._views: list = []          # (bearings, heading, distance) per view (SIS methods)
+        self._populations = 0           # K of the SIS state (_populations.count)
 
     @property
     def n_views(self) -> int:
@@ -444,13 +453,28 @@ class TripletSolver:
                 self._state.headings if self._state.headings is not None else [], heading)
             self._state = _input.Measurements(b, h, self._sb, self._sh)
         elif self.method in _SIS:
-            if first:
-                self._state = _sis.start(phi[None, :], np.array([self._sb]), np.array([self._sh]),
-                                         (self._root,), opts, part, self.method,
-                                         None if self._sd is None else np.array([self._sd]))
+            self._views.append((phi, heading, distance))
+            K = _populations.count(opts, len(self._views))
+            if first or K != self._populations:
+                # K changed (few_views_populations): the views again from the first, as a
+                # batch solve of this many views would run them
+                self._populations = K
+                self._state = None
+                views = self._views
             else:
-                self._state = _sis.step(self._state, phi[None, :], np.array([heading]),
-                                        None if distance is None else np.array([distance]))
+                views = self._views[-1:]
+            for ph, hd, ds in views:
+                # one row per independent population, as solve_triplets batches them
+                rows = np.repeat(ph[None, :], K, axis=0)
+                if self._state is None:
+                    self._state = _sis.start(
+                        rows, np.full(K, self._sb), np.full(K, self._sh),
+                        tuple(_populations.roots(self._root, K)),
+                        _populations.split_options(opts, K), part, self.method,
+                        None if self._sd is None else np.full(K, self._sd))
+                else:
+                    self._state = _sis.step(self._state, rows, np.full(K, hd),
+                                            None if ds is None else np.full(K, ds))
         elif self.method == "fast-paper":
             if first:
                 self._state = _fast.start(phi[None, :], np.array([self._sb]),
@@ -474,7 +498,8 @@ class TripletSolver:
                 self._cache = (_reference_estimate(self._state, self.partition, self.options,
                                                    self._root), None)
             elif self.method in _SIS:
-                self._cache = _sis.finish(self._state, hypotheses=True)[0]
+                self._cache = _populations.merge(_sis.finish(self._state, hypotheses=True),
+                                                 self.options)
             elif self.method == "fast-paper":
                 self._cache = _fast.finish(self._state, hypotheses=True)[0]
             else:

@@ -56,6 +56,10 @@ DEFAULTS = {
                                      # ESS is flagged: it rests on about one trajectory (1st
                                      # percentile on 80 development triplets at 2/5 deg, 3
                                      # views: 13; 5 of 120 answers at 6 and 10 views have 3-5)
+        "populations": 1,            # independent SIS populations, each with 1/K of the budget
+                                     # (n_samples, max_hypotheses, posterior_samples), answers
+                                     # averaged (_populations; docs/solvers.md)
+        "few_views_populations": 1,  # the same up to _sis.FEW_VIEWS views
         "few_views_budget": None,    # budget options used up to _sis.FEW_VIEWS views (set below)
         "c_anchors": False,          # C refitted about its mode at views 4, 8, 16, 32, ...
                                      # instead of updated (docs/solvers.md, "More views": +0.03
@@ -83,6 +87,8 @@ DEFAULTS = {
         "min_ess": 1.5,              # less than about one effective draw: flagged (its 1st
                                      # percentile on the same triplets: 1.9)
         "c_anchors": False,
+        "populations": 1,
+        "few_views_populations": 1,
         "few_views_budget": None,
         "prior": "world",
     },
@@ -157,6 +163,9 @@ def resolve_options(method: str, options: dict, defaults: dict | None = None) ->
         opts["move_steps"] = positive_int("move_steps", opts["move_steps"], minimum=0)
     if "rejuvenate" in opts:
         opts["rejuvenate"] = positive_int("rejuvenate", opts["rejuvenate"], minimum=0)
+    for k in ("populations", "few_views_populations"):
+        if k in opts:
+            opts[k] = positive_int(k, opts[k])
     if "refine_levels" in opts:
         opts["refine_levels"] = positive_int("refine_levels", opts["refine_levels"], minimum=0)
     if "motion_spread" in opts:
