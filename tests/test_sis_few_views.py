@@ -39,9 +39,10 @@ def test_incremental_equals_batch_and_later_views_ignore_the_small_budget(distan
         batch = solve_triplet(**_first(h, n), method="full", seed=9, **opts)
         np.testing.assert_array_equal(inc[n - 1].landmark, batch.landmark)
         np.testing.assert_array_equal(inc[n - 1].cameras, batch.cameras)
-        plain = solve_triplet(**_first(h, n), method="full", seed=9, **_BUDGET, rejuvenate=1)
+        plain = solve_triplet(**_first(h, n), method="full", seed=9, **_BUDGET, rejuvenate=1,
+                              few_views_budget=None)
         small = solve_triplet(**_first(h, n), method="full", seed=9,
-                              **{**_BUDGET, **_SMALL}, rejuvenate=1)
+                              **{**_BUDGET, **_SMALL}, rejuvenate=1, few_views_budget=None)
         if n <= _sis.FEW_VIEWS:
             # the small budget's answer: exactly the engine with those options
             np.testing.assert_array_equal(batch.landmark, small.landmark)

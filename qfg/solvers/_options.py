@@ -60,7 +60,11 @@ DEFAULTS = {
                                      # (n_samples, max_hypotheses, posterior_samples), answers
                                      # averaged (_populations; docs/solvers.md)
         "few_views_populations": 1,  # the same up to _sis.FEW_VIEWS views
-        "few_views_budget": None,    # budget options used up to _sis.FEW_VIEWS views (set below)
+        "few_views_budget": {        # the budget up to _sis.FEW_VIEWS = 3 views (the next view
+            "n_samples": 400,        # solves them again with the budget above): at 3 views
+            "motion_samples": 6,     # within noise of the defaults' distance to the reference
+            "max_hypotheses": 2000,  # in 1.5x less time (docs/solvers.md, "Issue 20, item 2
+        },                           # (time)"); None: the budget above at every view
         "c_anchors": False,          # C refitted about its mode at views 4, 8, 16, 32, ...
                                      # instead of updated (docs/solvers.md, "More views": +0.03
                                      # at 10 views on development geometries; off: two tail and
