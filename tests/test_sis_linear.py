@@ -168,7 +168,8 @@ def _run(h, k, opts=None):
     opts = _options.resolve_options("full", opts or {})
     roots = [np.random.SeedSequence(11)]
     st = _sis.start(h.bearings[None, 0], np.array([h.sigma_bearing]),
-                    np.array([h.sigma_heading]), roots, opts, get_partition("edc"), "full")
+                    np.array([h.sigma_heading]), roots, opts, get_partition("edc"), "full",
+                    n_views=k)
     states = [st]
     for i in range(1, k):
         st = _sis.step(st, h.bearings[None, i], np.array([h.headings[i - 1]]))
@@ -222,9 +223,10 @@ def _pose_views_per_step(monkeypatch, incremental, k=16, options=None):
     opts = _sis._options.resolve_options("full", {"rejuvenate": 0, **(options or {})})
     from qfg.solvers._input import get_partition
 
+    # (n_views: as solve_triplets, no few-views budget to solve again at view 4)
     st = _sis.start(h.bearings[None, 0], np.array([h.sigma_bearing]),
                     np.array([h.sigma_heading]), [np.random.SeedSequence(2)], opts,
-                    get_partition("edc"), "full")
+                    get_partition("edc"), "full", n_views=k)
     alive = []
     for i in range(1, k):
         seen.append(0)
