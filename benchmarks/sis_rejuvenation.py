@@ -2,6 +2,7 @@
 views20 preset, paired against the defaults and against the reference solver.
 
     python -m benchmarks.sis_rejuvenation run LO HI VIEWS OUT [VARIANT ...] [--run-seed S]
+        [--replicate R]
     python -m benchmarks.sis_rejuvenation reference LO HI N OUT [--run-seed S]
     python -m benchmarks.sis_rejuvenation report OUT [OUT ...] [--ref REF]
 
@@ -14,7 +15,10 @@ METHODS.index("full")))``; the reference's for ``reference``). ``run`` solves ev
 n) at full's defaults and with each VARIANT (JSON options; a key ``_NAME`` sets the constant
 NAME of ``qfg.solvers._sis`` and ``R.NAME`` the constant NAME of ``qfg.solvers._rejuvenation``
 for the call, e.g. ``'{"rejuvenate": 1, "R.GROWTH": 1.25}'``) and appends one JSON line per (geometry, n) to
-OUT. ``report``: per n and variant, mean log p(truth) (clip 1e-4) paired against the defaults
+OUT. ``--replicate R`` (R > 0) solves with
+another seed of the same geometry (spawn key extended by R), for a second look at Monte Carlo
+luck (each line holds the defaults and the variants of one seed). ``report``: per n and
+variant, mean log p(truth) (clip 1e-4) paired against the defaults
 with its standard error, confidently wrong (p_max > 0.9 on a wrong state), flagged, median ESS,
 the median time ratio; with ``--ref`` (lines of ``reference``), the mean total variation and
 KL(reference || method) to the reference on the geometries it has, paired against the
@@ -46,13 +50,14 @@ def _geometry(i, k, run_seed=2):
     return _first_views(hmax, k), root, part
 
 
-def _seed(root, k, method):
+def _seed(root, k, method, replicate=0):
     from qfg.harness.studies.single_triplet import METHODS
 
-    return np.random.SeedSequence(root.entropy, spawn_key=(1000 + k, METHODS.index(method)))
+    key = (1000 + k, METHODS.index(method)) + ((replicate,) if replicate else ())
+    return np.random.SeedSequence(root.entropy, spawn_key=key)
 
 
-def run(lo, hi, views, out, variants, run_seed=2):
+def run(lo, hi, views, out, variants, run_seed=2, replicate=0):
     from qfg.solvers import _rejuvenation, _sis, solve_triplet
 
     with open(out, "a") as fh:
@@ -60,6 +65,8 @@ def run(lo, hi, views, out, variants, run_seed=2):
             for k in views:
                 h, root, part = _geometry(i, k, run_seed)
                 rec = {"g": i, "n": k, "gt": int(h.truth.state)}
+                if replicate:
+                    rec["rep"] = replicate
                 for name, o in [("default", {})] + [(json.dumps(v, sort_keys=True), v)
                                                     for v in variants]:
                     o, saved = dict(o), []
@@ -71,7 +78,7 @@ def run(lo, hi, views, out, variants, run_seed=2):
                     try:
                         t0 = time.perf_counter()
                         e = solve_triplet(h, method="full", partition=part,
-                                          seed=_seed(root, k, "full"), **o)
+                                          seed=_seed(root, k, "full", replicate), **o)
                         dt = time.perf_counter() - t0
                     finally:
                         for mod, attr, v in saved:
@@ -176,9 +183,14 @@ def main(argv=None):
         j = rest.index("--run-seed")
         run_seed = int(rest[j + 1])
         rest = rest[:j] + rest[j + 2:]
+    replicate = 0
+    if "--replicate" in rest:
+        j = rest.index("--replicate")
+        replicate = int(rest[j + 1])
+        rest = rest[:j] + rest[j + 2:]
     if cmd == "run":
         run(int(rest[0]), int(rest[1]), [int(v) for v in rest[2].split(",")], rest[3],
-            [json.loads(v) for v in rest[4:]], run_seed)
+            [json.loads(v) for v in rest[4:]], run_seed, replicate)
     elif cmd == "reference":
         reference(int(rest[0]), int(rest[1]), int(rest[2]), rest[3], run_seed)
     else:

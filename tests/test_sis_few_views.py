@@ -85,3 +85,21 @@ def test_bad_few_views_budget_is_refused():
         solve_triplet(h, method="full", few_views_budget={"n_samples": 0})
     with pytest.raises(ValueError, match="few_views_budget"):
         solve_triplet(h, method="full", few_views_budget=[("n_samples", 10)])
+
+
+def test_budget_options_a_call_sets_are_not_overridden():
+    from qfg.solvers import DEFAULTS
+
+    assert DEFAULTS["full"]["few_views_budget"] and DEFAULTS["fast"]["few_views_budget"] is None
+    h = _hist(61, 3)
+    mine = {"n_samples": 64, "motion_samples": 3, "max_hypotheses": 150, "posterior_samples": 32}
+    a = solve_triplet(h, method="full", seed=2, **mine)
+    b = solve_triplet(h, method="full", seed=2, few_views_budget=None, **mine)
+    np.testing.assert_array_equal(a.landmark, b.landmark)
+    # only the options the call leaves to the defaults take the default few-views budget
+    c = solve_triplet(h, method="full", seed=2, n_samples=64, posterior_samples=32)
+    rest = {k: v for k, v in DEFAULTS["full"]["few_views_budget"].items() if k != "n_samples"}
+    assert c.options["few_views_budget"] == rest
+    d = solve_triplet(h, method="full", seed=2, n_samples=64, posterior_samples=32,
+                      few_views_budget=None, **rest)
+    np.testing.assert_array_equal(c.landmark, d.landmark)

@@ -61,10 +61,10 @@ DEFAULTS = {
                                      # averaged (_populations; docs/solvers.md)
         "few_views_populations": 1,  # the same up to _sis.FEW_VIEWS views
         "few_views_budget": {        # the budget up to _sis.FEW_VIEWS = 3 views (the next view
-            "n_samples": 400,        # solves them again with the budget above): at 3 views
-            "motion_samples": 6,     # within noise of the defaults' distance to the reference
-            "max_hypotheses": 2000,  # in 1.5x less time (docs/solvers.md, "Issue 20, item 2
-        },                           # (time)"); None: the budget above at every view
+            "n_samples": 400,        # solves them again with the budget above; options a call
+            "motion_samples": 6,     # sets itself are kept): 1.5x less time at 3 views
+            "max_hypotheses": 2000,  # (docs/solvers.md, "Issue 20, item 2 (time)"); None:
+        },                           # the budget above at every view
         "c_anchors": False,          # C refitted about its mode at views 4, 8, 16, 32, ...
                                      # instead of updated (docs/solvers.md, "More views": +0.03
                                      # at 10 views on development geometries; off: two tail and
@@ -196,7 +196,11 @@ def resolve_options(method: str, options: dict, defaults: dict | None = None) ->
     if opts.get("resection", "centroid") not in RESECTIONS:
         raise ValueError(f"resection: expected one of {RESECTIONS}, got {opts['resection']!r}")
     if "few_views_budget" in opts:
-        opts["few_views_budget"] = _few_views_budget(opts["few_views_budget"])
+        few = _few_views_budget(opts["few_views_budget"])
+        if few and "few_views_budget" not in options:
+            # the default few-views budget never overrides a budget option the call sets
+            few = {k: v for k, v in few.items() if k not in options} or None
+        opts["few_views_budget"] = few
     opts["prior"] = resolve_prior(opts["prior"])
     if "bearing_tail" in opts:
         opts["bearing_tail"] = as_tail(opts["bearing_tail"])
