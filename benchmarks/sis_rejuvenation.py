@@ -128,7 +128,7 @@ def report(files, ref_file=None):
     by = defaultdict(list)
     for r in recs:
         by[r["n"]].append(r)
-    names = sorted({k for r in recs for k in r if k not in ("g", "n", "gt")} - {"default"})
+    names = sorted({k for r in recs for k in r if k not in ("g", "n", "gt", "rep")} - {"default"})
     lines = []
     for n in sorted(by):
         for name in names:
