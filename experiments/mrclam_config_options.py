@@ -9,6 +9,10 @@ share of rows widened mostly to the prior and the largest Monte Carlo error. A v
 
     python experiments/mrclam_config_options.py out/d2 "metric,metric:widen=none,metric:widen=0.1"
 
+and, for ``state``, ``shared=1``: each pass's estimate tempered by its composite-likelihood
+weight before the passes of a set are pooled (:func:`shared_image_weights`: every bearing counted
+once over the landmark sets whose passes use its image).
+
 The landmark ground truth is used only to score, as ``qfg mrclam`` does.
 """
 
@@ -53,6 +57,37 @@ def load_run(out: Path):
     return prep, seen, tau
 
 
+def shared_image_weights(prep) -> np.ndarray:
+    """(H,) composite-likelihood weight of each history of ``prep``: the mean, over its bearings
+    (robot, image, landmark), of 1 / the number of landmark sets whose histories use that
+    bearing. A view of k landmarks lends each bearing to up to (k - 1)(k - 2) / 2 sets, which
+    the configuration map multiplies as independent evidence."""
+    use: dict = {}
+    keys = []
+    for robot, h in prep.histories:
+        s = tuple(sorted(int(x) for x in h.landmarks))
+        k = [(robot, float(t), x) for t in np.round(np.asarray(h.views, dtype=float), 3)
+             for x in s]
+        keys.append(k)
+        for b in k:
+            use.setdefault(b, set()).add(s)
+    return np.array([np.mean([1.0 / len(use[b]) for b in k]) for k in keys])
+
+
+def _shared_evidence(prep, seen) -> dict:
+    """One ordering per seen set, each pass tempered by :func:`shared_image_weights` before
+    the set's passes are pooled as the run pooled them (geometric)."""
+    from qfg.combine import geometric_pool, temper
+
+    w = shared_image_weights(prep)
+    print(f"shared=1: weights of the {w.size} passes, 10/50/90th percentiles "
+          f"{np.percentile(w, [10, 50, 90]).round(2).tolist()}")
+    q = seen.prior_states
+    pooled = {t: geometric_pool(np.array([temper(seen.estimates[k], q, w[k]) for k in ks]),
+                                q).probabilities for t, ks in seen.groups.items()}
+    return one_ordering_per_set(pooled)
+
+
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if not argv:
@@ -73,12 +108,19 @@ def main(argv=None) -> int:
         kind, *rest = v.split(":")
         kw = dict(maps.CONFIG_OPTIONS, widen=maps.CONFIG_WIDEN, unlinked=maps.CONFIG_UNLINKED,
                   seed=0)
+        shared = False
         for r in rest:
             k, text = r.split("=")
+            if k == "shared":
+                shared = text == "1"
+                continue
             kw[k] = _value(k, text)
-        ev = (maps.metric_evidence(seen) if kind == "metric" else one_ordering_per_set(
-            {tuple(t): p for t, p in zip(seen.triplets.tolist(), seen.probabilities,
-                                         strict=True)}))
+        if shared and kind != "state":
+            raise ValueError(f"{v}: shared=1 is an option of the state likelihood only")
+        ev = (maps.metric_evidence(seen) if kind == "metric" else _shared_evidence(prep, seen)
+              if shared else one_ordering_per_set(
+                  {tuple(t): p for t, p in zip(seen.triplets.tolist(), seen.probabilities,
+                                               strict=True)}))
         t0 = time.perf_counter()
         res = configuration_marginals(ev, prior=seen.prior,
                                       triplets=[tuple(t) for t in wanted.tolist()],
