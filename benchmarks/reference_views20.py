@@ -34,26 +34,28 @@ from qfg.simulation import random_triplet_history
 PART = get_partition("edc")
 
 
-def scenario(seed, i, k):
+def scenario(seed, i, k, max_views=20):
     """History of the first k views of scenario i of a views20 run seeded ``seed`` and the
-    reference's solver seed there (as ``run_task`` draws them)."""
+    reference's solver seed there (as ``run_task`` draws them); ``max_views=10`` for the views
+    preset's geometries (each drawn with 10 views)."""
     rng = scenario_rng(seed, i)
     geometry_seed = int(rng.integers(2**63))
     solver_root = np.random.SeedSequence(int(rng.integers(2**63)))
-    hmax = random_triplet_history(np.random.default_rng(geometry_seed + 1), 20, np.deg2rad(2.0),
+    hmax = random_triplet_history(np.random.default_rng(geometry_seed + 1), max_views,
+                                  np.deg2rad(2.0),
                                   np.deg2rad(5.0), partition=PART)
     s = np.random.SeedSequence(solver_root.entropy,
                                spawn_key=(1000 + k, METHODS.index("reference")))
     return _first_views(hmax, k), s
 
 
-def measure(seed, lo, hi, views, out, opts):
+def measure(seed, lo, hi, views, out, opts, max_views=20):
     from qfg.solvers import solve_triplet
 
     with open(out, "a") as fh:
         for n in views:
             for i in range(lo, hi):
-                h, s = scenario(seed, i, n)
+                h, s = scenario(seed, i, n, max_views)
                 t0 = time.perf_counter()
                 est = solve_triplet(h, method="reference", partition=PART, seed=s, **opts)
                 dt = time.perf_counter() - t0
@@ -125,6 +127,8 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--scenarios", type=int, nargs=2, default=[0, 20], metavar=("FROM", "TO"))
     ap.add_argument("--views", type=int, nargs="+", default=[15, 20])
+    ap.add_argument("--max-views", type=int, default=20,
+                    help="views each geometry is drawn with: 20 (views20 preset), 10 (views)")
     ap.add_argument("--out", default=None)
     ap.add_argument("--options", default="{}", help="reference options as JSON")
     ap.add_argument("--paired", nargs=2, metavar=("OLD", "NEW"), default=None)
@@ -137,7 +141,7 @@ def main(argv=None):
     else:
         if a.out is None:
             ap.error("--out: required to measure")
-        measure(a.seed, *a.scenarios, a.views, a.out, json.loads(a.options))
+        measure(a.seed, *a.scenarios, a.views, a.out, json.loads(a.options), a.max_views)
 
 
 if __name__ == "__main__":

@@ -118,7 +118,7 @@ def _geometry_flags(L, X, c, wn):
     g = wrap_angle(L.phi[:, 1] - L.phi[:, 0])
     on_ab = np.flatnonzero(np.abs(np.sin(g)) < 2 * L.sv)
     if on_ab.size:
-        out.append("camera on line AB in view(s) " + ", ".join(str(int(i)) for i in on_ab))
+        out.append("camera on line AB in view(s) " + ", ".join(str(int(i) + 1) for i in on_ab))
     if L.n >= 2:
         d = c[:, None, :] - X
         ang = np.arctan2(d[..., 1], d[..., 0])
