@@ -153,10 +153,8 @@ def posterior_predictive_p(bearings, headings, poses, landmark, weights, sigma_b
         # A, B and the headings per trajectory; C per (trajectory, landmark)
         rb, rh = residuals(np.asarray(bearings, dtype=float)[:, :2], headings, P, None)
         d = discrepancy(rb, rh, sigma_bearing, sigma_heading, tail)
-        dx = L[:, 0] - np.repeat(P[..., 0], per_pose, axis=1)
-        dy = L[:, 1] - np.repeat(P[..., 1], per_pose, axis=1)
-        rc = wrap_angle(np.asarray(bearings, dtype=float)[:, 2:3] - wrap_angle(
-            np.arctan2(dy, dx) - np.repeat(P[..., 2], per_pose, axis=1)))
+        rc = wrap_angle(np.asarray(bearings, dtype=float)[:, 2:3]
+                        - bearing(np.repeat(P, per_pose, axis=1), L[None]))
         D = np.repeat(d, per_pose) + discrepancy(rc[:, None], np.zeros((0, rc.shape[1])),
                                                  sigma_bearing, 0.0, tail)
         keep = w > 0
