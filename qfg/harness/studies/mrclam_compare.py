@@ -32,7 +32,7 @@ import numpy as np
 
 #: the maps compared, and the solver each is made from (``none``: no single-triplet solver)
 MAPS = (("joint", "none"), ("config-state", "fast"), ("config-metric", "fast"),
-        ("seen-config", "fast"), ("pooled", "fast"), ("best", "fast"))
+        ("seen-config", "fast"), ("seen-prior", "fast"), ("pooled", "fast"), ("best", "fast"))
 
 COLUMNS = ("dataset", "robots", "map", "solver", "answered_by", "kind", "n", "log_score",
            "brier", "truth_under_1pct", "uniform_log_score", "prior_log_score")
