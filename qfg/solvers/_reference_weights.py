@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry import wrap_angle
+from ._degenerate import geometry_reasons
 from ._likelihood import logsumexp
 
 _LOG2PI = np.log(2 * np.pi)
@@ -112,14 +113,13 @@ def _summaries(part, X, c, lw):
     return land, err, cams, cam_err, float(ess), float(log_mean), wn
 
 def _geometry_flags(L, X, c, wn):
-    """Reasons the geometry leaves the answer spread: cameras on line AB, lines of sight to C
-    that (nearly) coincide (all views at one pose, motion along the line of sight)."""
-    out = []
-    g = wrap_angle(L.phi[:, 1] - L.phi[:, 0])
-    on_ab = np.flatnonzero(np.abs(np.sin(g)) < 2 * L.sv)
-    if on_ab.size:
-        out.append("camera on line AB in view(s) " + ", ".join(str(int(i) + 1) for i in on_ab))
-    if L.n >= 2:
+    """Reasons the geometry leaves the answer spread: the measurement flags every solver
+    attaches (:func:`qfg.solvers._degenerate.geometry_reasons`: cameras on line AB where fewer
+    than two views place the camera, travel along the line of sight to C), and lines of sight to
+    C that nearly coincide in the weighted posterior sample (``X`` (N, n, 2) cameras, ``c``
+    (N, 2) C, ``wn`` (N,) normalized weights) when the measurements did not say so already."""
+    out = geometry_reasons(L.phi, L.sv, L.psi, L.sw)
+    if L.n >= 2 and not any("coincide" in r for r in out):
         d = c[:, None, :] - X
         ang = np.arctan2(d[..., 1], d[..., 0])
         ii, jj = np.triu_indices(L.n, k=1)
