@@ -74,11 +74,16 @@ def shared_image_weights(prep) -> np.ndarray:
     return np.array([np.mean([1.0 / len(use[b]) for b in k]) for k in keys])
 
 
-def _shared_evidence(prep, seen) -> dict:
+def _shared_evidence(out: Path, prep, seen) -> dict:
     """One ordering per seen set, each pass tempered by :func:`shared_image_weights` before
-    the set's passes are pooled as the run pooled them (geometric)."""
+    the set's passes are pooled by their geometric mean (ValueError for a run that pooled them
+    otherwise)."""
     from qfg.combine import geometric_pool, temper
 
+    how = json.loads((out / "summary.json").read_text())["options"].get("combine", "geometric")
+    if how != "geometric":
+        raise ValueError(f"{out}: shared=1 pools the passes geometrically; the run used "
+                         f"--combine {how}")
     w = shared_image_weights(prep)
     print(f"shared=1: weights of the {w.size} passes, 10/50/90th percentiles "
           f"{np.percentile(w, [10, 50, 90]).round(2).tolist()}")
@@ -117,10 +122,8 @@ def main(argv=None) -> int:
             kw[k] = _value(k, text)
         if shared and kind != "state":
             raise ValueError(f"{v}: shared=1 is an option of the state likelihood only")
-        ev = (maps.metric_evidence(seen) if kind == "metric" else _shared_evidence(prep, seen)
-              if shared else one_ordering_per_set(
-                  {tuple(t): p for t, p in zip(seen.triplets.tolist(), seen.probabilities,
-                                               strict=True)}))
+        ev = (maps.metric_evidence(seen) if kind == "metric" else _shared_evidence(out, prep, seen)
+              if shared else maps.state_evidence(seen))
         t0 = time.perf_counter()
         res = configuration_marginals(ev, prior=seen.prior,
                                       triplets=[tuple(t) for t in wanted.tolist()],

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from qfg.configurations import infer_configurations, one_ordering_per_set
+from qfg.configurations import infer_configurations
 from qfg.harness.studies import mrclam_maps as maps
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -40,8 +40,7 @@ def main(argv=None) -> int:
     out = Path(argv[0])
     seed = int(argv[1]) if len(argv) > 1 else 0
     prep, seen, tau = load_run(out)
-    ev = one_ordering_per_set({tuple(t): p for t, p in zip(seen.triplets.tolist(),
-                                                           seen.probabilities, strict=True)})
+    ev = maps.state_evidence(seen)
     post = infer_configurations(ev, prior=seen.prior, partition=prep.partition.name, seed=seed,
                                 **maps.CONFIG_OPTIONS)
     # seen triplets index the dataset's landmarks, so the truth's columns are landmark_xy's rows

@@ -42,7 +42,8 @@ import numpy as np
 
 __all__ = ["SeenEstimates", "MapResult", "MapMethod", "MAP_METHODS", "register", "get",
            "inputs_digest", "save_map", "load_map", "save_seen", "map_pooled", "map_best",
-           "map_seen", "map_configurations", "map_configurations_metric", "metric_evidence",
+           "map_seen", "map_configurations", "map_configurations_metric", "state_evidence",
+           "metric_evidence",
            "map_seen_configurations", "map_seen_prior", "map_joint",
            "JOINT_FALLBACK", "DEFAULT_MAP"]
 
@@ -234,13 +235,18 @@ def map_configurations(seen: SeenEstimates, likelihood: str = "state") -> MapRes
     landmark set weighting them by one ordering's combined estimate over the prior's state
     distribution (``likelihood="metric"``: by its passes' summaries of C's AB-frame position,
     :func:`metric_evidence`); every triplet, seen or not, is then read off the same samples."""
-    from qfg.configurations import one_ordering_per_set
-
     if likelihood == "metric":
         return _configuration_map(seen, metric_evidence(seen), "metric")
-    evidence = one_ordering_per_set({tuple(t): p for t, p in zip(seen.triplets.tolist(),
-                                                                  seen.probabilities, strict=True)})
-    return _configuration_map(seen, evidence, likelihood)
+    return _configuration_map(seen, state_evidence(seen), likelihood)
+
+
+def state_evidence(seen: SeenEstimates) -> dict:
+    """``{triplet: (m,) combined estimate}``, one ordering per seen landmark set
+    (:func:`qfg.configurations.one_ordering_per_set`): the state likelihood's evidence."""
+    from qfg.configurations import one_ordering_per_set
+
+    return one_ordering_per_set({tuple(t): p for t, p in zip(seen.triplets.tolist(),
+                                                              seen.probabilities, strict=True)})
 
 
 def metric_evidence(seen: SeenEstimates) -> dict:
