@@ -21,6 +21,7 @@ from hypothesis import strategies as st
 
 from qfg.datasets import mrclam
 from qfg.datasets.mrclam import DataFormatError
+from qfg.datasets.mrclam import _noise as noise
 from qfg.geometry import bearing as geo_bearing
 from qfg.geometry import wrap_angle
 
@@ -344,10 +345,11 @@ def _drive(t):
 ORIGIN = np.array([0.0, -4.0])   # the robot's start in the world, metres from the landmarks
 
 
-def noisy_dataset(d: Path, *, sigma, lead, seed=0):
+def noisy_dataset(d: Path, *, sigma, lead, seed=0, tau=0.0):
     """Robot 1 driven by :func:`_drive`; capture poses every 16 ms by exact integration of the
     commands; bearings from the capture poses plus N(0, sigma); odometry stamps ``lead`` s early
-    (a command stamped t moves the robot at t + lead)."""
+    (a command stamped t moves the robot at t + lead). ``tau`` > 0: each landmark's bearing
+    error is a stationary AR(1) process over the views instead (correlation exp(-lag / tau))."""
     rng = np.random.default_rng(seed)
     t_cmd = np.round(np.arange(0.0, 70.0, 0.01), 3)
     v, w = np.round(_drive(t_cmd), 3)   # as written to the file
@@ -357,10 +359,13 @@ def noisy_dataset(d: Path, *, sigma, lead, seed=0):
     t_view = np.round(np.arange(3.0, 66.0, 0.25), 3)
     V = mrclam.integrate_odometry(t_cmd, v, w, t_view)
     rows = []
+    a = np.exp(-0.25 / tau) if tau else 0.0   # views every 0.25 s
+    err = rng.normal(0, sigma, 6)
     for tv, pose in zip(t_view, V, strict=True):
+        err = a * err + np.sqrt(1 - a * a) * rng.normal(0, sigma, 6)
         for s, b in zip(range(6, 12), SPLIT, strict=True):
             L = np.array(LANDMARKS[s]) - ORIGIN
-            phi = wrap_angle(geo_bearing(pose, L) + rng.normal(0, sigma))
+            phi = wrap_angle(geo_bearing(pose, L) + err[s - 6])
             rows.append((tv + 1000, b, float(np.hypot(*(L - pose[:2]))), float(phi)))
     odo = np.column_stack([t_cmd + 1000 - lead, v, w])
     d = small_dataset(d, [], odometry=odo.tolist(), groundtruth=gt.tolist())
@@ -389,6 +394,46 @@ def test_measure_noise_recovers_injected_noise_and_offsets(tmp_path):
     assert m0.heading_step.p90_abs > 5 * m.heading_step.p90_abs
     table = mrclam.noise_table(m)
     assert "| bearing (measured - captured) |" in table and "sigma90" in table
+
+
+def test_bearing_lag_correlation_recovers_persistence(tmp_path):
+    """Independent errors: every separation's correlation near 0; AR(1) errors with time constant
+    tau: near exp(-lag / tau) at the first lag of each bin (the within-view mean removes nothing:
+    the landmarks' processes are independent and alike). The six landmarks seen are refitted
+    onto their truth from noiseless bearings, the seventh (never seen) not."""
+    sigma, tau = 0.005, 5.0
+    m0 = mrclam.measure_noise(mrclam.load(noisy_dataset(tmp_path / "I", sigma=sigma, lead=0.0)),
+                              offsets=[0.0])
+    m1 = mrclam.measure_noise(mrclam.load(noisy_dataset(tmp_path / "A", sigma=sigma, lead=0.0,
+                                                        tau=tau)), offsets=[0.0])
+    for m in (m0, m1):
+        shift = np.array(m.landmark_shift)
+        assert shift.size == 7 and np.isnan(shift).sum() == 1
+        assert [(lo, hi) for lo, hi, *_ in m.bearing_lag_correlation] == list(noise.LAG_BINS)
+    for (lo, _, n, p, r), (_, _, _, p1, r1) in zip(m0.bearing_lag_correlation,
+                                                    m1.bearing_lag_correlation, strict=True):
+        if lo > 63:   # the run is 63 s of views: no pairs that far apart
+            assert n == 0 and np.isnan(p)
+            continue
+        assert n > 50 and abs(p) < 0.2 and abs(r) < 0.2
+        if lo < 30:
+            assert abs(p1 - np.exp(-lo / tau)) < 0.15 and abs(r1 - np.exp(-lo / tau)) < 0.2, lo
+    table = mrclam.noise_table(m1)
+    assert "| 0.5-3 s |" in table and "Persistence of bearing errors" in table
+    exact = mrclam.measure_noise(mrclam.load(noisy_dataset(tmp_path / "E", sigma=1e-7, lead=0.0)),
+                                 offsets=[0.0])
+    assert np.nanmax(exact.landmark_shift) < 1e-3
+
+
+def test_lag_pairs_brute_force():
+    rng = np.random.default_rng(3)
+    t = np.sort(rng.uniform(0, 50, 200))
+    x = rng.normal(size=200)
+    a, b = noise.lag_pairs(t, x, 2.0, 7.0)
+    want = [(x[i], x[j]) for i in range(200)
+            for j in [next((j for j in range(i + 1, 200) if 2.0 <= t[j] - t[i] < 7.0), None)]
+            if j is not None and t[j] - t[i] < 7.0]
+    assert a.tolist() == [w[0] for w in want] and b.tolist() == [w[1] for w in want]
 
 
 def test_measure_noise_needs_ground_truth(tmp_path):

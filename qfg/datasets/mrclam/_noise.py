@@ -9,7 +9,11 @@
 * bearing noise: measured bearing minus ``bearing(capture pose, landmark)``;
 * odometry direction of travel between the views of the histories (per step and per pass) against
   the captured one, and the odometry's travelled distance (and the ratio of consecutive step
-  lengths) against the captured one.
+  lengths) against the captured one;
+* how bearing errors persist in time: the correlation of one landmark's within-image residuals
+  seen by one robot at two times, by their separation (:data:`LAG_BINS`), against landmark
+  positions refitted from the bearings and capture poses (so that an error of the landmarks'
+  ground truth, a few centimetres, does not pass for noise that persists).
 
 Statistics are robust (median, 1.4826 x median absolute deviation): the data have outliers
 (misread barcodes, capture drop-outs) that would dominate a plain standard deviation, which is
@@ -21,15 +25,23 @@ from __future__ import annotations
 from dataclasses import dataclass, fields
 
 import numpy as np
+from scipy.stats import spearmanr
 
 from ..._validate import as_float_array
 from ...geometry import bearing, motion_heading, wrap_angle
+from ...nonlinear import intersect_rays
 from ._constants import DEFAULT_MAX_GAP, DEFAULT_MIN_INTERVAL, DEFAULT_MIN_TRAVEL, DEFAULT_ODOMETRY_LEAD
 from ._data import MRCLAMDataset, RobotData
 from ._histories import triplet_segments, view_poses
 
 _MAD = 1.4826  # MAD -> standard deviation for a normal distribution
 _Z90 = 1.6448536  # 90th percentile of |z| for a standard normal z
+
+#: Time separations (seconds, [lo, hi)) at which the persistence of bearing errors is measured.
+LAG_BINS = ((0.5, 3.0), (3.0, 10.0), (10.0, 30.0), (30.0, 60.0), (60.0, 120.0), (300.0, 600.0))
+#: Residuals beyond this (radians) are gross errors (misread barcodes), left out of the
+#: correlations, which a few of them would otherwise set.
+LAG_GROSS = np.deg2rad(3.0)
 
 
 @dataclass(frozen=True)
@@ -96,6 +108,13 @@ class NoiseMeasurement:
             captured ratio.
         turn_window: odometry minus captured heading change over ``window`` s (at the offset).
         grouping: the history options the steps come from.
+        landmark_shift: (L,) distance (m) from each landmark's ground truth to its position
+            refitted from every robot's bearings and capture poses (NaN: too few rays).
+        bearing_lag_correlation: ((lo, hi, n, pearson, spearman), ...) per :data:`LAG_BINS`:
+            the correlation of one landmark's within-view residuals (against the refitted
+            positions; gross errors beyond :data:`LAG_GROSS` left out) seen by one robot at a
+            time t and at the first time in [t + lo, t + hi). Under the solvers' model (each
+            view's errors independent) every value is 0.
     """
 
     dataset: str
@@ -114,6 +133,8 @@ class NoiseMeasurement:
     turn_window: RobustStats
     window: float
     grouping: tuple
+    landmark_shift: tuple = ()
+    bearing_lag_correlation: tuple = ()
 
     def as_dict(self) -> dict:
         out = {}
@@ -162,6 +183,76 @@ def _turn_errors(rd, offset, window, step):
     d_gt = np.interp(T + window, gt[:, 0], th) - np.interp(T, gt[:, 0], th)
     d_odo = _odometry_heading(o, T + window - offset) - _odometry_heading(o, T - offset)
     return d_odo - d_gt
+
+
+def _refit_landmarks(dataset, robots, rows, offset, sigma):
+    """Each landmark's position by :func:`qfg.nonlinear.intersect_rays` over every robot's rays
+    (capture pose at the measurement's time + ``offset``, measured bearing); (L, 2), NaN rows
+    for a landmark with fewer than 10 rays or no intersection."""
+    O, A, C = [], [], []
+    for n in robots:
+        t, phi, _, v = rows[n]
+        P, ok = dataset.robots[n].groundtruth_poses(t + offset)
+        col = np.nonzero(dataset.robots[n].visible)[1]
+        O.append(P[ok, :2])
+        A.append(P[ok, 2] + phi[ok])
+        C.append(col[ok])
+    O, A, C = np.concatenate(O), np.concatenate(A), np.concatenate(C)
+    out = np.full((len(dataset.landmark_ids), 2), np.nan)
+    for j in range(out.shape[0]):
+        s = C == j
+        if s.sum() >= 10:
+            p, ok, _ = intersect_rays(O[s], A[s], sigma)
+            if ok:
+                out[j] = p
+    return out
+
+
+def lag_pairs(times, values, lo: float, hi: float):
+    """Pairs of one series at separations in [lo, hi): for each sample i of ``times`` (n,)
+    (sorted), the first later sample j with ``lo <= times[j] - times[i] < hi``. Returns the
+    two (k,) arrays (values[i], values[j]).
+
+    >>> a, b = lag_pairs(np.array([0.0, 1.0, 2.5, 7.0]), np.arange(4.0), 1.0, 3.0)
+    >>> a.tolist(), b.tolist()
+    ([0.0, 1.0], [1.0, 2.0])
+    """
+    t = np.asarray(times, float)
+    j = np.searchsorted(t, t + lo, side="left")
+    has = j < np.searchsorted(t, t + hi, side="left")
+    return values[has], values[j[has]]
+
+
+def _lag_correlations(dataset, robots, rows, offset, points):
+    """``NoiseMeasurement.bearing_lag_correlation`` against landmark positions ``points``."""
+    pairs = {b: ([], []) for b in LAG_BINS}
+    for n in robots:
+        rd = dataset.robots[n]
+        t, phi, _, v = rows[n]
+        col = np.nonzero(rd.visible)[1]
+        good = np.isfinite(points[col, 0])
+        r, ok = _bearing_residuals(rd, t, phi, np.where(good[:, None], points[col], 0.0), offset)
+        ok &= good
+        k = np.bincount(v[ok], minlength=rd.n_views)
+        mean = np.bincount(v[ok], weights=r[ok], minlength=rd.n_views) / np.maximum(k, 1)
+        w = r - mean[v]
+        keep = ok & (k[v] >= 2) & (np.abs(w) < LAG_GROSS)
+        for lm in np.unique(col[keep]):
+            s = keep & (col == lm)
+            for b in LAG_BINS:
+                x, y = lag_pairs(t[s], w[s], *b)
+                pairs[b][0].append(x)
+                pairs[b][1].append(y)
+    out = []
+    for (lo, hi), (xs, ys) in pairs.items():
+        x = np.concatenate(xs) if xs else np.zeros(0)
+        y = np.concatenate(ys) if ys else np.zeros(0)
+        if x.size >= 3 and np.std(x) > 0 and np.std(y) > 0:
+            out.append((lo, hi, int(x.size), float(np.corrcoef(x, y)[0, 1]),
+                        float(spearmanr(x, y)[0])))
+        else:
+            out.append((lo, hi, int(x.size), float("nan"), float("nan")))
+    return tuple(out)
 
 
 def measure_noise(dataset: MRCLAMDataset, *, offsets=None, window: float = 1.0,
@@ -251,6 +342,7 @@ def measure_noise(dataset: MRCLAMDataset, *, offsets=None, window: float = 1.0,
     def cat(xs):
         return np.concatenate(xs) if xs else np.zeros(0)
 
+    refit = _refit_landmarks(dataset, robots, rows, m_off, RobustStats.of(cat(b_all)).sigma90)
     return NoiseMeasurement(
         dataset=dataset.name, robots=tuple(robots), measurement_offset=m_off,
         odometry_offset=o_off, odometry_lead=o_off - m_off, bearing=RobustStats.of(cat(b_all)),
@@ -260,7 +352,9 @@ def measure_noise(dataset: MRCLAMDataset, *, offsets=None, window: float = 1.0,
         distance_ratio=RobustStats.of(cat(d_ratio)),
         turn_window=RobustStats.of(turn), window=float(window),
         grouping=(("min_travel", min_travel), ("max_gap", max_gap), ("min_interval", min_interval),
-                  ("odometry_lead", odometry_lead)))
+                  ("odometry_lead", odometry_lead)),
+        landmark_shift=tuple(float(x) for x in np.hypot(*(refit - dataset.landmark_xy).T)),
+        bearing_lag_correlation=_lag_correlations(dataset, robots, rows, m_off, refit))
 
 
 def noise_table(m: NoiseMeasurement) -> str:
@@ -289,4 +383,13 @@ def noise_table(m: NoiseMeasurement) -> str:
     lines.append(row("odometry step length, log ratio", m.distance_step, pct, " %"))
     lines.append(row("odometry pass length, log ratio", m.distance_pass, pct, " %"))
     lines.append(row("ratio of consecutive step lengths, log ratio", m.distance_ratio, pct, " %"))
+    if m.bearing_lag_correlation:
+        shift = np.array(m.landmark_shift, float)
+        lines += ["", "Persistence of bearing errors: correlation of one landmark's within-view "
+                  "residuals seen by one robot at two times (landmarks refitted from the bearings: "
+                  f"{100 * np.nanmedian(shift):.1f} cm from their ground truth at the median, "
+                  f"{100 * np.nanmax(shift):.1f} cm at most)", "",
+                  "| separation | pairs | Pearson | Spearman |", "|---|---|---|---|"]
+        lines += [f"| {lo:g}-{hi:g} s | {n} | {p:+.3f} | {r:+.3f} |"
+                  for lo, hi, n, p, r in m.bearing_lag_correlation]
     return "\n".join(lines)
