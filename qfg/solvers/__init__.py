@@ -36,7 +36,8 @@ from typing import Sequence
 
 import numpy as np
 
-from . import _baseline, _budget, _degenerate, _estimate, _fast, _input, _options, _populations, _seeds, _sis
+from . import (_baseline, _budget, _degenerate, _escalation, _estimate, _fast, _input, _options,
+               _populations, _seeds, _sis)
 from ._estimate import Hypotheses, TripletEstimate
 from ._options import DEFAULTS, METHODS
 
@@ -187,6 +188,7 @@ def _solve_sis_batch(model, metas, roots, part, opts, hypotheses=False):
     # each triplet K times in the batch, once per independent population (_populations)
     K = _populations.count(opts, metas[0].n_views)
     n = len(metas)
+    given = (metas, roots)
     metas = [m for m in metas for _ in range(K)]
     roots = [r for root in roots for r in _populations.roots(root, K)]
     b = np.stack([m.bearings for m in metas])
@@ -205,6 +207,16 @@ def _solve_sis_batch(model, metas, roots, part, opts, hypotheses=False):
                        None if d is None else d[:, i - 1])
     out = _sis.finish(st, hypotheses=hypotheses)
     out = [_populations.merge(out[t * K:(t + 1) * K], opts) for t in range(n)]
+    if _escalation.applies(opts, b.shape[1]):
+        # the answers the populations disagree on, solved again with the whole budget in one
+        # batched call and pooled with the few-views answers (_escalation)
+        idx = [t for t in range(n) if _escalation.needed(out[t][0], opts)]
+        if idx:
+            whole = _solve_sis_batch(model, [given[0][t] for t in idx],
+                                     [_escalation.seed(given[1][t]) for t in idx], part,
+                                     _escalation.whole_options(opts), hypotheses=True)
+            for t, pair in zip(idx, whole, strict=True):
+                out[t] = _escalation.pool(out[t], pair, opts)
     return out if hypotheses else [e for e, _ in out]
 
 
@@ -498,8 +510,18 @@ class TripletSolver:
                 self._cache = (_reference_estimate(self._state, self.partition, self.options,
                                                    self._root), None)
             elif self.method in _SIS:
-                self._cache = _populations.merge(_sis.finish(self._state, hypotheses=True),
-                                                 self.options)
+                pair = _populations.merge(_sis.finish(self._state, hypotheses=True),
+                                          self.options)
+                if _escalation.applies(self.options, len(self._views)) \
+                        and _escalation.needed(pair[0], self.options):
+                    # the views so far again with the whole budget, as a batch solve does
+                    whole = TripletSolver._from_parts(
+                        self.method, self.partition, _escalation.whole_options(self.options),
+                        _escalation.seed(self._root), self._sb, self._sh, self._sd)
+                    for ph, hd, ds in self._views:
+                        whole.add_view(ph, hd, ds)
+                    pair = _escalation.pool(pair, whole._finish(), self.options)
+                self._cache = pair
             elif self.method == "fast-paper":
                 self._cache = _fast.finish(self._state, hypotheses=True)[0]
             else:

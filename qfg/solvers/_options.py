@@ -67,6 +67,11 @@ DEFAULTS = {
                                      # 2000} halves the time at 3 views but moves the answers
                                      # 0.010 nats further from the reference (docs/solvers.md,
                                      # "Issue 20, item 2 (time)")
+        "few_views_escalate": None,  # threshold on the few-views answer's mc_error (with
+                                     # few_views_populations >= 2: the populations'
+                                     # disagreement) above which the triplet is solved again
+                                     # with the budget above and the answers pooled
+                                     # (_escalation; docs/solvers.md, "Issue 20, item 2 (time)")
         "c_anchors": False,          # C refitted about its mode at views 4, 8, 16, 32, ...
                                      # instead of updated (docs/solvers.md, "More views": +0.03
                                      # at 10 views on development geometries; off: two tail and
@@ -145,6 +150,24 @@ def _few_views_budget(value):
     return {k: positive_int(f"few_views_budget[{k!r}]", v) for k, v in value.items()}
 
 
+def _few_views_escalate(value, opts):
+    """``few_views_escalate``: None, or a threshold in (0, 1) on the few-views answer's
+    ``mc_error``, with ``few_views_populations >= 2`` (:mod:`._escalation`)."""
+    if value is None:
+        return None
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.number)):
+        raise ValueError(f"few_views_escalate: expected None or a number in (0, 1), got "
+                         f"{value!r}")
+    v = float(value)
+    if not 0 < v < 1:
+        raise ValueError(f"few_views_escalate: expected None or a number in (0, 1), got {v}")
+    if int(opts.get("few_views_populations", 1)) < 2:
+        raise ValueError("few_views_escalate: needs few_views_populations >= 2 (its test is "
+                         "the populations' disagreement), got few_views_populations = "
+                         f"{opts.get('few_views_populations', 1)}")
+    return v
+
+
 def resolve_options(method: str, options: dict, defaults: dict | None = None) -> dict:
     """Defaults of ``method`` (or ``defaults``, e.g. the reference solver's) updated with
     ``options``; unknown or bad options raise ValueError."""
@@ -203,6 +226,8 @@ def resolve_options(method: str, options: dict, defaults: dict | None = None) ->
             # the default few-views budget never overrides a budget option the call sets
             few = {k: v for k, v in few.items() if k not in options} or None
         opts["few_views_budget"] = few
+    if "few_views_escalate" in opts:
+        opts["few_views_escalate"] = _few_views_escalate(opts["few_views_escalate"], opts)
     opts["prior"] = resolve_prior(opts["prior"])
     if "bearing_tail" in opts:
         opts["bearing_tail"] = as_tail(opts["bearing_tail"])
