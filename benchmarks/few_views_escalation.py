@@ -66,18 +66,18 @@ def _solve(metas, roots, opts_json):
     return out
 
 
-def run(lo, hi, out, sets, replicate=0):
+def run(lo, hi, out, sets, replicate=0, views=3):
     from qfg.solvers import _input, _seeds
 
     from .sis_rejuvenation import _geometry, _seed
 
     metas, roots, gts = [], [], []
     for i in range(lo, hi):
-        h, root, _ = _geometry(i, 3)
+        h, root, _ = _geometry(i, views)
         metas.append(_input.measurements(h, None, None, None, None, None))
-        roots.append(_seed(root, 3, "full", replicate))
+        roots.append(_seed(root, views, "full", replicate))
         gts.append(int(h.truth.state))
-    recs = [{"g": i, "gt": g, "rep": replicate} for i, g in zip(range(lo, hi), gts)]
+    recs = [{"g": i, "gt": g, "rep": replicate, "n": views} for i, g in zip(range(lo, hi), gts)]
     times = {}
     for name, o in sets:
         rs = [_seeds.child_seed(r, ESCALATE_KEY) for r in roots] if name.endswith("@esc") \
@@ -151,7 +151,7 @@ def _paired(d, groups):
 
 
 def report(files, ref_file, smalls, dev, test, costs, target="base", escs=("full@esc",),
-           base=("full", "full@esc")):
+           base=("full", "full@esc"), views=3):
     """Text report (module docstring). ``base``: the full budget's option sets, whose mean KL
     per solve is the yardstick (dev: the target when ``target`` is "base"; held-out: the
     paired differences)."""
@@ -159,8 +159,10 @@ def report(files, ref_file, smalls, dev, test, costs, target="base", escs=("full
     for f in files:
         for line in open(f):
             r = json.loads(line)
-            recs.setdefault((r["g"], r["rep"]), {}).update(r)
-    ref = {r["g"]: np.asarray(r["p"]) for r in map(json.loads, open(ref_file)) if r["n"] == 3}
+            if r.get("n", 3) == views:
+                recs.setdefault((r["g"], r["rep"]), {}).update(r)
+    ref = {r["g"]: np.asarray(r["p"]) for r in map(json.loads, open(ref_file))
+           if r["n"] == views}
     recs = [r for _, r in sorted(recs.items()) if r["g"] in ref]
     rows = {"dev": [i for i, r in enumerate(recs) if dev[0] <= r["g"] < dev[1]],
             "test": [i for i, r in enumerate(recs) if test[0] <= r["g"] < test[1]]}
@@ -168,7 +170,9 @@ def report(files, ref_file, smalls, dev, test, costs, target="base", escs=("full
                             for i in v]) for k, v in rows.items()}
     lines = []
     for part, (lo, hi) in (("dev", dev), ("test", test)):
-        names = [k for k in recs[rows[part][0]] if k not in ("g", "gt", "rep")
+        if not rows[part]:
+            continue
+        names = [k for k in recs[rows[part][0]] if k not in ("g", "gt", "rep", "n")
                  and all(k in recs[i] for i in rows[part])]
         line = ", ".join(f"{k} {np.mean([kl(ref[recs[i]['g']], recs[i][k]['p']) for i in rows[part]]):.4f}"
                          for k in names)
@@ -176,6 +180,13 @@ def report(files, ref_file, smalls, dev, test, costs, target="base", escs=("full
         b, se = _paired(base_kl[part], groups)
         lines.append(f"{part} geometries {lo}-{hi - 1} ({len(rows[part])} solves): mean KL {line}; "
                      f"full budget ({' and '.join(base)}) {b:.4f} +- {se:.4f} (SE over geometries)")
+        for k in names:
+            if k in base:
+                continue
+            d = np.array([kl(ref[recs[i]["g"]], recs[i][k]["p"]) for i in rows[part]]) \
+                - base_kl[part]
+            m, e = _paired(d, groups)
+            lines.append(f"    {k}: paired against the full budget {m:+.4f} +- {e:.4f}")
     goal = float(np.mean(base_kl["dev"])) if target == "base" else float(target)
     lines.append(f"threshold chosen on dev: the least escalation with mean KL <= {goal:.4f} "
                  f"({'the full budget on dev' if target == 'base' else 'given'}); cost = small + "
@@ -260,7 +271,8 @@ def main(argv=None):
     cmd, rest = argv[0], argv[1:]
     if cmd == "run":
         rep = take("--replicate", 0, int)
-        run(int(rest[0]), int(rest[1]), rest[2], _named(rest[3:]), rep)
+        views = take("--views", 3, int)
+        run(int(rest[0]), int(rest[1]), rest[2], _named(rest[3:]), rep, views)
     else:
         ref = take("--ref", None)
         smalls = take("--small", [], many=True)
@@ -271,7 +283,8 @@ def main(argv=None):
         escs = take("--esc", ["full@esc"], many=True)
         sets = take("--sets", [], many=True)
         _named(sets)
-        print(report(rest, ref, smalls, dev, test, costs, target, escs))
+        views = take("--views", 3, int)
+        print(report(rest, ref, smalls, dev, test, costs, target, escs, views=views))
 
 
 if __name__ == "__main__":
