@@ -2,9 +2,13 @@
 only where its own diagnostics say the answer is unreliable, stay within 0.03 nats of the
 reference at about 1.0 workload per triplet?
 
-    python -m benchmarks.few_views_escalation run LO HI OUT [--replicate R] NAME=JSON ...
+    python -m benchmarks.few_views_escalation run LO HI OUT [--replicate R] [--views N]
+        NAME=JSON ...
     python -m benchmarks.few_views_escalation report OUT [OUT ...] --ref REF [--small NAME ...]
-        [--dev LO:HI] [--test LO:HI] [--costs JSON]
+        [--esc NAME ...] [--sets NAME=JSON ...] [--dev LO:HI] [--test LO:HI] [--costs JSON]
+        [--target KL] [--views N]
+
+(docs/solvers.md, "Issue 20, item 2 (time)", gives the commands and what they measured.)
 
 ``run``: the run-seed-2 development geometries LO..HI-1 of the views20 preset at 3 views
 (:func:`benchmarks.sis_rejuvenation._geometry`, its solver seeds; ``--replicate R`` another seed
@@ -16,14 +20,17 @@ line per geometry: ``{"g", "gt", "rep", NAME: {"p", "ess", "mc", "flag", "pops"}
 Option sets whose NAME ends in ``@esc`` are solved with the seed an escalation would use
 (the triplet's seed's child :data:`ESCALATE_KEY`), i.e. independent of the other sets' draws.
 
-``report``: for each small set (``--small``), with the ``full@esc`` set as the escalation, the
-pooled KL(reference || answer) (answer clipped at 1e-4, as ``sis_rejuvenation report``) when the
-triplets whose diagnostic exceeds a threshold take the escalated answer (``replace``) or the
-budget-weighted mean of both (``pool``), against the share escalated, and the cost
-``small + share x full`` in workloads (``--costs``: {NAME: workloads}, measured by
-``benchmarks.bench_solvers``-style batched timing). Thresholds are chosen on ``--dev``
-geometries (the smallest share whose KL there is at most ``--target``) and reported on
-``--test``.
+``report``: the mean KL(reference || answer) of every set (answer clipped at 1e-4, as
+``sis_rejuvenation report``; the reference lines of REF with ``--views`` views), paired against
+the full budget (the mean of sets ``full`` and ``full@esc`` per solve; SE over geometries);
+then for each small set (``--small``) and escalation set (``--esc``, default ``full@esc``) and
+each diagnostic of :func:`diagnostics`, when the triplets whose diagnostic is at least a
+threshold take the escalated answer (``replace``) or the budget-weighted mean of both
+(``pool``; ``--sets`` names the option sets so that their budgets are known): the threshold
+chosen on ``--dev`` geometries (the least escalation whose mean KL there is at most
+``--target``, default the full budget's own dev KL), the share, KL and paired difference it
+gives on ``--test``, and the held-out KL at costs of 1.0-1.5 workloads over all thresholds
+(cost ``small + share x escalation``; ``--costs``: {NAME: workloads} measured by batched timing).
 """
 
 from __future__ import annotations
