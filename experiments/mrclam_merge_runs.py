@@ -10,7 +10,10 @@ per temper rule: the seen triplets' mean log p(truth) (clip 1e-4), the prior alo
 of truths under 1 %, overall and by which robots saw the triplet. Only the seeds differ from
 solving the robots together (the pieces of a run are seeded by their position in it).
 
-    python experiments/mrclam_merge_runs.py out/d5-r1 out/d5-r2 [auto-1se,auto,1]
+    python experiments/mrclam_merge_runs.py out/d5-r1 out/d5-r2 [auto-1se,auto,1] [--map NAME]
+
+``--map`` (default ``seen``): another map method of ``qfg mrclam`` (e.g. ``config-state``); its
+unseen triplets are then scored too.
 """
 
 from __future__ import annotations
@@ -65,7 +68,12 @@ def merged_estimates(runs):
 
 
 def main(argv=None) -> int:
-    argv = sys.argv[1:] if argv is None else argv
+    argv = list(sys.argv[1:] if argv is None else argv)
+    map_method = "seen"
+    if "--map" in argv:
+        i = argv.index("--map")
+        map_method = argv[i + 1]
+        del argv[i:i + 2]
     runs = [Path(a) for a in argv if Path(a).is_dir()]
     rules = [a for a in argv if not Path(a).is_dir()]
     rules = rules[0].split(",") if rules else ["auto-1se"]
@@ -75,7 +83,7 @@ def main(argv=None) -> int:
     merged, ests = merged_estimates(runs)
     for rule in rules:
         rows, det = study.finish(merged, ests, temper=rule if rule.startswith("auto")
-                                 else float(rule), map_method="seen")
+                                 else float(rule), map_method=map_method)
         seen = [r for r in rows if r["kind"] == "seen"]
         ls = np.array([r["log_score"] for r in seen])
         pr = np.array([r["prior_log_score"] for r in seen])
@@ -88,6 +96,13 @@ def main(argv=None) -> int:
             s = by == key
             print(f"    seen by robots {key.replace(';', ',')}: {s.sum()}, {ls[s].mean():.2f}, "
                   f"truth under 1% {100 * u[s].mean():.1f}%")
+        prop = [r for r in rows if r["kind"] == "propagated"]
+        if prop:
+            lp = np.array([r["log_score"] for r in prop])
+            pp = np.array([r["prior_log_score"] for r in prop])
+            up = np.array([r["truth_under_1pct"] for r in prop], float)
+            print(f"    unseen ({map_method}): {len(prop)}, {lp.mean():.2f} (the prior alone "
+                  f"{pp.mean():.2f}), truth under 1% {100 * up.mean():.1f}%")
     return 0
 
 
