@@ -178,3 +178,38 @@ def test_config_metric_map_uses_the_position_summaries_each_pass_kept(root, tmp_
     capsys.readouterr()
     assert _exit_code([*args, "--map", "config-metric", "--resume"]) != 0
     assert "keep no summaries of C's position" in capsys.readouterr().err
+
+
+def test_maps_figure_draws_each_row_from_the_prior_to_its_score(tmp_path, capsys):
+    """The comparison figure from the recorded table (nothing run): one panel per kind, one bar
+    per row, each from the prior alone's score to the map's, hatched where the fallback
+    answered; the command writes it where it is told and prints the table."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Rectangle
+
+    from qfg.harness.plotting_mrclam import maps_figure
+
+    rows = mrclam_compare.read_table(TABLE)
+    fig = maps_figure(rows)
+    kinds = list(dict.fromkeys(r["kind"] for r in rows))
+    axes = [a for a in fig.axes if a.get_title()]
+    assert len(axes) == len(kinds)
+    for ax, kind in zip(axes, sorted(kinds, key=("seen", "propagated", "camera").index),
+                        strict=True):
+        bars = sorted(((p.get_y(), p.get_height(), bool(p.get_hatch())) for p in ax.patches
+                       if isinstance(p, Rectangle)), key=lambda b: (round(b[0], 6), b[1]))
+        want = sorted(((float(r["prior_log_score"]),
+                        float(r["log_score"]) - float(r["prior_log_score"]),
+                        r["answered_by"] != r["map"]) for r in rows if r["kind"] == kind),
+                      key=lambda b: (round(b[0], 6), b[1]))
+        assert len(bars) == len(want)
+        for (y, h, hatched), (wy, wh, fb) in zip(bars, want, strict=True):
+            assert y == pytest.approx(wy) and h == pytest.approx(wh) and hatched == fb
+    plt.close(fig)
+    out = tmp_path / "o"
+    assert mrclam_compare.main(["--from-csv", str(TABLE), "--output", str(out)]) == 0
+    assert (out / "mrclam_maps.png").stat().st_size > 10_000
+    assert "best (the default rule): " + mrclam_maps.DEFAULT_MAP in capsys.readouterr().out

@@ -11,7 +11,8 @@ import numpy as np
 
 from qfg.datasets import mrclam as _mrclam
 
-__all__ = ["draw_dataset", "dataset_figure", "reliability_figure", "curve_figure"]
+__all__ = ["draw_dataset", "dataset_figure", "reliability_figure", "curve_figure",
+           "maps_figure"]
 
 
 def draw_dataset(dataset, robot, ax=None, *, history=None, time_range=None,
@@ -160,4 +161,59 @@ def curve_figure(recs):
     axes[0].legend(fontsize=7)
     fig.suptitle("scores vs views per pass (dashed: uniform, dotted: prior alone)", fontsize=10)
     fig.tight_layout()
+    return fig
+
+
+def maps_figure(rows, *, title: str = "every map of qfg mrclam on MRCLAM datasets 1-6"):
+    """The map comparison (rows of ``qfg.harness.studies.mrclam_compare``: dataset, map, kind,
+    log_score, truth_under_1pct, uniform_log_score, prior_log_score): one panel per kind (seen,
+    unseen, cameras where scored), a bar per (dataset, map) from the prior alone's mean log
+    p(truth) (a black segment over each dataset's group) to the map's (clip 1e-4): up is a gain
+    over the prior, down a loss; hatched where another map answered (the joint map's fallback);
+    uniform (log 1/20) dashed. Returns the figure."""
+    kinds = [k for k in ("seen", "propagated", "camera") if any(r["kind"] == k for r in rows)]
+    maps = list(dict.fromkeys(r["map"] for r in rows))
+    datasets = list(dict.fromkeys(str(r["dataset"]) for r in rows))
+    by = {(str(r["dataset"]), r["kind"], r["map"]): r for r in rows}
+    colors = plt.get_cmap("tab10")(np.arange(len(maps)) % 10)
+    fig, axes = plt.subplots(len(kinds), 1, figsize=(11, 3.3 * len(kinds)), squeeze=False,
+                             layout="constrained",
+                             gridspec_kw={"height_ratios": [1.0 if k != "camera" else 0.7
+                                                            for k in kinds]})
+    width = 0.8 / max(len(maps), 1)
+    for ax, kind in zip(axes[:, 0], kinds, strict=True):
+        shown = [d for d in datasets if any((d, kind, m) in by for m in maps)]
+        for j, m in enumerate(maps):
+            for i, d in enumerate(shown):
+                r = by.get((d, kind, m))
+                if r is None:
+                    continue
+                fallback = r.get("answered_by", m) not in ("", m)
+                base = float(r["prior_log_score"])
+                ax.bar(i + (j - (len(maps) - 1) / 2) * width, float(r["log_score"]) - base, width,
+                       bottom=base, color=colors[j], hatch="//" if fallback else None,
+                       edgecolor="white" if fallback else None,
+                       label=m if i == 0 or (d, kind, m) not in by else None)
+        for i, d in enumerate(shown):
+            r = next(by[(d, kind, m)] for m in maps if (d, kind, m) in by)
+            ax.hlines(float(r["prior_log_score"]), i - 0.45, i + 0.45, color="k", lw=2,
+                      label="prior alone" if i == 0 else None)
+            uni = float(r["uniform_log_score"])
+        ax.axhline(uni, color="k", ls="--", lw=0.8, label="uniform")
+        labels = []
+        for d in shown:
+            r = next(by[(d, kind, m)] for m in maps if (d, kind, m) in by)
+            rb = r.get("robots", "all")
+            labels.append(f"dataset {d}" + ("" if rb in ("", "all") else f"\n(robot {rb})"))
+        ax.set_xticks(range(len(shown)), labels)
+        ax.set_ylabel("mean log p(truth)")
+        ax.set_title({"seen": "seen triplets", "propagated": "unseen triplets",
+                      "camera": "camera states (motion capture)"}[kind], fontsize=9)
+        ax.grid(axis="y", alpha=0.3)
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    keep = dict(zip(labels, handles, strict=True))
+    fig.legend(keep.values(), keep.keys(), loc="outside lower center", ncol=min(len(keep), 6),
+               fontsize=8, frameon=False)
+    fig.suptitle(title + " (bars from the prior alone to the map: up is better; hatched: "
+                 "answered by the fallback)", fontsize=10)
     return fig

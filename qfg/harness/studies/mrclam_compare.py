@@ -13,9 +13,14 @@ method's).
 The rule: the default map is the one with the best mean log score over every seen and unseen
 (propagated) ordered triplet of the six datasets (:func:`best_map`).
 
-Run (about 20 minutes on 2 cores; ``--update-docs`` writes docs/results/mrclam_maps.csv)::
+Run (about 20 minutes on 2 cores; ``--update-docs`` writes docs/results/mrclam_maps.csv and
+docs/figures/mrclam/maps.png)::
 
     python -m qfg.harness.studies.mrclam_compare $QFG_MRCLAM_DIR --output out/mrclam-maps
+
+The table and figure again from a recorded table, without running anything::
+
+    python -m qfg.harness.studies.mrclam_compare --from-csv docs/results/mrclam_maps.csv --output out/maps
 """
 
 from __future__ import annotations
@@ -185,10 +190,29 @@ def write_table(path, rows) -> None:
     write_text(Path(path), "\n".join(lines) + "\n")
 
 
+def _figure(rows, paths) -> None:
+    """:func:`qfg.harness.plotting_mrclam.maps_figure` of the rows, saved to each path."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from qfg.harness.plotting_mrclam import maps_figure
+
+    fig = maps_figure(rows)
+    for path in paths:
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(path, dpi=110)
+        print(f"figure: {path}", file=sys.stderr)
+    plt.close(fig)
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m qfg.harness.studies.mrclam_compare",
                                 description=__doc__.split("\n\n")[0])
-    p.add_argument("root", help="the folder holding MRCLAM_Dataset1..6")
+    p.add_argument("root", nargs="?", help="the folder holding MRCLAM_Dataset1..6")
+    p.add_argument("--from-csv", help="a recorded table (mrclam_maps.csv): print it and draw "
+                   "its figure instead of running the maps")
     p.add_argument("--output", default="out/mrclam-maps")
     p.add_argument("--datasets", default="1,2,3,4,5,6")
     p.add_argument("--seed", type=int, default=0)
@@ -196,11 +220,21 @@ def main(argv=None) -> int:
                    help="write docs/results/mrclam_maps.csv (a tracked file)")
     a = p.parse_args(argv)
     ds = [int(x) for x in a.datasets.split(",")]
-    rows = compare(a.root, output=a.output, datasets=ds, seed=a.seed,
-                   say=lambda m: print(m, file=sys.stderr, flush=True))
-    write_table(Path(a.output) / "mrclam_maps.csv", rows)
+    if a.from_csv:
+        rows = read_table(a.from_csv)
+        ds = [d for d in ds if any(int(r["dataset"]) == d for r in rows)]
+    elif a.root:
+        rows = compare(a.root, output=a.output, datasets=ds, seed=a.seed,
+                       say=lambda m: print(m, file=sys.stderr, flush=True))
+        write_table(Path(a.output) / "mrclam_maps.csv", rows)
+    else:
+        p.error("give the folder holding MRCLAM_Dataset1..6, or --from-csv")
+    figures = [Path(a.output) / "mrclam_maps.png"]
     if a.update_docs:
-        write_table(Path("docs/results/mrclam_maps.csv"), rows)
+        if not a.from_csv:
+            write_table(Path("docs/results/mrclam_maps.csv"), rows)
+        figures.append(Path("docs/figures/mrclam/maps.png"))
+    _figure(rows, figures)
     print("\n".join(markdown(rows)))
     for m, (s, n) in sorted(map_scores(rows).items(), key=lambda kv: -kv[1][0]):
         print(f"{m}: mean log p(truth) {s:.3f} over {n} seen and unseen triplets")
