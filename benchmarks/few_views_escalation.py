@@ -7,6 +7,8 @@ reference at about 1.0 workload per triplet?
     python -m benchmarks.few_views_escalation report OUT [OUT ...] --ref REF [--small NAME ...]
         [--esc NAME ...] [--sets NAME=JSON ...] [--dev LO:HI] [--test LO:HI] [--costs JSON]
         [--target KL] [--views N]
+    python -m benchmarks.few_views_escalation noise SV,SW [--n 150] [--seeds 6] [--cache DIR]
+        [--threshold 0.15]
 
 (docs/solvers.md, "Issue 20, item 2 (time)", gives the commands and what they measured.)
 
@@ -101,6 +103,44 @@ def run(lo, hi, out, sets, replicate=0, views=3):
     with open(out, "a") as fh:
         for rec in recs:
             fh.write(json.dumps(rec) + "\n")
+
+
+#: The first stage the escalation was measured with (docs/solvers.md).
+FIRST_STAGE = {"few_views_populations": 2,
+               "few_views_budget": {"n_samples": 400, "motion_samples": 6, "max_hypotheses": 2000}}
+
+
+def noise(sv, sw, n=150, seeds=6, cache=None, threshold=0.15):
+    """``noise``: on ``benchmarks.solver_defaults``' development scenarios (``SeedSequence(555)``,
+    3 views) at sigma_v, sigma_w = ``sv``, ``sw`` degrees, the defaults, :data:`FIRST_STAGE`
+    alone and with ``few_views_escalate=threshold``, each with solver seeds 7, 8, ...; the mean
+    KL(reference || answer) per set and the paired differences against the defaults (per
+    scenario, averaged over the seeds; SE over scenarios), and the share escalated."""
+    from pathlib import Path
+
+    from qfg.solvers import solve_triplets
+
+    from .solver_defaults import histories, reference
+
+    hs = histories(n, sv, sw)
+    R = reference(hs, Path(cache) if cache else None, f"{n}_{sv:g}_{sw:g}")
+    sets = {"defaults": {}, "first stage": FIRST_STAGE,
+            "escalated": dict(FIRST_STAGE, few_views_escalate=threshold)}
+    k = {name: [] for name in sets}
+    share = []
+    for seed in range(7, 7 + seeds):
+        for name, o in sets.items():
+            es = solve_triplets(hs, method="full", seed=seed, **o)
+            k[name].append(kl(R, np.array([e.landmark for e in es])))
+            if name == "first stage":
+                share.append(np.mean([not (e.mc_error <= threshold) for e in es]))
+    k = {name: np.array(v) for name, v in k.items()}
+    out = f"{sv:g}/{sw:g} deg, {n} scenarios x {seeds} seeds: defaults {k['defaults'].mean():.4f}"
+    for name in ("first stage", "escalated"):
+        d = (k[name] - k["defaults"]).mean(axis=0)
+        out += (f", {name} {k[name].mean():.4f} (paired {d.mean():+.4f} +- "
+                f"{d.std(ddof=1) / np.sqrt(d.size):.4f})")
+    return out + f"; escalated share {np.mean(share):.3f}"
 
 
 def kl(r, q):
@@ -258,7 +298,7 @@ def _named(args):
 
 def main(argv=None):
     argv = list(sys.argv[1:] if argv is None else argv)
-    if not argv or argv[0] not in ("run", "report"):
+    if not argv or argv[0] not in ("run", "report", "noise"):
         raise SystemExit(__doc__)
 
     def take(flag, default, conv=str, many=False):
@@ -276,7 +316,12 @@ def main(argv=None):
         return v
 
     cmd, rest = argv[0], argv[1:]
-    if cmd == "run":
+    if cmd == "noise":
+        n, seeds = take("--n", 150, int), take("--seeds", 6, int)
+        cache, thr = take("--cache", None), take("--threshold", 0.15, float)
+        sv, sw = (float(v) for v in rest[0].split(","))
+        print(noise(sv, sw, n, seeds, cache, thr))
+    elif cmd == "run":
         rep = take("--replicate", 0, int)
         views = take("--views", 3, int)
         run(int(rest[0]), int(rest[1]), rest[2], _named(rest[3:]), rep, views)
