@@ -49,8 +49,8 @@ ESCALATE_KEY = 2_000_003
 
 def _solve(metas, roots, opts_json):
     """(estimate, [per-population landmark]) per triplet, batched."""
-    from qfg.solvers import _options, _populations, _solve_sis_batch
     from qfg.partitions import get as get_partition
+    from qfg.solvers import _options, _populations, _solve_sis_batch
 
     part = get_partition("edc")
     opts = _options.resolve_options("full", dict(opts_json))
@@ -86,7 +86,7 @@ def run(lo, hi, out, sets, replicate=0, views=3):
         metas.append(_input.measurements(h, None, None, None, None, None))
         roots.append(_seed(root, views, "full", replicate))
         gts.append(int(h.truth.state))
-    recs = [{"g": i, "gt": g, "rep": replicate, "n": views} for i, g in zip(range(lo, hi), gts)]
+    recs = [{"g": i, "gt": g, "rep": replicate, "n": views} for i, g in zip(range(lo, hi), gts, strict=True)]
     times = {}
     for name, o in sets:
         rs = [_seeds.child_seed(r, ESCALATE_KEY) for r in roots] if name.endswith("@esc") \

@@ -540,3 +540,21 @@ def test_outputs_replace_planted_links_instead_of_writing_through_them(tmp_path)
         with pytest.raises(runner.RunnerError, match=name.replace(".", r"\.")):
             runner.run_study(toy_study.STUDY, {"n": 2}, o, resume=True, progress=False)
         assert victim.read_text() == "precious\n"
+
+
+def test_resume_of_a_run_recorded_by_another_version_says_so(tmp_path, capsys):
+    """Solver defaults change between versions: a resumed run keeps its records and says which
+    version made them; a run of this version resumes silently."""
+    params = {"n": 4}
+    first = runner.run_study(toy_study.STUDY, params, tmp_path, seed=1, progress=False)
+    meta = json.loads((tmp_path / "run.json").read_text())
+    assert meta["version"] == runner.__version__
+    capsys.readouterr()
+    runner.run_study(toy_study.STUDY, params, tmp_path, seed=1, resume=True, progress=False)
+    assert "recorded by qfg" not in capsys.readouterr().err
+    (tmp_path / "run.json").write_text(json.dumps({**meta, "version": "0.0.1"}))
+    rows = runner.run_study(toy_study.STUDY, params, tmp_path, seed=1, resume=True,
+                            progress=False)
+    err = capsys.readouterr().err
+    assert "recorded by qfg 0.0.1" in err and runner.__version__ in err
+    assert rows == first

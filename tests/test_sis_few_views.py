@@ -87,21 +87,29 @@ def test_bad_few_views_budget_is_refused():
         solve_triplet(h, method="full", few_views_budget=[("n_samples", 10)])
 
 
-def test_budget_options_a_call_sets_are_not_overridden(monkeypatch):
+def test_budget_options_a_call_sets_are_not_overridden():
+    """The few-views defaults are one package (budget, two populations, escalation): a call that
+    sets a budget option, a population count or any few-views option gets the package off with
+    its own settings on top, the same answers as saying so."""
     from qfg.solvers import DEFAULTS
+    from qfg.solvers._options import FEW_VIEWS_OFF
 
-    # (a default few-views budget: off in DEFAULTS today, the measured one here)
-    monkeypatch.setitem(DEFAULTS["full"], "few_views_budget",
-                        {"n_samples": 400, "motion_samples": 6, "max_hypotheses": 2000})
+    assert DEFAULTS["full"]["few_views_budget"] and DEFAULTS["full"]["few_views_escalate"]
     h = _hist(61, 3)
     mine = {"n_samples": 64, "motion_samples": 3, "max_hypotheses": 150, "posterior_samples": 32}
     a = solve_triplet(h, method="full", seed=2, **mine)
-    b = solve_triplet(h, method="full", seed=2, few_views_budget=None, **mine)
+    b = solve_triplet(h, method="full", seed=2, **FEW_VIEWS_OFF, **mine)
     np.testing.assert_array_equal(a.landmark, b.landmark)
-    # only the options the call leaves to the defaults take the default few-views budget
+    assert {k: a.options[k] for k in FEW_VIEWS_OFF} == FEW_VIEWS_OFF
+    # one budget option is enough; the call's other options keep their defaults
     c = solve_triplet(h, method="full", seed=2, n_samples=64, posterior_samples=32)
-    rest = {k: v for k, v in DEFAULTS["full"]["few_views_budget"].items() if k != "n_samples"}
-    assert c.options["few_views_budget"] == rest
+    assert {k: c.options[k] for k in FEW_VIEWS_OFF} == FEW_VIEWS_OFF
     d = solve_triplet(h, method="full", seed=2, n_samples=64, posterior_samples=32,
-                      few_views_budget=None, **rest)
+                      few_views_budget=None)
     np.testing.assert_array_equal(c.landmark, d.landmark)
+    # a few-views option alone: the others off, not at their defaults
+    e = solve_triplet(h, method="full", seed=2, few_views_budget={"n_samples": 200}, **mine)
+    assert e.options["few_views_populations"] == 1 and e.options["few_views_escalate"] is None
+    # no option: the package
+    f = solve_triplet(h, method="full", seed=2)
+    assert f.options["few_views_populations"] == 2 and f.options["few_views_escalate"] == 0.15

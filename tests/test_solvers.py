@@ -364,7 +364,10 @@ def test_one_view_samples_lie_on_lines_of_sight_and_locus():
 
 def test_estimate_exposes_hypotheses():
     h = random_triplet_history(np.random.default_rng(2), 3, 0.02, 0.05)
-    s = TripletSolver("full", sigma_bearing=0.02, sigma_heading=0.05, seed=0)
+    # one population (the few-views package off): the estimate is then the shrunk histogram of
+    # these hypotheses; two populations average two such (tests/test_sis_populations.py)
+    s = TripletSolver("full", sigma_bearing=0.02, sigma_heading=0.05, seed=0,
+                      few_views_budget=None)
     for i in range(3):
         s.add_view(h.bearings[i], None if i == 0 else h.headings[i - 1])
     e, hy = s.estimate(), s.hypotheses()

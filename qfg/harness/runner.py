@@ -1013,6 +1013,12 @@ def _run_locked(study, params, tasks, out, seed, workers, resume, overwrite, exe
         if json.loads(json.dumps(old_meta)) != json.loads(json.dumps(meta, default=_jsonable)):
             raise RunnerError(f"output: {out} holds a run with different study/params/seed "
                               f"({old_meta}); resume needs the same ones")
+        if old.get("version") not in (None, __version__):
+            # solver defaults change between versions: the records made by the other one stay,
+            # the scenarios left are solved by this one
+            print(f"runner: {out} was recorded by qfg {old.get('version')}, this is qfg "
+                  f"{__version__}: its recorded scenarios are kept as they are, the rest are run "
+                  "by this version (--overwrite to run them all again)", file=sys.stderr)
     if overwrite or not resume:
         try:
             rec_path.unlink(missing_ok=True)

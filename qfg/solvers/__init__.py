@@ -36,8 +36,19 @@ from typing import Sequence
 
 import numpy as np
 
-from . import (_baseline, _budget, _degenerate, _escalation, _estimate, _fast, _input, _options,
-               _populations, _seeds, _sis)
+from . import (
+    _baseline,
+    _budget,
+    _degenerate,
+    _escalation,
+    _estimate,
+    _fast,
+    _input,
+    _options,
+    _populations,
+    _seeds,
+    _sis,
+)
 from ._estimate import Hypotheses, TripletEstimate
 from ._options import DEFAULTS, METHODS
 

@@ -59,19 +59,17 @@ DEFAULTS = {
         "populations": 1,            # independent SIS populations, each with 1/K of the budget
                                      # (n_samples, max_hypotheses, posterior_samples), answers
                                      # averaged (_populations; docs/solvers.md)
-        "few_views_populations": 1,  # the same up to _sis.FEW_VIEWS views
-        "few_views_budget": None,    # budget options used up to _sis.FEW_VIEWS = 3 views (the
-                                     # next view solves them again with the budget above;
-                                     # options a call sets itself are kept). Off: the measured
-                                     # {"n_samples": 400, "motion_samples": 6, "max_hypotheses":
-                                     # 2000} halves the time at 3 views but moves the answers
-                                     # 0.010 nats further from the reference (docs/solvers.md,
-                                     # "Issue 20, item 2 (time)")
-        "few_views_escalate": None,  # threshold on the few-views answer's mc_error (with
-                                     # few_views_populations >= 2: the populations'
-                                     # disagreement) above which the triplet is solved again
-                                     # with the budget above and the answers pooled
-                                     # (_escalation; docs/solvers.md, "Issue 20, item 2 (time)")
+        # Up to _sis.FEW_VIEWS = 3 views (the next view solves them again with the budget
+        # above): a smaller budget split between two independent populations, and the
+        # triplets whose populations disagree (mc_error above few_views_escalate) solved again
+        # with the whole budget and pooled (_escalation). About 1.0 workload per 3-view triplet
+        # instead of 1.6-1.8, as close to the reference as the whole budget, paired on 400
+        # development geometries x 6 seeds (docs/solvers.md, "Issue 20, item 2 (time)"). A call
+        # that sets a budget option or a population count itself gets exactly that budget
+        # (the package steps aside: FEW_VIEWS_OFF).
+        "few_views_populations": 2,
+        "few_views_budget": {"n_samples": 400, "motion_samples": 6, "max_hypotheses": 2000},
+        "few_views_escalate": 0.15,
         "c_anchors": False,          # C refitted about its mode at views 4, 8, 16, 32, ...
                                      # instead of updated (docs/solvers.md, "More views": +0.03
                                      # at 10 views on development geometries; off: two tail and
@@ -134,6 +132,15 @@ DEFAULTS = {
 #: Options ``few_views_budget`` may set.
 FEW_VIEWS_KEYS = ("n_samples", "motion_samples", "max_hypotheses", "landmark_samples",
                   "posterior_samples")
+
+#: The few-views options switched off (the solver's budget at every number of views). Their
+#: defaults come as one package: a call that sets any of them, a budget option or a population
+#: count gets the package off, with its own settings on top (so a call that sets its budget
+#: gets exactly that budget, and ``few_views_budget=...`` alone means what it meant when the
+#: package was off by default).
+FEW_VIEWS_OFF = {"few_views_budget": None, "few_views_populations": 1,
+                 "few_views_escalate": None}
+FEW_VIEWS_OVERRIDES = tuple(FEW_VIEWS_OFF) + FEW_VIEWS_KEYS + ("populations",)
 
 
 def _few_views_budget(value):
@@ -220,12 +227,11 @@ def resolve_options(method: str, options: dict, defaults: dict | None = None) ->
         raise ValueError(f"kernel: expected 'bearing' or 'combined', got {opts['kernel']!r}")
     if opts.get("resection", "centroid") not in RESECTIONS:
         raise ValueError(f"resection: expected one of {RESECTIONS}, got {opts['resection']!r}")
+    if "few_views_budget" in opts and any(k in options for k in FEW_VIEWS_OVERRIDES):
+        # the call manages its budget: the default few-views package steps aside
+        opts.update({k: v for k, v in FEW_VIEWS_OFF.items() if k not in options})
     if "few_views_budget" in opts:
-        few = _few_views_budget(opts["few_views_budget"])
-        if few and "few_views_budget" not in options:
-            # the default few-views budget never overrides a budget option the call sets
-            few = {k: v for k, v in few.items() if k not in options} or None
-        opts["few_views_budget"] = few
+        opts["few_views_budget"] = _few_views_budget(opts["few_views_budget"])
     if "few_views_escalate" in opts:
         opts["few_views_escalate"] = _few_views_escalate(opts["few_views_escalate"], opts)
     opts["prior"] = resolve_prior(opts["prior"])
