@@ -10,7 +10,10 @@ and fast batched (one call on the 10), baseline and reference single calls (medi
 also given in units of a fixed single-threaded numpy workload (``_workload``: sines and a sort;
 the mean of its best-of-5 time just before and just after), so that rows measured at different
 loads compare; "growth" is that normalised time at n over the one at 3 views, "raw" the same
-ratio of plain times (linear in views: 3.3 at 10, 6.7 at 20).
+ratio of plain times (linear in views: 3.3 at 10, 6.7 at 20). Since qfg 0.3.0 full solves up
+to 3 views with its few-views package (two populations of a smaller budget, escalated where they
+disagree: about half the whole budget's time) and 4 or more with the whole budget, so its growth
+from 3 views is about twice the whole budget's own (docs/solvers.md).
 
 ``python -m benchmarks.bench_solvers --against DIR [--method full]`` times a solver against an
 older tree's ``qfg`` package in DIR (``git archive <commit> qfg | tar -x -C DIR``), interleaved in
