@@ -118,3 +118,42 @@ def test_bad_population_counts_are_refused(bad):
         solve_triplet(h, method="full", populations=bad)
     with pytest.raises(ValueError, match="few_views_populations"):
         solve_triplet(h, method="fast", few_views_populations=bad)
+
+
+def test_pooled_flags_decide_the_sampled_tests_for_the_pool():
+    """A union of per-population tests would flag more the more populations there are: the
+    flags read off the samples are decided again for the pool (the mean share of unresolved
+    depth against UNRESOLVED_SHARE, the pooled ESS against min_ess); measurement flags are
+    kept as they are."""
+    import dataclasses
+
+    from qfg.solvers._degenerate import UNRESOLVED_REASON, UNRESOLVED_SHARE
+    from qfg.solvers._estimate import ess_reason, pooled_reasons
+
+    h = _history(3, 3)
+    base = solve_triplet(h, method="full", seed=1, few_views_budget=None)
+
+    def pop(share, *reasons):
+        return dataclasses.replace(base, depth_unresolved=share, reason="; ".join(reasons),
+                                   degenerate=bool(reasons))
+
+    geo = "the camera stands on line AB in views 1, 2"
+    lo, hi = UNRESOLVED_SHARE - 0.2, UNRESOLVED_SHARE + 0.1
+    # one population over the line, the mean under it: not flagged; the measurement flag kept
+    got = pooled_reasons([pop(hi, geo, UNRESOLVED_REASON), pop(lo, geo)], [0.5, 0.5], 500.0,
+                         {"min_ess": 2.0})
+    assert got == [geo]
+    # both over it: flagged once
+    got = pooled_reasons([pop(hi, UNRESOLVED_REASON), pop(hi + 0.05, UNRESOLVED_REASON)],
+                         [0.5, 0.5], 500.0, {"min_ess": 2.0})
+    assert got == [UNRESOLVED_REASON]
+    # weights count: 0.9 on the high share
+    assert pooled_reasons([pop(hi), pop(lo)], [0.9, 0.1], 500.0, {}) == [UNRESOLVED_REASON]
+    # the ESS flag by the pooled ESS, not by either population's
+    low = pop(lo, ess_reason(1.5, 2.0))
+    assert pooled_reasons([low, pop(lo)], [0.5, 0.5], 3.0, {"min_ess": 2.0}) == []
+    assert pooled_reasons([low, pop(lo)], [0.5, 0.5], 1.8, {"min_ess": 2.0}) == [
+        ess_reason(1.8, 2.0)]
+    # a share a method does not compute: its flag is kept as raised
+    assert pooled_reasons([pop(float("nan"), UNRESOLVED_REASON), pop(lo)], [0.5, 0.5], 500.0,
+                          {}) == [UNRESOLVED_REASON]

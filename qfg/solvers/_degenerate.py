@@ -10,6 +10,12 @@ import numpy as np
 
 from ..geometry import LOCUS_EPS, wrap_angle
 
+#: A sampler's answer whose posterior weight has C's depth along its lines of sight unresolved
+#: for more than this share is flagged (:data:`UNRESOLVED_REASON`).
+UNRESOLVED_SHARE = 0.5
+UNRESOLVED_REASON = ("lines of sight to C (nearly) coincide: its depth along them is set by the "
+                     "prior")
+
 #: Bearings of consecutive views equal within this (radians, all three): the camera is taken as
 #: not having moved.
 SAME_POSE_TOL = 1e-9

@@ -28,7 +28,8 @@ The rule, for one triplet whose few-views answer ``e_s`` (populations merged by
   ``b = n_samples x motion_samples`` of each solve's budget (each answer's Monte Carlo variance
   scales about as ``1 / b``); ``ess = 1 / (w^2 / ess_s + (1 - w)^2 / ess_f)`` (that of the pooled
   weights), ``mc_error = sqrt(w^2 mc_s^2 + (1 - w)^2 mc_f^2)``, ``n_hypotheses`` the sum, the
-  larger ``pareto_k``, the weighted mean of the model checks' p-values, every flag of either;
+  larger ``pareto_k``, the weighted mean of the model checks' p-values, the flags decided for the pool
+  (:func:`qfg.solvers._estimate.pooled_reasons`);
   the hypotheses are both sets, weights scaled by ``w`` and ``1 - w``.
 
 The test depends on the answer of ``n`` views only (not on how the views arrived), so the
@@ -42,7 +43,7 @@ import dataclasses
 import numpy as np
 
 from . import _seeds
-from ._estimate import Hypotheses, public_options
+from ._estimate import Hypotheses, pooled_reasons, public_options
 from ._sis import FEW_VIEWS
 
 #: Spawn key (under a triplet's seed) of the escalated solve's seed.
@@ -100,11 +101,8 @@ def pool(small, whole, opts: dict):
     pk = np.array([es.pareto_k, ef.pareto_k], dtype=float)
     checks = np.array([es.model_check, ef.model_check], dtype=float)
     cw = np.array([w, 1 - w])[np.isfinite(checks)]
-    reasons = []
-    for e in (es, ef):
-        for r in e.reason.split("; ") if e.reason else []:
-            if r not in reasons:
-                reasons.append(r)
+    reasons = pooled_reasons((es, ef), (w, 1 - w), ess, opts)
+    share = np.array([es.depth_unresolved, ef.depth_unresolved], dtype=float)
     est = dataclasses.replace(
         es, landmark=landmark / landmark.sum(),
         cameras=cameras / cameras.sum(axis=1, keepdims=True),
@@ -113,6 +111,7 @@ def pool(small, whole, opts: dict):
         pareto_k=float(np.nanmax(pk)) if np.any(np.isfinite(pk)) else float("nan"),
         model_check=float(np.sum(cw * checks[np.isfinite(checks)]) / cw.sum())
         if cw.size else float("nan"),
+        depth_unresolved=float(w * share[0] + (1 - w) * share[1]),
         options=public_options(opts))
     if hs is None or hf is None:
         return est, None

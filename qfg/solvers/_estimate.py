@@ -31,6 +31,9 @@ class TripletEstimate:
             (:mod:`qfg.solvers._model_check`; small: the measurements contradict the model),
             NaN where the method does not compute it (without headings, noiseless, the
             methods other than ``full`` and ``fast``).
+        depth_unresolved: share of the final weight on hypotheses whose C depth along the lines
+            of sight is unresolved (``full`` and ``fast`` from 2 views; NaN elsewhere); above
+            ``_degenerate.UNRESOLVED_SHARE`` the answer is flagged.
         degenerate: True when the input was degenerate or nothing survived; the distributions are
             then as spread as the geometry allows, uniform wherever nothing is known (never NaN).
         reason: why ``degenerate`` is set ("" otherwise).
@@ -64,6 +67,7 @@ class TripletEstimate:
     mc_error: float = float("nan")
     pareto_k: float = float("nan")
     model_check: float = float("nan")
+    depth_unresolved: float = float("nan")
     prior: str = ""
     options: dict = field(default_factory=dict)
 
@@ -167,9 +171,42 @@ def shrink_to_uniform(p, n_eff, alpha):
     return (n_eff * p + alpha / m) / (n_eff + alpha)
 
 
+def ess_reason(e: float, min_ess: float) -> str:
+    """The flag of an answer whose final weights have an ESS ``e`` below ``min_ess``."""
+    return (f"effective sample size {e:.1f} < {min_ess:g}: the answer rests on too few "
+            "effective draws")
+
+
+def pooled_reasons(ests, weights, ess: float, opts: dict) -> list[str]:
+    """The flags of an answer pooled from several solves of one triplet (independent
+    populations, an escalated solve) with ``weights`` (summing to 1) and pooled ESS ``ess``.
+    Flags read off the measurements are the same in every solve and kept; the two read off a
+    solve's samples are decided again for the pool, because the union of noisy per-solve tests
+    would flag more often the more solves there are: C's depth unresolved by the weighted mean
+    of the solves' shares (``depth_unresolved``), and the ESS by the pooled one."""
+    from ._degenerate import UNRESOLVED_REASON, UNRESOLVED_SHARE
+
+    w = np.asarray(weights, dtype=float)
+    share = np.array([e.depth_unresolved for e in ests], dtype=float)
+    known = np.isfinite(share)
+    out = []
+    for e in ests:
+        for r in e.reason.split("; ") if e.reason else []:
+            sampled = r.startswith("effective sample size") or (r == UNRESOLVED_REASON
+                                                                 and known.all())
+            if not sampled and r not in out:
+                out.append(r)
+    if known.all() and float(np.sum(w * share)) > UNRESOLVED_SHARE and \
+            not any("coincide" in r for r in out):
+        out.append(UNRESOLVED_REASON)
+    if "min_ess" in opts and ess < opts["min_ess"]:
+        out.append(ess_reason(ess, opts["min_ess"]))
+    return out
+
+
 def make_estimate(method, part, n_views, landmark, cameras, *, hypotheses: Hypotheses,
                   reasons=(), mc_error=float("nan"), model_check=float("nan"), widen=None,
-                  opts) -> tuple[TripletEstimate, Hypotheses]:
+                  depth_unresolved=float("nan"), opts) -> tuple[TripletEstimate, Hypotheses]:
     """The (answer, hypotheses) pair every solver's ``finish`` returns. With the option
     ``mc_shrinkage`` = alpha > 0 the landmark and camera distributions are shrunk toward the
     uniform by alpha pseudo-draws against the final sample's ESS (:func:`shrink_to_uniform`);
@@ -180,8 +217,7 @@ def make_estimate(method, part, n_views, landmark, cameras, *, hypotheses: Hypot
     lw = hypotheses.landmark_weights
     e = ess(lw)
     if "min_ess" in opts and e < opts["min_ess"]:
-        reasons = tuple(reasons) + (f"effective sample size {e:.1f} < {opts['min_ess']:g}: the "
-                                    "answer rests on too few effective draws",)
+        reasons = tuple(reasons) + (ess_reason(e, opts["min_ess"]),)
     a = float(opts.get("mc_shrinkage", 0.0) or 0.0)
     landmark = shrink_to_uniform(landmark, e, a)
     cameras = shrink_to_uniform(cameras, e, a)
@@ -198,7 +234,7 @@ def make_estimate(method, part, n_views, landmark, cameras, *, hypotheses: Hypot
         n_hypotheses=int(np.count_nonzero(lw > 0)), degenerate=bool(reasons),
         reason="; ".join(reasons), method=method, partition=part.name, n_views=int(n_views),
         ess=e, mc_error=float(mc_error), pareto_k=k, model_check=float(model_check),
-        prior=prior_name(opts),
+        depth_unresolved=float(depth_unresolved), prior=prior_name(opts),
         options=public_options(opts))
     return est, hypotheses
 

@@ -19,9 +19,13 @@ Merging (:func:`merge`), for the ``K`` estimates ``e_k`` of one triplet:
   ``sqrt(sum_k mc_k^2) / K``;
 * ``pareto_k``: the largest; ``model_check``: the mean of the p-values (each estimates the same
   posterior predictive probability); ``n_hypotheses``: the sum;
-* flagged when any population is, or when two populations put most of their mass on different
-  states (total variation above :data:`DISAGREE`): the sampler then failed to settle, and the
-  average says only that both are possible.
+* flagged by every flag read off the measurements (the same in each population), by the two
+  read off the samples decided for the pool (C's depth unresolved by the mean of the
+  populations' shares, the ESS by the pooled ESS: :func:`qfg.solvers._estimate.pooled_reasons`;
+  a union of noisy per-population tests would flag more often the more populations there are),
+  or when two populations put most of their mass on different states (total variation above
+  :data:`DISAGREE`): the sampler then failed to settle, and the average says only that both
+  are possible.
 
 ``K = 1`` is the engine alone, unchanged (the same seed, the same answer). ``K`` may differ for
 solves of at most :data:`FEW_VIEWS` views (option ``few_views_populations``), where a sampler
@@ -38,7 +42,7 @@ import dataclasses
 import numpy as np
 
 from . import _seeds
-from ._estimate import Hypotheses, public_options
+from ._estimate import Hypotheses, pooled_reasons, public_options
 from ._sis import FEW_VIEWS
 
 #: Budget options divided among the populations (each gets ``max(1, round(value / K))``).
@@ -109,15 +113,11 @@ def merge(pairs, opts: dict):
     mc_error = between if np.isnan(within) else max(between, within)
     pk = np.array([e.pareto_k for e in ests], dtype=float)
     mc = np.array([e.model_check for e in ests], dtype=float)
-    reasons = []
-    for e in ests:
-        for r in e.reason.split("; ") if e.reason else []:
-            if r not in reasons:
-                reasons.append(r)
+    reasons = pooled_reasons(ests, np.full(K, 1.0 / K), ess, opts)
     tv = max(_tv(L[i], L[j]) for i in range(K) for j in range(i + 1, K))
     if tv > DISAGREE:
         reasons.append(f"the {K} independent populations disagree (total variation {tv:.2f} "
-                       "between two of them): the sampler did not settle; the answer is their "
+                       "between two of them): the sampler did not settle, and the answer is their "
                        "average")
     est = dataclasses.replace(
         ests[0], landmark=landmark, cameras=cameras,
@@ -125,6 +125,7 @@ def merge(pairs, opts: dict):
         degenerate=bool(reasons), reason="; ".join(reasons), ess=ess, mc_error=mc_error,
         pareto_k=float(np.nanmax(pk)) if np.any(np.isfinite(pk)) else float("nan"),
         model_check=float(np.nanmean(mc)) if np.any(np.isfinite(mc)) else float("nan"),
+        depth_unresolved=float(np.mean([e.depth_unresolved for e in ests])),
         options=public_options(opts))
     hyps = [p[1] for p in pairs]
     if any(h is None for h in hyps):

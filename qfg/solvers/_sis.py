@@ -1268,9 +1268,9 @@ def finish(state: SISState, hypotheses: bool = False):
             out.append(_estimate.uniform_estimate(state.method, part, n, "; ".join(reasons),
                                                   shown))
             continue
-        if n >= 2 and unresolved[t] > 0.5 and not any("coincide" in r for r in reasons):
-            reasons.append("lines of sight to C (nearly) coincide: its depth along them is set "
-                           "by the prior")
+        if (n >= 2 and unresolved[t] > _degenerate.UNRESOLVED_SHARE
+                and not any("coincide" in r for r in reasons)):
+            reasons.append(_degenerate.UNRESOLVED_REASON)
         wt = w[lb[t]:lb[t + 1]]
         Lt = Lf[lb[t]:lb[t + 1]]
         cam = np.transpose(np.repeat(poses[cb[t]:cb[t + 1]], k, axis=0), (1, 0, 2))
@@ -1298,6 +1298,6 @@ def finish(state: SISState, hypotheses: bool = False):
         est, hyp = _estimate.make_estimate(
             state.method, part, n, p_land, p_cams, hypotheses=hyp, reasons=reasons, opts=shown,
             mc_error=_histograms.weighted_state_error(part, Lt, wt), model_check=pval,
-            widen=widen)
+            widen=widen, depth_unresolved=float(unresolved[t]) if n >= 2 else float("nan"))
         out.append((est, hyp if hypotheses else None))
     return out
