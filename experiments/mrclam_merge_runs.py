@@ -26,11 +26,13 @@ import numpy as np
 
 from qfg.harness.studies import mrclam as study
 
-#: Options the runs must share (``robots`` differs; ``piece`` and ``seed`` only set the work's
-#: split and seeds).
-SHARED = ("path", "mode", "prior", "partition", "fix_landmarks", "min_travel", "max_gap",
-          "max_views", "spread_views", "sigma_bearing_deg", "sigma_heading_deg", "distances",
-          "sigma_distance_ratio", "bearing_tail", "model_check", "heading_drift")
+#: Options the runs must share: the study's solve options but the robots and the work's split
+#: (``piece`` only sets how the histories are split into recorded pieces).
+SHARED = tuple(k for k in study.SOLVE_KEYS if k not in ("robots", "piece"))
+
+
+def _options(params: dict) -> dict:
+    return {k: params.get(k, study.DEFAULTS.get(k)) for k in SHARED}
 
 
 def merged_estimates(runs):
@@ -41,20 +43,19 @@ def merged_estimates(runs):
     runs = [Path(r) for r in runs]
     params = [json.loads((r / "run.json").read_text())["params"] for r in runs]
     for r, p in zip(runs[1:], params[1:], strict=True):
-        bad = [k for k in SHARED if p.get(k) != params[0].get(k)]
+        bad = [k for k in SHARED if _options(p)[k] != _options(params[0])[k]]
         if bad:
             raise ValueError(f"{r}: its options {bad} differ from {runs[0]}'s")
     robots = [int(x) for p in params for x in p["robots"]]
     if len(set(robots)) != len(robots):
         raise ValueError(f"runs: a robot is in more than one run ({robots})")
-    kw = {k: params[0][k] for k in SHARED if k in params[0] and k != "path"}
     ests, hist = [], []
     for r, p in zip(runs, params, strict=True):
-        prep = study.prepare_run(p["path"], robots=p["robots"], **kw)
+        prep = study.prepared(p)
         rows = [row for line in open(r / "records.jsonl") for row in json.loads(line)["rows"]]
         ests += study.estimates_from_rows(prep, rows)
         hist += prep.histories
-    merged = study.prepare_run(params[0]["path"], robots=robots, **kw)
+    merged = study.prepared({**params[0], "robots": robots})
 
     def key(rb, h):
         return int(rb), tuple(int(x) for x in h.landmarks), tuple(np.round(h.views, 6))

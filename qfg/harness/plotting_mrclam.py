@@ -192,26 +192,24 @@ def maps_figure(rows, *, title: str = "every map of qfg mrclam on MRCLAM dataset
                 base = float(r["prior_log_score"])
                 ax.bar(i + (j - (len(maps) - 1) / 2) * width, float(r["log_score"]) - base, width,
                        bottom=base, color=colors[j], hatch="//" if fallback else None,
-                       edgecolor="white" if fallback else None,
-                       label=m if i == 0 or (d, kind, m) not in by else None)
+                       edgecolor="white" if fallback else None, label=m)
+        labels = []
         for i, d in enumerate(shown):
             r = next(by[(d, kind, m)] for m in maps if (d, kind, m) in by)
             ax.hlines(float(r["prior_log_score"]), i - 0.45, i + 0.45, color="k", lw=2,
-                      label="prior alone" if i == 0 else None)
-            uni = float(r["uniform_log_score"])
-        ax.axhline(uni, color="k", ls="--", lw=0.8, label="uniform")
-        labels = []
-        for d in shown:
-            r = next(by[(d, kind, m)] for m in maps if (d, kind, m) in by)
+                      label="prior alone")
             rb = r.get("robots", "all")
             labels.append(f"dataset {d}" + ("" if rb in ("", "all") else f"\n(robot {rb})"))
+        ax.axhline(float(r["uniform_log_score"]), color="k", ls="--", lw=0.8, label="uniform")
         ax.set_xticks(range(len(shown)), labels)
         ax.set_ylabel("mean log p(truth)")
         ax.set_title({"seen": "seen triplets", "propagated": "unseen triplets",
                       "camera": "camera states (motion capture)"}[kind], fontsize=9)
         ax.grid(axis="y", alpha=0.3)
     handles, labels = axes[0, 0].get_legend_handles_labels()
-    keep = dict(zip(labels, handles, strict=True))
+    keep = {}
+    for lab, h in zip(labels, handles, strict=True):
+        keep.setdefault(lab, h)   # the first of each: never a hatched fallback bar
     fig.legend(keep.values(), keep.keys(), loc="outside lower center", ncol=min(len(keep), 6),
                fontsize=8, frameon=False)
     fig.suptitle(title + " (bars from the prior alone to the map: up is better; hatched: "

@@ -38,12 +38,10 @@ incremental :class:`qfg.solvers.TripletSolver` and a batch solve give the same a
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
-from . import _seeds
-from ._estimate import Hypotheses, pooled_reasons, public_options
+from . import _estimate, _seeds
+from ._options import FEW_VIEWS_OFF
 from ._sis import FEW_VIEWS
 
 #: Spawn key (under a triplet's seed) of the escalated solve's seed.
@@ -64,9 +62,8 @@ def needed(est, opts: dict) -> bool:
 def whole_options(opts: dict) -> dict:
     """The caller's options without the few-views ones: the whole budget, ``populations``
     populations, no escalation."""
-    return dict(opts, few_views_budget=None,
-                few_views_populations=int(opts.get("populations", 1) or 1),
-                few_views_escalate=None)
+    return {**opts, **FEW_VIEWS_OFF,
+            "few_views_populations": int(opts.get("populations", 1) or 1)}
 
 
 def seed(root: np.random.SeedSequence) -> np.random.SeedSequence:
@@ -91,38 +88,7 @@ def pool(small, whole, opts: dict):
     pair ``whole`` (module docstring); ``opts`` the caller's options (recorded in the
     estimate)."""
     w = weight(opts)
-    (es, hs), (ef, hf) = small, whole
-    landmark = w * es.landmark + (1 - w) * ef.landmark
-    cameras = w * es.cameras + (1 - w) * ef.cameras
-    ess = 0.0
-    if es.ess > 0 and ef.ess > 0:
-        ess = float(1.0 / (w * w / es.ess + (1 - w) ** 2 / ef.ess))
-    mc = float(np.sqrt((w * es.mc_error) ** 2 + ((1 - w) * ef.mc_error) ** 2))
-    pk = np.array([es.pareto_k, ef.pareto_k], dtype=float)
-    checks = np.array([es.model_check, ef.model_check], dtype=float)
-    cw = np.array([w, 1 - w])[np.isfinite(checks)]
-    reasons = pooled_reasons((es, ef), (w, 1 - w), ess, opts)
-    share = np.array([es.depth_unresolved, ef.depth_unresolved], dtype=float)
-    est = dataclasses.replace(
-        es, landmark=landmark / landmark.sum(),
-        cameras=cameras / cameras.sum(axis=1, keepdims=True),
-        n_hypotheses=int(es.n_hypotheses + ef.n_hypotheses), degenerate=bool(reasons),
-        reason="; ".join(reasons), ess=ess, mc_error=mc,
-        pareto_k=float(np.nanmax(pk)) if np.any(np.isfinite(pk)) else float("nan"),
-        model_check=float(np.sum(cw * checks[np.isfinite(checks)]) / cw.sum())
-        if cw.size else float("nan"),
-        depth_unresolved=float(w * share[0] + (1 - w) * share[1]),
-        options=public_options(opts))
-    if hs is None or hf is None:
-        return est, None
-    return est, Hypotheses(
-        landmark_samples=np.concatenate([hs.landmark_samples, hf.landmark_samples]),
-        landmark_weights=np.concatenate([w * hs.landmark_weights,
-                                         (1 - w) * hf.landmark_weights]),
-        camera_samples=np.concatenate([hs.camera_samples, hf.camera_samples], axis=1),
-        camera_weights=np.concatenate([w * hs.camera_weights, (1 - w) * hf.camera_weights],
-                                      axis=1),
-        joint=hs.joint and hf.joint)
+    return _estimate.pool([small, whole], [w, 1.0 - w], opts)
 
 
 __all__ = ["ESCALATE_KEY", "applies", "needed", "whole_options", "seed", "weight",

@@ -4,10 +4,12 @@ how every solver builds them (shrinkage toward the uniform, the flagged uniform 
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._degenerate import UNRESOLVED_REASON, UNRESOLVED_SHARE
 from ._diagnostics import pareto_k
 
 
@@ -184,8 +186,6 @@ def pooled_reasons(ests, weights, ess: float, opts: dict) -> list[str]:
     solve's samples are decided again for the pool, because the union of noisy per-solve tests
     would flag more often the more solves there are: C's depth unresolved by the weighted mean
     of the solves' shares (``depth_unresolved``), and the ESS by the pooled one."""
-    from ._degenerate import UNRESOLVED_REASON, UNRESOLVED_SHARE
-
     w = np.asarray(weights, dtype=float)
     share = np.array([e.depth_unresolved for e in ests], dtype=float)
     known = np.isfinite(share)
@@ -202,6 +202,52 @@ def pooled_reasons(ests, weights, ess: float, opts: dict) -> list[str]:
     if "min_ess" in opts and ess < opts["min_ess"]:
         out.append(ess_reason(ess, opts["min_ess"]))
     return out
+
+
+def pool(pairs, weights, opts: dict, *, error_floor: float = float("nan"),
+         extra_reasons=()):
+    """One ``(estimate, hypotheses)`` pair from several solves of one triplet (independent
+    populations, an escalated solve), mixed with ``weights`` (summing to 1): the distributions
+    ``sum_k w_k e_k``; the ESS of the pooled weights ``1 / sum_k (w_k^2 / ess_k)`` (0 if a
+    solve has none); ``mc_error`` ``sqrt(sum_k (w_k mc_k)^2)``, at least ``error_floor`` (e.g.
+    the spread between the solves); the largest ``pareto_k``; the weighted mean of the finite
+    model-check p-values and of ``depth_unresolved``; ``n_hypotheses`` the sum; the flags of
+    :func:`pooled_reasons` and ``extra_reasons``; the hypotheses of every solve with their
+    weights scaled by ``w_k`` (None when a solve kept none). ``opts``: the caller's options,
+    recorded in the estimate."""
+    ests = [e for e, _ in pairs]
+    w = np.asarray(weights, dtype=float)
+    landmark = np.einsum("k,km->m", w, np.stack([e.landmark for e in ests]))
+    cameras = np.einsum("k,knm->nm", w, np.stack([e.cameras for e in ests]))
+    es = np.array([e.ess for e in ests], dtype=float)
+    ess = float(1.0 / np.sum(w * w / es)) if np.all(es > 0) else 0.0
+    within = float(np.sqrt(np.sum((w * np.array([e.mc_error for e in ests])) ** 2)))
+    mc_error = within if np.isnan(error_floor) else (
+        float(error_floor) if np.isnan(within) else max(float(error_floor), within))
+    pk = np.array([e.pareto_k for e in ests], dtype=float)
+    checks = np.array([e.model_check for e in ests], dtype=float)
+    fin = np.isfinite(checks)
+    reasons = pooled_reasons(ests, w, ess, opts) + list(extra_reasons)
+    est = dataclasses.replace(
+        ests[0], landmark=landmark / landmark.sum(),
+        cameras=cameras / cameras.sum(axis=1, keepdims=True),
+        n_hypotheses=int(sum(e.n_hypotheses for e in ests)), degenerate=bool(reasons),
+        reason="; ".join(reasons), ess=ess, mc_error=mc_error,
+        pareto_k=float(np.nanmax(pk)) if np.any(np.isfinite(pk)) else float("nan"),
+        model_check=float(np.sum(w[fin] * checks[fin]) / w[fin].sum()) if fin.any()
+        else float("nan"),
+        depth_unresolved=float(np.sum(w * np.array([e.depth_unresolved for e in ests]))),
+        options=public_options(opts))
+    hyps = [h for _, h in pairs]
+    if any(h is None for h in hyps):
+        return est, None
+    return est, Hypotheses(
+        landmark_samples=np.concatenate([h.landmark_samples for h in hyps]),
+        landmark_weights=np.concatenate([wk * h.landmark_weights for wk, h in zip(w, hyps, strict=True)]),
+        camera_samples=np.concatenate([h.camera_samples for h in hyps], axis=1),
+        camera_weights=np.concatenate([wk * h.camera_weights for wk, h in zip(w, hyps, strict=True)],
+                                      axis=1),
+        joint=all(h.joint for h in hyps))
 
 
 def make_estimate(method, part, n_views, landmark, cameras, *, hypotheses: Hypotheses,

@@ -37,12 +37,10 @@ from the first when the next view changes ``K``, so that the answer after ``n`` 
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
 from . import _seeds
-from ._estimate import Hypotheses, pooled_reasons, public_options
+from ._estimate import pool
 from ._sis import FEW_VIEWS
 
 #: Budget options divided among the populations (each gets ``max(1, round(value / K))``).
@@ -102,40 +100,14 @@ def merge(pairs, opts: dict):
     if K == 1:
         return pairs[0]
     L = np.stack([e.landmark for e in ests])
-    landmark = L.mean(axis=0)
-    landmark = landmark / landmark.sum()
-    cameras = np.mean(np.stack([e.cameras for e in ests]), axis=0)
-    inv = [1.0 / e.ess if e.ess > 0 else np.inf for e in ests]
-    ess = float(K * K / np.sum(inv)) if np.all(np.isfinite(inv)) else 0.0
     between = float(np.max(L.std(axis=0, ddof=1)) / np.sqrt(K))
-    own = np.array([e.mc_error for e in ests], dtype=float)
-    within = float(np.sqrt(np.sum(own ** 2)) / K) if np.all(np.isfinite(own)) else np.nan
-    mc_error = between if np.isnan(within) else max(between, within)
-    pk = np.array([e.pareto_k for e in ests], dtype=float)
-    mc = np.array([e.model_check for e in ests], dtype=float)
-    reasons = pooled_reasons(ests, np.full(K, 1.0 / K), ess, opts)
     tv = max(_tv(L[i], L[j]) for i in range(K) for j in range(i + 1, K))
+    extra = []
     if tv > DISAGREE:
-        reasons.append(f"the {K} independent populations disagree (total variation {tv:.2f} "
-                       "between two of them): the sampler did not settle, and the answer is their "
-                       "average")
-    est = dataclasses.replace(
-        ests[0], landmark=landmark, cameras=cameras,
-        n_hypotheses=int(sum(e.n_hypotheses for e in ests)),
-        degenerate=bool(reasons), reason="; ".join(reasons), ess=ess, mc_error=mc_error,
-        pareto_k=float(np.nanmax(pk)) if np.any(np.isfinite(pk)) else float("nan"),
-        model_check=float(np.nanmean(mc)) if np.any(np.isfinite(mc)) else float("nan"),
-        depth_unresolved=float(np.mean([e.depth_unresolved for e in ests])),
-        options=public_options(opts))
-    hyps = [p[1] for p in pairs]
-    if any(h is None for h in hyps):
-        return est, None
-    return est, Hypotheses(
-        landmark_samples=np.concatenate([h.landmark_samples for h in hyps]),
-        landmark_weights=np.concatenate([h.landmark_weights for h in hyps]) / K,
-        camera_samples=np.concatenate([h.camera_samples for h in hyps], axis=1),
-        camera_weights=np.concatenate([h.camera_weights for h in hyps], axis=1) / K,
-        joint=all(h.joint for h in hyps))
+        extra.append(f"the {K} independent populations disagree (total variation {tv:.2f} "
+                     "between two of them): the sampler did not settle, and the answer is their "
+                     "average")
+    return pool(pairs, np.full(K, 1.0 / K), opts, error_floor=between, extra_reasons=extra)
 
 
 __all__ = ["count", "split_options", "roots", "merge", "DISAGREE", "SPLIT_KEYS"]

@@ -150,9 +150,18 @@ def _dist(P, i, j):
 
 
 def _landmark_rows(dataset: MRCLAMDataset, rd: RobotData):
-    """(times, bearings, landmark xy, view index) of every landmark observation of ``rd``."""
+    """(times, bearings, landmark xy, view index, landmark column) of every landmark
+    observation of ``rd``."""
     v, col = np.nonzero(rd.visible)
-    return rd.view_times[v], rd.view_bearings[v, col], dataset.landmark_xy[col], v
+    return rd.view_times[v], rd.view_bearings[v, col], dataset.landmark_xy[col], v, col
+
+
+def _minus_view_mean(r, v, n_views):
+    """Residuals ``r`` (rows of views ``v``) minus their view's mean, and each row's number of
+    rows in its view (the mean on the line, not the circle: residuals are a few degrees)."""
+    k = np.bincount(v, minlength=n_views)
+    mean = np.bincount(v, weights=r, minlength=n_views) / np.maximum(k, 1)
+    return r - mean[v], k[v]
 
 
 def _bearing_residuals(rd, t, phi, lxy, offset):
@@ -191,9 +200,8 @@ def _refit_landmarks(dataset, robots, rows, offset, sigma):
     for a landmark with fewer than 10 rays or no intersection."""
     O, A, C = [], [], []
     for n in robots:
-        t, phi, _, v = rows[n]
+        t, phi, _, _, col = rows[n]
         P, ok = dataset.robots[n].groundtruth_poses(t + offset)
-        col = np.nonzero(dataset.robots[n].visible)[1]
         O.append(P[ok, :2])
         A.append(P[ok, 2] + phi[ok])
         C.append(col[ok])
@@ -228,15 +236,13 @@ def _lag_correlations(dataset, robots, rows, offset, points):
     pairs = {b: ([], []) for b in LAG_BINS}
     for n in robots:
         rd = dataset.robots[n]
-        t, phi, _, v = rows[n]
-        col = np.nonzero(rd.visible)[1]
+        t, phi, _, v, col = rows[n]
         good = np.isfinite(points[col, 0])
         r, ok = _bearing_residuals(rd, t, phi, np.where(good[:, None], points[col], 0.0), offset)
         ok &= good
-        k = np.bincount(v[ok], minlength=rd.n_views)
-        mean = np.bincount(v[ok], weights=r[ok], minlength=rd.n_views) / np.maximum(k, 1)
-        w = r - mean[v]
-        keep = ok & (k[v] >= 2) & (np.abs(w) < LAG_GROSS)
+        t, v, col = t[ok], v[ok], col[ok]
+        w, k = _minus_view_mean(r[ok], v, rd.n_views)
+        keep = (k >= 2) & (np.abs(w) < LAG_GROSS)
         for lm in np.unique(col[keep]):
             s = keep & (col == lm)
             for b in LAG_BINS:
@@ -298,16 +304,13 @@ def measure_noise(dataset: MRCLAMDataset, *, offsets=None, window: float = 1.0,
     h_step, h_pass, d_step, d_pass, d_ratio = [], [], [], [], []
     for n in robots:
         rd = dataset.robots[n]
-        t, phi, lxy, v = rows[n]
+        t, phi, lxy, v, _ = rows[n]
         r, ok = _bearing_residuals(rd, t, phi, lxy, m_off)
         r, v = r[ok], v[ok]
         b_all.append(r)
         per_robot.append((n, RobustStats.of(r)))
-        k = np.bincount(v, minlength=rd.n_views)
-        # mean residual per view on the circle is unnecessary: residuals are a few degrees
-        mean = np.bincount(v, weights=r, minlength=rd.n_views) / np.maximum(k, 1)
-        multi = k[v] >= 2
-        b_within.append(((r - mean[v]) * np.sqrt(k[v] / np.maximum(k[v] - 1, 1)))[multi])
+        w, k = _minus_view_mean(r, v, rd.n_views)
+        b_within.append((w * np.sqrt(k / np.maximum(k - 1, 1)))[k >= 2])
         if rd.odometry is None:
             continue
         poses, _ = view_poses(rd, odometry_lead)
