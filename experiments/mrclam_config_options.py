@@ -31,9 +31,7 @@ from qfg.harness.studies import mrclam as study
 from qfg.harness.studies import mrclam_maps as maps
 from qfg.metrics import log_score
 
-PREP_KEYS = ("robots", "mode", "prior", "partition", "fix_landmarks", "min_travel", "max_gap",
-             "max_views", "spread_views", "sigma_bearing_deg", "sigma_heading_deg", "distances",
-             "sigma_distance_ratio", "bearing_tail", "model_check", "heading_drift")
+PREP_KEYS = tuple(k for k in study.SOLVE_KEYS if k not in ("path", "method", "piece"))
 
 
 def _value(key, text):

@@ -160,6 +160,32 @@ def as_tail(value) -> BearingTail | None:
     return t if t.active else None
 
 
+def as_distance_tail(value) -> BearingTail | None:
+    """The option ``distance_tail``: None (the normal), ``(share, scale)``, a dict of those or a
+    :class:`BearingTail` without outliers (a uniform share has no meaning on an unbounded log
+    ratio); a tail with no share is None.
+
+    >>> as_distance_tail((0.1, 7.0))
+    BearingTail(share=0.1, scale=7.0, outlier=0.0)
+    """
+    if value is None:
+        return None
+    if not isinstance(value, (BearingTail, dict)):
+        try:
+            share, scale = value
+        except (TypeError, ValueError):
+            raise ValueError(f"distance_tail: expected None or (share, scale), got "
+                             f"{value!r}") from None
+        value = {"share": share, "scale": scale}
+    try:
+        t = value if isinstance(value, BearingTail) else BearingTail(**value)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"distance_tail: {e}".replace("bearing_tail: ", "")) from None
+    if t.outlier:
+        raise ValueError(f"distance_tail: expected no outlier share, got {t.outlier}")
+    return t if t.active else None
+
+
 def log_bearing(residual, sigma, tail: BearingTail | None = None):
     """Normalized log density of bearing residuals (radians) under the normal of width
     ``sigma`` or, with ``tail``, under the :class:`BearingTail` mixture. Broadcasts.

@@ -8,7 +8,7 @@ import numpy as np
 
 from .. import priors as _priors
 from .._validate import non_negative, positive_int
-from ._likelihood import as_tail
+from ._likelihood import as_distance_tail, as_tail
 from ._prior import resolve_prior
 
 #: Methods :func:`qfg.solvers.solve_triplet` knows.
@@ -49,6 +49,10 @@ DEFAULTS = {
                                      # (shrink_to_uniform)
         "bearing_tail": None,        # heavy-tailed bearing noise (_likelihood.BearingTail, or
                                      # (share, scale, outlier)); None: the normal
+        "distance_tail": None,       # heavy-tailed noise of the step-length ratios' log
+                                     # ((share, scale): (1 - share) N(sigma) + share N(scale
+                                     # sigma), sigma the history's sigma_distance_ratio); None:
+                                     # the normal
         "model_check": 0.0,          # level of the bearing/heading model check: an answer whose
                                      # posterior predictive p is below it is widened toward the
                                      # prior's state distribution and flagged (0: report only)
@@ -92,6 +96,7 @@ DEFAULTS = {
         "rejuvenate": 0,
         "mc_shrinkage": 1.0,
         "bearing_tail": None,
+        "distance_tail": None,
         "model_check": 0.0,
         "min_ess": 1.5,              # less than about one effective draw: flagged (its 1st
                                      # percentile on the same triplets: 1.9)
@@ -237,6 +242,8 @@ def resolve_options(method: str, options: dict, defaults: dict | None = None) ->
     opts["prior"] = resolve_prior(opts["prior"])
     if "bearing_tail" in opts:
         opts["bearing_tail"] = as_tail(opts["bearing_tail"])
+    if "distance_tail" in opts:
+        opts["distance_tail"] = as_distance_tail(opts["distance_tail"])
     if "model_check" in opts:
         mc = non_negative("model_check", opts["model_check"])
         if mc >= 1:

@@ -107,11 +107,12 @@ DEFAULTS = {
     "bearing_tail": "normal",              # bearing-noise model (BEARING_TAILS)
     "model_check": 0.0,                    # level of the solvers' model check (0: report only)
     "heading_drift": False,                # heading sigma from each history's longest step
+    "distance_tail": "normal",             # step-length-ratio noise model (DISTANCE_TAILS)
 }
 
 #: Options added after runs were recorded without them: a run's params leave them out at their
 #: defaults, so that those runs resume (``qfg mrclam --resume``) as before.
-LATER_KEYS = ("bearing_tail", "model_check", "heading_drift")
+LATER_KEYS = ("bearing_tail", "model_check", "heading_drift", "distance_tail")
 
 
 #: The odometry's direction-of-travel error (``sigma90``, degrees) against motion capture by the
@@ -149,6 +150,19 @@ BEARING_TAILS = {
     "normal": (None, None, None),
     "measured": (0.345, None, (0.271, 2.79, 0.0011)),
     "within-view": (0.166, 1.67, (0.425, 2.74, 0.0014)),
+}
+
+
+#: Noise models of the log ratio of consecutive odometry step lengths, by name: (sigma of the
+#: core normal, (share, scale) of the wider normal, the solvers' ``distance_tail``); None: the
+#: loader's normal (``sigma_distance_ratio`` 0.074). ``measured``: fitted by EM (two zero-mean
+#: normals) to 1,791 ratios of dataset 6's histories (robots 1-5, 120-s passes, 3, 5 and 8 views
+#: spread over each, steps of 2 cm or more) against motion capture, where the loader's normal
+#: scores 3.1 nats per ratio below the mixture (docs/mrclam.md, "The odometry's step-length
+#: ratios"; ``experiments/mrclam_distance_ratios.py``).
+DISTANCE_TAILS = {
+    "normal": (None, None),
+    "measured": (0.092, (0.088, 7.2)),
 }
 
 
@@ -321,7 +335,7 @@ class _Light:
 SOLVE_KEYS = ("path", "robots", "method", "mode", "prior", "partition", "fix_landmarks",
               "min_travel", "max_gap", "max_views", "spread_views", "sigma_bearing_deg",
               "sigma_heading_deg", "distances", "sigma_distance_ratio", "bearing_tail",
-              "model_check", "heading_drift", "piece")
+              "model_check", "heading_drift", "distance_tail", "piece")
 
 
 @dataclass(frozen=True, eq=False)
@@ -353,7 +367,8 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
                 sigma_bearing_deg: float = 0.0, sigma_heading_deg: float = 0.0,
                 distances: bool = True, sigma_distance_ratio: float = 0.0,
                 bearing_tail: str = "normal", model_check: float = 0.0,
-                heading_drift: bool = False, dataset=None) -> Prepared:
+                heading_drift: bool = False, distance_tail: str = "normal",
+                dataset=None) -> Prepared:
     """Load (or take ``dataset``, loaded from ``path``), fix the landmark ground truth, make the
     prior and its state distributions, and the histories to solve (module docstring, steps
     1-4). Every data file is read and checked here, before anything is solved."""
@@ -373,6 +388,11 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
         raise ValueError(f"bearing_tail: expected one of {tuple(BEARING_TAILS)}, "
                          f"got {bearing_tail!r}")
     tail_sb, tail_sh, tail = BEARING_TAILS[bearing_tail]
+    if distance_tail not in DISTANCE_TAILS:
+        raise ValueError(f"distance_tail: expected one of {tuple(DISTANCE_TAILS)}, "
+                         f"got {distance_tail!r}")
+    tail_sd, dtail = DISTANCE_TAILS[distance_tail]
+    sigma_distance_ratio = sigma_distance_ratio or tail_sd
     sig = {}
     if tail_sb and not sigma_bearing_deg:
         sig["sigma_bearing"] = np.deg2rad(tail_sb)
@@ -395,7 +415,8 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
     return Prepared(path=str(Path(path)), dataset=ds, swaps=swaps, prior=pr, partition=part,
                     prior_states=q_c, prior_camera_states=q_x, histories=rh, mode=mode,
                     prior_name=prior,
-                    solver_options={"bearing_tail": tail, "model_check": float(model_check)})
+                    solver_options={"bearing_tail": tail, "model_check": float(model_check),
+                                    "distance_tail": dtail if distances else None})
 
 
 def n_pieces(prep: Prepared, piece: int = CHUNK) -> int:
@@ -423,7 +444,9 @@ def solve_piece(prep: Prepared, index: int, *, method: str = "full", seed=0, pie
     # otherwise (the baseline takes no model check)
     opts = {k: v for k, v in prep.solver_options.items() if v}
     if method == "baseline":
+        # no model check, and no odometry distances in its model
         opts.pop("model_check", None)
+        opts.pop("distance_tail", None)
     pairs = solve_triplets(hs, method=method, partition=prep.partition, seed=ss,
                            hypotheses=True, **dict(opts, **solver_options, prior=prep.prior))
     out = []
@@ -830,7 +853,8 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
                 propagation: str = "mean", distances: bool = True,
                 sigma_distance_ratio: float = 0.0, map_method: str = "",
                 piece: int = CHUNK, bearing_tail: str = "normal", model_check: float = 0.0,
-                heading_drift: bool = False, **solver_options):
+                heading_drift: bool = False, distance_tail: str = "normal",
+                **solver_options):
     """Solve, combine, map, propagate and score one dataset directory, in memory (``qfg
     mrclam`` runs the same phases and records them: :func:`prepare_run`, :func:`solve_piece`
     per piece, :func:`finish`).
@@ -874,6 +898,8 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
             posterior predictive p is below it are widened toward the prior; 0: report only).
         heading_drift: each history's heading sigma from its longest step
             (:func:`drift_sigma_heading`).
+        distance_tail: the step-length ratios' noise model by name (:data:`DISTANCE_TAILS`;
+            ``"measured"`` also sets their core sigma unless ``sigma_distance_ratio`` is given).
 
     Returns:
         rows (list of dicts; module docstring). With ``return_details``: ``(rows, details)``.
@@ -892,7 +918,7 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
                        sigma_bearing_deg=sigma_bearing_deg, sigma_heading_deg=sigma_heading_deg,
                        distances=distances, sigma_distance_ratio=sigma_distance_ratio,
                        bearing_tail=bearing_tail, model_check=model_check,
-                       heading_drift=heading_drift)
+                       heading_drift=heading_drift, distance_tail=distance_tail)
     t0 = time.perf_counter()
     ests = []
     for c in range(n_pieces(prep, piece)):
