@@ -43,6 +43,28 @@ def non_negative(name: str, value) -> float:
     return v
 
 
+def per_step_sigma(name: str, value, n_steps: int):
+    """A noise sigma that is one number (a float >= 0) or one per step of a history: (n_steps,)
+    finite values, every one > 0 or every one 0 (a noiseless step among noisy ones is not a
+    model the solvers take), returned as an array. ValueError naming ``name`` otherwise.
+
+    >>> per_step_sigma("sigma_heading", 0.1, 2), per_step_sigma("sigma_heading", [0.1, 0.2], 2)
+    (0.1, array([0.1, 0.2]))
+    """
+    if np.ndim(value) == 0:
+        return non_negative(name, value)
+    arr = as_float_array(name, value, ndim=1)
+    if arr.shape[0] != n_steps:
+        raise ValueError(f"{name}: expected one number or {n_steps} (one per step between "
+                         f"{n_steps + 1} views), got shape {arr.shape}")
+    if np.any(arr < 0):
+        raise ValueError(f"{name}: expected values >= 0, got {arr.min()!r}")
+    if arr.size and np.any(arr == 0) and np.any(arr > 0):
+        raise ValueError(f"{name}: expected every step's sigma > 0 or every one 0, got "
+                         f"{arr.tolist()}")
+    return arr
+
+
 def positive_int(name: str, value, *, minimum: int = 1) -> int:
     """Return ``value`` as an int that is >= ``minimum``."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import partitions as _partitions
-from ._validate import as_float_array, as_rng, non_negative, positive_int
+from ._validate import as_float_array, as_rng, non_negative, per_step_sigma, positive_int
 from .geometry import bearing, motion_heading, poses_to_frame, to_frame, wrap_angle
 
 __all__ = [
@@ -113,7 +113,9 @@ class TripletHistory:
             heading at view i (conventions.md).
         sigma_bearing: bearing noise standard deviation (radians) the data was made with, or the
             value the solver should assume.
-        sigma_heading: heading noise standard deviation (radians), likewise.
+        sigma_heading: heading noise standard deviation (radians), likewise: one number, or
+            (n - 1,) one per step (``full`` and ``fast`` take them; e.g. the odometry's heading
+            drifts with a step's duration, docs/mrclam.md).
         views: (n,) index or time of each view (pose index in a scenario, time stamp in data).
         truth: ground truth for simulated data, None for real data.
         has_motion: False when headings are not available (the solver then has no motion model).
@@ -127,7 +129,7 @@ class TripletHistory:
     bearings: np.ndarray
     headings: np.ndarray
     sigma_bearing: float
-    sigma_heading: float
+    sigma_heading: float | np.ndarray
     views: np.ndarray = field(default=None)
     truth: TripletTruth | None = None
     has_motion: bool = True
@@ -145,7 +147,7 @@ class TripletHistory:
         if len(self.landmarks) != 3:
             raise ValueError(f"landmarks: expected 3 ids (A, B, C), got {self.landmarks!r}")
         non_negative("sigma_bearing", self.sigma_bearing)
-        non_negative("sigma_heading", self.sigma_heading)
+        per_step_sigma("sigma_heading", self.sigma_heading, b.shape[0] - 1)
         views = np.arange(b.shape[0]) if self.views is None else np.asarray(self.views)
         if views.shape != (b.shape[0],):
             raise ValueError(f"views: expected shape ({b.shape[0]},), got {views.shape}")

@@ -63,6 +63,9 @@ def _model(method, meas):
         raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
     if method not in ("baseline", "reference") and meas.headings is None and meas.n_views > 1:
         return "baseline"
+    if meas.step_sigma_heading is not None and method in ("fast-paper", "reference"):
+        raise ValueError(f"sigma_heading: one sigma per step is taken by 'full' and 'fast' "
+                         f"(and ignored by 'baseline'), not by {method!r}; give one number")
     return method
 
 
@@ -205,7 +208,11 @@ def _solve_sis_batch(model, metas, roots, part, opts, hypotheses=False):
     b = np.stack([m.bearings for m in metas])
     sv = np.array([m.sigma_bearing for m in metas])
     sh = np.array([m.sigma_heading for m in metas])
-    d = sd = None
+    d = sd = hs = None
+    if any(m.step_sigma_heading is not None for m in metas):
+        # one heading sigma per step (triplets with one sigma repeat it)
+        hs = np.stack([np.full(b.shape[1] - 1, m.sigma_heading) if m.step_sigma_heading is None
+                       else m.step_sigma_heading for m in metas])
     if any(m.distances is not None for m in metas):
         # triplets without distances get zeros: no factor
         d = np.stack([np.zeros(b.shape[1] - 1) if m.distances is None else m.distances
@@ -215,7 +222,7 @@ def _solve_sis_batch(model, metas, roots, part, opts, hypotheses=False):
                     sd, n_views=b.shape[1])
     for i in range(1, b.shape[1]):
         st = _sis.step(st, b[:, i], np.array([m.headings[i - 1] for m in metas]),
-                       None if d is None else d[:, i - 1])
+                       None if d is None else d[:, i - 1], None if hs is None else hs[:, i - 1])
     out = _sis.finish(st, hypotheses=hypotheses)
     out = [_populations.merge(out[t * K:(t + 1) * K], opts) for t in range(n)]
     if _escalation.applies(opts, b.shape[1]):
@@ -414,7 +421,9 @@ class TripletSolver:
         for i in range(meas.n_views):
             first = i == 0 or meas.headings is None
             solver.add_view(meas.bearings[i], None if first else meas.headings[i - 1],
-                            None if first or meas.distances is None else meas.distances[i - 1])
+                            None if first or meas.distances is None else meas.distances[i - 1],
+                            None if first or meas.step_sigma_heading is None
+                            else meas.step_sigma_heading[i - 1])
         return solver
 
     @classmethod
@@ -440,12 +449,15 @@ class TripletSolver:
             return self._state.meas.n_views
         return self._state.n_views
 
-    def add_view(self, bearings, heading=None, distance=None) -> "TripletSolver":
+    def add_view(self, bearings, heading=None, distance=None,
+                 sigma_heading=None) -> "TripletSolver":
         """Add one view: ``bearings`` (3,) [phi_A, phi_B, phi_C] radians, ``heading`` psi
         (radians) from the previous view (None for the first view, required after it except for
         the baseline, which ignores it) and optionally ``distance``, travelled from the
         previous view by odometry (>= 0; 0 or None: unknown; needs ``sigma_distance_ratio``;
-        used by ``full`` and ``fast`` only). Returns the solver (for chaining)."""
+        used by ``full`` and ``fast`` only), and ``sigma_heading``, this step's heading sigma
+        (radians, > 0 when the solver's is; None: the solver's; ``full`` and ``fast`` only).
+        Returns the solver (for chaining)."""
         phi = _input.check_bearings(bearings)
         if phi.shape[0] != 1:
             raise ValueError(f"bearings: expected one view (3,), got shape {phi.shape}")
@@ -461,6 +473,16 @@ class TripletSolver:
             if self._sd is None:
                 raise ValueError("sigma_distance_ratio: required when distances are given "
                                  "(TripletSolver(..., sigma_distance_ratio=...))")
+        if sigma_heading is not None:
+            sigma_heading = _input.check_sigma("sigma_heading", sigma_heading)
+            if first:
+                raise ValueError("sigma_heading: the first view has no step (pass None)")
+            if self.method in ("fast-paper", "reference"):
+                raise ValueError(f"sigma_heading: one sigma per step is taken by 'full' and "
+                                 f"'fast', not by {self.method!r}")
+            if (sigma_heading > 0) != (self._sh > 0):
+                raise ValueError(f"sigma_heading: a step's sigma must be > 0 exactly when the "
+                                 f"solver's is ({self._sh}), got {sigma_heading}")
         if first:
             if heading is not None and self.method != "baseline":
                 raise ValueError("heading: the first view has no previous view (pass None)")
@@ -476,7 +498,7 @@ class TripletSolver:
                 self._state.headings if self._state.headings is not None else [], heading)
             self._state = _input.Measurements(b, h, self._sb, self._sh)
         elif self.method in _SIS:
-            self._views.append((phi, heading, distance))
+            self._views.append((phi, heading, distance, sigma_heading))
             K = _populations.count(opts, len(self._views))
             if first or K != self._populations:
                 # K changed (few_views_populations): the views again from the first, as a
@@ -486,7 +508,7 @@ class TripletSolver:
                 views = self._views
             else:
                 views = self._views[-1:]
-            for ph, hd, ds in views:
+            for ph, hd, ds, sh in views:
                 # one row per independent population, as solve_triplets batches them
                 rows = np.repeat(ph[None, :], K, axis=0)
                 if self._state is None:
@@ -497,7 +519,8 @@ class TripletSolver:
                         None if self._sd is None else np.full(K, self._sd))
                 else:
                     self._state = _sis.step(self._state, rows, np.full(K, hd),
-                                            None if ds is None else np.full(K, ds))
+                                            None if ds is None else np.full(K, ds),
+                                            None if sh is None else np.full(K, sh))
         elif self.method == "fast-paper":
             if first:
                 self._state = _fast.start(phi[None, :], np.array([self._sb]),
@@ -529,8 +552,8 @@ class TripletSolver:
                     whole = TripletSolver._from_parts(
                         self.method, self.partition, _escalation.whole_options(self.options),
                         _escalation.seed(self._root), self._sb, self._sh, self._sd)
-                    for ph, hd, ds in self._views:
-                        whole.add_view(ph, hd, ds)
+                    for view in self._views:
+                        whole.add_view(*view)
                     pair = _escalation.pool(pair, whole._finish(), self.options)
                 self._cache = pair
             elif self.method == "fast-paper":

@@ -77,7 +77,8 @@ def geometry_reasons(bearings, sigma_bearing=0.0, headings=None, sigma_heading=0
     if headings is not None and len(headings) >= 1:
         d = wrap_angle(np.asarray(headings) - bearings[:-1, 2])
         off = np.minimum(np.abs(d), np.pi - np.abs(d))
-        if np.all(off <= max(1e-6, float(np.hypot(sigma_bearing, sigma_heading)))):
+        # sigma_heading: one number or one per step
+        if np.all(off <= np.maximum(1e-6, np.hypot(sigma_bearing, sigma_heading))):
             out.append("lines of sight to C may coincide: the camera travels along its line of "
                        "sight to C between every pair of views")
     return out

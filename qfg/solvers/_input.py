@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import partitions as _partitions
-from .._validate import as_float_array, non_negative
+from .._validate import as_float_array, non_negative, per_step_sigma
 from ..geometry import wrap_angle
 
 
@@ -17,7 +17,8 @@ from ..geometry import wrap_angle
 class Measurements:
     """Validated measurements of one triplet: bearings (n, 3), headings (n - 1,) or None, and
     the odometry's travelled distances (n - 1,) (0 = unknown) with the noise of their log
-    ratios, or None (used by the SIS methods only)."""
+    ratios, or None (used by the SIS methods only). ``step_sigma_heading`` (n - 1,): each step's
+    heading sigma when they differ (``sigma_heading`` is then their largest), else None."""
 
     bearings: np.ndarray
     headings: np.ndarray | None
@@ -25,6 +26,7 @@ class Measurements:
     sigma_heading: float
     distances: np.ndarray | None = None
     sigma_distance_ratio: float | None = None
+    step_sigma_heading: np.ndarray | None = None
 
     @property
     def n_views(self) -> int:
@@ -65,6 +67,25 @@ def check_sigma(name: str, value) -> float:
     (10.0, 0.02)
     """
     return min(non_negative(name, value), SIGMA_CAP)
+
+
+def check_heading_sigma(value, n_views: int) -> tuple[float, np.ndarray | None]:
+    """``sigma_heading`` as one number or one per step (:func:`qfg._validate.per_step_sigma`),
+    capped at :data:`SIGMA_CAP`: (the largest, the (n - 1,) steps' values or None when they are
+    all equal).
+
+    >>> check_heading_sigma([0.1, 0.3], 3)
+    (0.3, array([0.1, 0.3]))
+    >>> check_heading_sigma([0.2, 0.2], 3)
+    (0.2, None)
+    """
+    v = per_step_sigma("sigma_heading", value, max(n_views - 1, 0))
+    if np.ndim(v) == 0:
+        return check_sigma("sigma_heading", v), None
+    v = np.minimum(v, SIGMA_CAP)
+    if v.size == 0 or np.all(v == v[0]):
+        return (float(v[0]) if v.size else 0.0), None
+    return float(v.max()), v
 
 
 def check_heading(heading) -> float:
@@ -151,9 +172,11 @@ def measurements(bearings, headings, sigma_bearing, sigma_heading, distances=Non
             sigma_heading = 0.0
         sb, sh = sigma_bearing, sigma_heading
     d = check_distances(distances, b.shape[0])
+    sh, steps = check_heading_sigma(sh, b.shape[0])
     return Measurements(bearings=b, headings=h, sigma_bearing=check_sigma("sigma_bearing", sb),
-                        sigma_heading=check_sigma("sigma_heading", sh), distances=d,
-                        sigma_distance_ratio=check_distance_sigma(sigma_distance_ratio, d))
+                        sigma_heading=sh, distances=d,
+                        sigma_distance_ratio=check_distance_sigma(sigma_distance_ratio, d),
+                        step_sigma_heading=steps)
 
 
 def get_partition(partition):

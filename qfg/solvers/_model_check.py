@@ -77,9 +77,11 @@ def discrepancy(rb, rh, sigma_bearing, sigma_heading, tail: BearingTail | None =
     u = np.asarray(rb, dtype=float)
     d = -2.0 * (log_bearing(u, sigma_bearing, tail) - log_bearing(0.0, sigma_bearing, tail))
     out = d.reshape(-1, d.shape[-1]).sum(axis=0)
-    if rh.size and sigma_heading > 0:
+    sh = np.asarray(sigma_heading, dtype=float)
+    if rh.size and np.all(sh > 0):
         with np.errstate(over="ignore"):   # inf: a residual the model cannot explain (p = 0)
-            out = out + np.sum((np.asarray(rh) / sigma_heading) ** 2, axis=0)
+            # one sigma, or one per step (n - 1,)
+            out = out + np.sum((np.asarray(rh) / (sh[:, None] if sh.ndim else sh)) ** 2, axis=0)
     return out
 
 
@@ -160,7 +162,8 @@ def posterior_predictive_p(bearings, headings, poses, landmark, weights, sigma_b
         keep = w > 0
         D = D[keep]
         n_b, n_h = n * 3, rh.shape[0]
-    sf = reference_sf(D, n_b, n_h if sigma_heading > 0 else 0, tail, sigma_bearing)
+    sf = reference_sf(D, n_b, n_h if np.all(np.asarray(sigma_heading) > 0) else 0, tail,
+                      sigma_bearing)
     return float(np.sum(w[keep] * sf) / np.sum(w[keep]))
 
 

@@ -105,6 +105,9 @@ class SISState(_estimate.TripletBatchSizes):
     full_opts: dict | None = None  # the caller's options while ``opts`` is their few-views
                                # budget (:data:`FEW_VIEWS`): the next view rebuilds the
                                # hypotheses with these; None: ``opts`` are the caller's
+    step_sigma: np.ndarray | None = None  # (T, i - 1) each step's heading sigma (a step's
+                               # column goes in before its motion step, like ``distances``;
+                               # None: ``sigma_heading`` for every step)
 
     @property
     def poses(self) -> np.ndarray:
@@ -122,6 +125,18 @@ class SISState(_estimate.TripletBatchSizes):
 
     def noiseless(self) -> np.ndarray:
         return (self.sigma_bearing == 0) & (self.sigma_heading == 0)
+
+    def step_sigmas(self, tid, n_steps: int | None = None) -> np.ndarray:
+        """(J, n_steps) the heading sigma of each step of triplets ``tid`` (J,) (default: every
+        step so far)."""
+        k = self.headings.shape[1] if n_steps is None else n_steps
+        if self.step_sigma is None:
+            return np.repeat(self.sigma_heading[tid][:, None], k, axis=1)
+        return self.step_sigma[tid][:, :k]
+
+    def current_sigma(self, ct) -> np.ndarray:
+        """(B,) the heading sigma of the step being made, for triplets ``ct`` (B,)."""
+        return self.sigma_heading[ct] if self.step_sigma is None else self.step_sigma[ct, -1]
 
 
 def trajectories(levels, rows=None, last=None) -> np.ndarray:
@@ -483,7 +498,10 @@ def _log_pose_target(st: SISState, tid, poses):
     hypotheses represent. Returns (log target (J,), sum_t log p1(X_t) (J,))."""
     X, al = poses[..., :2], poses[..., 2]
     b = st.bearings[tid]
-    sv, sw = st.sigma_bearing[tid][:, None], st.sigma_heading[tid][:, None]
+    sv = st.sigma_bearing[tid][:, None]
+    # (J, 1) one sigma per triplet, else (J, i - 1) one per step
+    sw = st.sigma_heading[tid][:, None] if st.step_sigma is None else \
+        st.step_sigmas(tid, poses.shape[1] - 1)
     fa = np.arctan2(-X[..., 1], -X[..., 0]) - al
     fb = np.arctan2(1.0 - X[..., 1], -X[..., 0]) - al
     ra, rb = wrap_angle(b[..., 0] - fa), wrap_angle(b[..., 1] - fb)
@@ -493,11 +511,11 @@ def _log_pose_target(st: SISState, tid, poses):
     tail = st.opts.get("bearing_tail")
     if tail is None:
         out = lp - 0.5 * (np.sum(ra * ra + rb * rb, axis=1) / sv[:, 0] ** 2
-                          + np.sum(rh * rh, axis=1) / sw[:, 0] ** 2)
+                          + _heading_sum(rh, sw))
     else:
         out = lp + np.sum(_likelihood.log_bearing(ra, sv, tail)
                           + _likelihood.log_bearing(rb, sv, tail), axis=1) \
-            - 0.5 * np.sum(rh * rh, axis=1) / sw[:, 0] ** 2
+            - 0.5 * _heading_sum(rh, sw)
     dist = st.distances[tid]
     if X.shape[1] >= 3 and np.any(dist > 0):
         step = np.hypot(d[..., 0], d[..., 1])
@@ -505,6 +523,15 @@ def _log_pose_target(st: SISState, tid, poses):
                                                dist[:, :-1], st.sigma_distance[tid][:, None],
                                                st.opts.get("distance_tail")), axis=1)
     return np.where(np.isnan(out), -np.inf, out), lp
+
+
+def _heading_sum(rh, sw) -> np.ndarray:
+    """(J,) sum over steps of (rh / sw)^2 for residuals (J, i - 1) and sigmas (J, 1) or
+    (J, i - 1) (the one-sigma form keeps the arithmetic of the runs recorded before per-step
+    sigmas)."""
+    if sw.shape[1] == 1:
+        return np.sum(rh * rh, axis=1) / sw[:, 0] ** 2
+    return np.sum(rh * rh / (sw * sw), axis=1)
 
 
 #: Random-walk scale: the proposal covariance is ``(_MOVE_SCALE^2 / D)`` times the covariance of
@@ -775,9 +802,10 @@ def start(bearings0, sigma_bearing, sigma_heading, roots, opts, part, method,
     return replace(st, lost=np.where(alive, 0, 1))
 
 
-def step(state: SISState, phi, psi, distance=None) -> SISState:
+def step(state: SISState, phi, psi, distance=None, sigma_heading=None) -> SISState:
     """Add one view to T triplets: ``phi`` (T, 3), ``psi`` (T,), ``distance`` (T,) travelled
-    from the previous view by odometry (0 or None: unknown). From the third view on, each
+    from the previous view by odometry (0 or None: unknown), ``sigma_heading`` (T,) this step's
+    heading sigma (None: the triplets' ``sigma_heading``). From the third view on, each
     child's weight carries :func:`log_distance_factor` of its step and its parent's last step.
     A triplet whose hypotheses all die (every ray misses its locus arc) is proposed again with
     the noise drawn ``RETRY_SPREAD`` times wider (importance-weighted), before it is given up."""
@@ -789,6 +817,12 @@ def step(state: SISState, phi, psi, distance=None) -> SISState:
     dist = np.zeros(T) if distance is None else np.asarray(distance, dtype=float).reshape(T)
     # the new distance goes in first: the motion step reads it as distances[:, -1]
     state = replace(state, distances=np.concatenate([state.distances, dist[:, None]], axis=1))
+    if sigma_heading is not None or state.step_sigma is not None:
+        # likewise this step's heading sigma (columns only once some step has its own)
+        sh = state.sigma_heading if sigma_heading is None else \
+            np.asarray(sigma_heading, dtype=float).reshape(T)
+        past = state.step_sigmas(np.arange(T), i - 1)
+        state = replace(state, step_sigma=np.concatenate([past, sh[:, None]], axis=1))
     st = _extend(state, phi, psi, state.opts["motion_spread"], _seeds.STREAM_CAMERAS)
     alive = np.bincount(st.tid, minlength=T) > 0
     retry = ~alive & (state.lost == 0)
@@ -808,7 +842,8 @@ def _rebuild(state: SISState) -> SISState:
                state.full_opts, state.part, state.method, state.sigma_distance,
                n_views=state.n_views + 1)
     for i in range(1, state.n_views):
-        st = step(st, state.bearings[:, i], state.headings[:, i - 1], state.distances[:, i - 1])
+        st = step(st, state.bearings[:, i], state.headings[:, i - 1], state.distances[:, i - 1],
+                  None if state.step_sigma is None else state.step_sigma[:, i - 1])
     return st
 
 
@@ -823,6 +858,7 @@ def _subset(st: SISState, mask) -> SISState:
     return replace(st, bearings=st.bearings[mask], headings=st.headings[mask],
                    sigma_bearing=st.sigma_bearing[mask], sigma_heading=st.sigma_heading[mask],
                    distances=st.distances[mask], sigma_distance=st.sigma_distance[mask],
+                   step_sigma=None if st.step_sigma is None else st.step_sigma[mask],
                    roots=tuple(r for r, m in zip(st.roots, mask, strict=True) if m),
                    tid=new_id[st.tid[rows]],
                    levels=_take_last(st.levels, rows), lw_base=st.lw_base[rows],
@@ -1017,7 +1053,7 @@ def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
     Returns (child index (offset + row), pose (K, 3), log weight,
     log per-point prior) of the K children whose ray meets the drawn locus arc."""
     ct = state.tid[par]
-    sb, sh = state.sigma_bearing[ct], state.sigma_heading[ct]
+    sb, sh = state.sigma_bearing[ct], state.current_sigma(ct)
     pp = prev[par]
     th = pp[:, 2] + psi[ct] + spread * sh * z[:, 0]
     tail = state.opts.get("bearing_tail")
@@ -1103,7 +1139,7 @@ def _mixed(state: SISState, ct, r, spread) -> np.ndarray:
             or not np.any(state.distances[:, -1] > 0):
         return np.zeros(ct.size, dtype=bool)
     d = state.distances[ct]
-    sh = state.sigma_heading[ct]
+    sh = state.current_sigma(ct)
     return (d[:, -1] > 0) & (d[:, -2] > 0) & (r[ct] >= 2) & (sh > 0) \
         & (sh <= _MIX_MAX_SIGMA_HEADING)
 
@@ -1160,7 +1196,7 @@ def _mixture_weight(state: SISState, X, prev, psi, r, par):
     dx, dy = X[:, 0] - O[:, 0], X[:, 1] - O[:, 1]
     t = np.hypot(dx, dy)
     th = np.arctan2(dy, dx)
-    sh, sd = state.sigma_heading[ct], state.sigma_distance[ct]
+    sh, sd = state.current_sigma(ct), state.sigma_distance[ct]
     half_log_2pi = 0.5 * np.log(2.0 * np.pi)
     log_n_th = _likelihood.log_gauss(wrap_angle(th - prev[par, 2] - psi[ct]), sh) - half_log_2pi
     sp = _prev_step(state, par)
@@ -1274,8 +1310,10 @@ def finish(state: SISState, hypotheses: bool = False):
     cb = np.searchsorted(tid, np.arange(T + 1))
     out = []
     for t in range(T):
+        shs = float(state.sigma_heading[t]) if state.step_sigma is None else \
+            state.step_sigma[t, :n - 1]
         reasons = _degenerate.geometry_reasons(state.bearings[t], state.sigma_bearing[t],
-                                               state.headings[t], state.sigma_heading[t])
+                                               state.headings[t], shs)
         if np.any(state.same_pose[t]):
             reasons.append(_degenerate.repeated_reason(state.same_pose[t]))
         if lm[t].sum() <= 0:
@@ -1299,11 +1337,11 @@ def finish(state: SISState, hypotheses: bool = False):
         if state.sigma_bearing[t] > 0:
             # the heading width floored like the bearings' (a sigma of 1e-300 is the noiseless
             # model to the solver, and its residuals of 1e-16 must not read as a misfit)
-            sh = float(state.sigma_heading[t])
             pval = _model_check.posterior_predictive_p(
                 state.bearings[t], state.headings[t],
                 np.transpose(poses[cb[t]:cb[t + 1]], (1, 0, 2)), Lt, wt, float(sv[t]),
-                max(sh, float(opts["bearing_floor"])) if sh > 0 else 0.0,
+                np.maximum(shs, float(opts["bearing_floor"])) if np.all(np.asarray(shs) > 0)
+                else 0.0,
                 opts.get("bearing_tail"), per_pose=k)
         lam = _model_check.widening(pval, opts.get("model_check", 0.0))
         widen = None

@@ -108,17 +108,43 @@ DEFAULTS = {
     "model_check": 0.0,                    # level of the solvers' model check (0: report only)
     "heading_drift": False,                # heading sigma from each history's longest step
     "distance_tail": "normal",             # step-length-ratio noise model (DISTANCE_TAILS)
+    "heading_walk": 0.0,                   # per-step heading sigma b sqrt(step duration), b in
+                                           # deg / sqrt(s) (0: off; HEADING_WALK measured)
 }
 
 #: Options added after runs were recorded without them: a run's params leave them out at their
 #: defaults, so that those runs resume (``qfg mrclam --resume``) as before.
-LATER_KEYS = ("bearing_tail", "model_check", "heading_drift", "distance_tail")
+LATER_KEYS = ("bearing_tail", "model_check", "heading_drift", "distance_tail", "heading_walk")
 
 
 #: The odometry's direction-of-travel error (``sigma90``, degrees) against motion capture by the
 #: step's duration (centre of the measured bins 3-10 s, 10-30 s, 30-100 s; dataset 6,
 #: docs/mrclam.md "From views to triplet histories"): the odometry's heading drifts over a step.
 HEADING_SIGMA_BY_STEP = ((6.5, 1.59), (20.0, 5.04), (65.0, 9.76))
+
+
+#: The odometry's heading as a random walk: the direction of travel of a step of duration dt
+#: seconds is off by about ``HEADING_WALK sqrt(dt)`` degrees. Maximum-likelihood fit of ``b
+#: sqrt(dt)`` (a constant term fitted to 0) to 2,802 steps of dataset 6's histories (robots 1-5,
+#: 120-s passes, 2, 3, 5 and 8 views spread over each, steps of 2 cm or more) against motion
+#: capture; per step it scores 0.2-0.4 nats above one sigma per history from the longest step,
+#: and the loader's 1.57 deg 7-51 nats below (docs/mrclam.md, "The odometry's heading over a
+#: step"; ``experiments/mrclam_heading_steps.py``).
+HEADING_WALK = 1.21
+
+
+def walk_sigma_heading(h, sigma_heading: float, walk: float) -> np.ndarray:
+    """(n - 1,) each step's heading sigma (radians) for history ``h`` with ``heading_walk``
+    ``walk`` (degrees per sqrt(second)): ``walk sqrt(dt)`` for a step of ``dt`` seconds (``h.
+    views`` are the view times), never below ``sigma_heading``.
+
+    >>> import types
+    >>> h = types.SimpleNamespace(views=np.array([0.0, 4.0, 29.0]))
+    >>> np.degrees(walk_sigma_heading(h, np.deg2rad(1.57), 1.0)).round(2).tolist()
+    [2.0, 5.0]
+    """
+    dt = np.diff(np.asarray(h.views, dtype=float))
+    return np.maximum(float(sigma_heading), np.deg2rad(float(walk)) * np.sqrt(np.maximum(dt, 0.0)))
 
 
 def drift_sigma_heading(h, sigma_heading: float) -> float:
@@ -335,7 +361,7 @@ class _Light:
 SOLVE_KEYS = ("path", "robots", "method", "mode", "prior", "partition", "fix_landmarks",
               "min_travel", "max_gap", "max_views", "spread_views", "sigma_bearing_deg",
               "sigma_heading_deg", "distances", "sigma_distance_ratio", "bearing_tail",
-              "model_check", "heading_drift", "distance_tail", "piece")
+              "model_check", "heading_drift", "distance_tail", "heading_walk", "piece")
 
 
 @dataclass(frozen=True, eq=False)
@@ -368,7 +394,7 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
                 distances: bool = True, sigma_distance_ratio: float = 0.0,
                 bearing_tail: str = "normal", model_check: float = 0.0,
                 heading_drift: bool = False, distance_tail: str = "normal",
-                dataset=None) -> Prepared:
+                heading_walk: float = 0.0, dataset=None) -> Prepared:
     """Load (or take ``dataset``, loaded from ``path``), fix the landmark ground truth, make the
     prior and its state distributions, and the histories to solve (module docstring, steps
     1-4). Every data file is read and checked here, before anything is solved."""
@@ -404,9 +430,15 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
         sig["sigma_heading"] = np.deg2rad(float(sigma_heading_deg))
     rh = histories(ds, robots, mode=mode, max_views=max_views, spread_views=spread_views,
                    partition=part, min_travel=min_travel, max_gap=max_gap, **sig)
+    if heading_drift and heading_walk:
+        raise ValueError("heading_walk: one heading model at a time (heading_drift is on)")
     if heading_drift:
         rh = [(r, dataclasses.replace(h, sigma_heading=drift_sigma_heading(h, h.sigma_heading))
                if h.has_motion else h) for r, h in rh]
+    if heading_walk:
+        rh = [(r, dataclasses.replace(h, sigma_heading=walk_sigma_heading(
+            h, h.sigma_heading, heading_walk)) if h.has_motion and h.n_views > 1 else h)
+              for r, h in rh]
     if not distances:
         rh = [(r, dataclasses.replace(h, distances=None)) for r, h in rh]
     elif sigma_distance_ratio:
@@ -854,7 +886,7 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
                 sigma_distance_ratio: float = 0.0, map_method: str = "",
                 piece: int = CHUNK, bearing_tail: str = "normal", model_check: float = 0.0,
                 heading_drift: bool = False, distance_tail: str = "normal",
-                **solver_options):
+                heading_walk: float = 0.0, **solver_options):
     """Solve, combine, map, propagate and score one dataset directory, in memory (``qfg
     mrclam`` runs the same phases and records them: :func:`prepare_run`, :func:`solve_piece`
     per piece, :func:`finish`).
@@ -900,6 +932,8 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
             (:func:`drift_sigma_heading`).
         distance_tail: the step-length ratios' noise model by name (:data:`DISTANCE_TAILS`;
             ``"measured"`` also sets their core sigma unless ``sigma_distance_ratio`` is given).
+        heading_walk: each step's heading sigma ``heading_walk sqrt(dt)`` degrees
+            (:func:`walk_sigma_heading`; :data:`HEADING_WALK` measured; 0: off).
 
     Returns:
         rows (list of dicts; module docstring). With ``return_details``: ``(rows, details)``.
@@ -918,7 +952,8 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
                        sigma_bearing_deg=sigma_bearing_deg, sigma_heading_deg=sigma_heading_deg,
                        distances=distances, sigma_distance_ratio=sigma_distance_ratio,
                        bearing_tail=bearing_tail, model_check=model_check,
-                       heading_drift=heading_drift, distance_tail=distance_tail)
+                       heading_drift=heading_drift, distance_tail=distance_tail,
+                       heading_walk=heading_walk)
     t0 = time.perf_counter()
     ests = []
     for c in range(n_pieces(prep, piece)):
