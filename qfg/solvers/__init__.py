@@ -101,7 +101,9 @@ def solve_triplet(bearings, headings=None, *, method: str = "full", partition="e
         method: ``"full"``, ``"fast"``, ``"fast-paper"``, ``"baseline"`` or ``"reference"``.
         partition: partition name or :class:`qfg.partitions.Partition`.
         sigma_bearing, sigma_heading: noise standard deviations (radians, >= 0; zero works: the
-            likelihood widths have floors, see ``bearing_floor``).
+            likelihood widths have floors, see ``bearing_floor``). ``sigma_heading`` may also be
+            (n - 1,), one per step (all > 0 or all 0): ``full`` and ``fast`` take it,
+            ``baseline`` ignores headings, ``reference`` and ``fast-paper`` raise ValueError.
         seed: None, int, SeedSequence or Generator. Same seed, same estimate.
         distances: (n - 1,) the odometry's travelled distance from view i to view i+1 (any
             unit, finite, >= 0; 0 = unknown), or None; a history's own ``distances`` are used
