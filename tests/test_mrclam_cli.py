@@ -77,6 +77,8 @@ def _refused(capsys, argv, *words):
     (["--propagation", "mean", "--map", "best"], "--propagation"),
     (["--map", "nope"], "--map"), (["--method", "slow"], "--method"),
     (["--seed", "-1"], "--seed"), (["--resume", "--overwrite"], "--resume"),
+    (["--heading-walk", "-1"], "--heading-walk"), (["--heading-walk", "fast"], "--heading-walk"),
+    (["--distance-tail", "wide"], "--distance-tail"),
 ])
 def test_bad_option_is_one_line_naming_it_and_nothing_is_written(root, tmp_path, capsys,
                                                                  no_solving, bad, name):

@@ -298,3 +298,27 @@ def test_spread_views_get_headings_of_their_own_steps(data):
         assert np.allclose(s.headings, W * np.diff(s.views) / 2, atol=1e-6)
         assert np.allclose(s.bearings, h.bearings[np.searchsorted(h.views, s.views)])
         assert np.all(s.distances > h.distances.max())
+
+
+def test_noise_model_options_reach_the_histories_and_the_solver(data):
+    # --heading-walk: each step's sigma b sqrt(dt) from the views' times (never below the
+    # loader's); --distance-tail measured: the core sigma on the histories, the tail for the
+    # solvers (not for the baseline, which has no distances)
+    p = data / "MRCLAM_Dataset1"
+    plain = study.prepare_run(p, robots=[1], spread_views=4)
+    prep = study.prepare_run(p, robots=[1], spread_views=4, heading_walk=2.0,
+                             distance_tail="measured")
+    sd, tail = study.DISTANCE_TAILS["measured"]
+    assert prep.solver_options["distance_tail"] == tail
+    for (_, h0), (_, h) in zip(plain.histories, prep.histories, strict=True):
+        want = np.maximum(h0.sigma_heading, np.deg2rad(2.0) * np.sqrt(np.diff(h0.views)))
+        np.testing.assert_allclose(np.broadcast_to(h.sigma_heading, want.shape), want)
+        assert h.sigma_distance_ratio == sd
+    assert any(np.ndim(h.sigma_heading) == 1 for _, h in prep.histories)
+    est = study.solve_piece(prep, 0, method="fast", seed=0, piece=4)
+    assert len(est) == 4
+    assert study.solve_piece(prep, 0, method="baseline", seed=0, piece=2)
+    with pytest.raises(ValueError, match="heading_walk: one heading model at a time"):
+        study.prepare_run(p, robots=[1], heading_walk=1.0, heading_drift=True)
+    with pytest.raises(ValueError, match="distance_tail: expected one of"):
+        study.prepare_run(p, robots=[1], distance_tail="wide")
