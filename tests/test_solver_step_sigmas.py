@@ -108,3 +108,56 @@ def test_baseline_ignores_step_sigmas():
     a = solve_triplet(h, method="baseline", seed=0)
     b = solve_triplet(replace(h, sigma_heading=0.1), method="baseline", seed=0)
     np.testing.assert_array_equal(a.landmark, b.landmark)
+
+
+# ------------------------------------------------------------------ the headings' tail
+HTAIL = (0.1, 8.0)
+
+
+def test_move_target_with_a_heading_tail_is_the_mixture():
+    from qfg.solvers import _likelihood
+
+    h = _noisy(4)
+    st = TripletSolver.solve(h, method="fast", seed=0, heading_tail=HTAIL)._state
+    true = np.asarray(h.truth.poses_ab, dtype=float)[None]
+    tid = np.zeros(1, dtype=int)
+    lt, _ = _sis._log_pose_target(st, tid, true)
+    plain = replace(st, opts={**st.opts, "heading_tail": None})
+    l0, _ = _sis._log_pose_target(plain, tid, true)
+    X, al = true[0, :, :2], true[0, :, 2]
+    d = np.diff(X, axis=0)
+    rh = np.angle(np.exp(1j * (h.headings - (np.arctan2(d[:, 1], d[:, 0]) - al[:-1]))))
+    share, scale = HTAIL
+
+    def normal(x, s):
+        return np.exp(-0.5 * (x / s) ** 2) / (s * np.sqrt(2 * np.pi))
+
+    mix = np.sum(np.log((1 - share) * normal(rh, STEPS) + share * normal(rh, scale * STEPS)))
+    # the one-sigma target leaves out the normal's constants: -rh^2 / (2 s^2) per step
+    np.testing.assert_allclose(lt - l0, mix + 0.5 * np.sum(rh ** 2 / STEPS ** 2), rtol=1e-9)
+    assert _likelihood.as_distance_tail(HTAIL, "heading_tail").share == share
+
+
+def test_a_heading_tail_keeps_an_outlier_step_from_vetoing_the_truth():
+    # Simulated misfit: every history's second step off by 25 deg while the model says 1 deg
+    # per step; with the tail (10% of steps 8x wider) the truth is no longer ruled out
+    steps = np.deg2rad([1.0, 1.0, 1.0])
+    hs = []
+    for s in range(16):
+        h = _noisy(s, steps)
+        hs.append(replace(h, headings=h.headings + np.deg2rad([0.0, 25.0, 0.0])))
+    score = {}
+    for name, extra in (("normal", {}), ("tail", {"heading_tail": HTAIL})):
+        est = solve_triplets(hs, method="full", seed=0, **extra)
+        score[name] = np.array([metrics.log_score(e.landmark, h.truth.state)
+                                for e, h in zip(est, hs, strict=True)])
+    assert score["tail"].mean() > score["normal"].mean() + 0.3
+    assert np.mean(score["tail"] < np.log(0.01)) < np.mean(score["normal"] < np.log(0.01))
+
+
+def test_bad_heading_tail_and_methods_without_it():
+    with pytest.raises(ValueError, match="heading_tail: expected None or"):
+        solve_triplet(_noisy(1), method="full", seed=0, heading_tail=(0.1,))
+    with pytest.raises(ValueError, match="heading_tail: not an option of method 'reference'"):
+        solve_triplet(replace(_noisy(1), sigma_heading=0.02), method="reference", seed=0,
+                      heading_tail=HTAIL)

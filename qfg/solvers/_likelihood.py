@@ -160,10 +160,11 @@ def as_tail(value) -> BearingTail | None:
     return t if t.active else None
 
 
-def as_distance_tail(value) -> BearingTail | None:
-    """The option ``distance_tail``: None (the normal), ``(share, scale)``, a dict of those or a
-    :class:`BearingTail` without outliers (a uniform share has no meaning on an unbounded log
-    ratio); a tail with no share is None.
+def as_distance_tail(value, name: str = "distance_tail") -> BearingTail | None:
+    """The options ``distance_tail`` and ``heading_tail`` (``name``): None (the normal),
+    ``(share, scale)``, a dict of those or a :class:`BearingTail` without outliers (a uniform
+    share has no meaning on an unbounded log ratio, and the motion step draws no outlier
+    headings); a tail with no share is None.
 
     >>> as_distance_tail((0.1, 7.0))
     BearingTail(share=0.1, scale=7.0, outlier=0.0)
@@ -174,15 +175,15 @@ def as_distance_tail(value) -> BearingTail | None:
         try:
             share, scale = value
         except (TypeError, ValueError):
-            raise ValueError(f"distance_tail: expected None or (share, scale), got "
+            raise ValueError(f"{name}: expected None or (share, scale), got "
                              f"{value!r}") from None
         value = {"share": share, "scale": scale}
     try:
         t = value if isinstance(value, BearingTail) else BearingTail(**value)
     except (TypeError, ValueError) as e:
-        raise ValueError(f"distance_tail: {e}".replace("bearing_tail: ", "")) from None
+        raise ValueError(f"{name}: {e}".replace("bearing_tail: ", "")) from None
     if t.outlier:
-        raise ValueError(f"distance_tail: expected no outlier share, got {t.outlier}")
+        raise ValueError(f"{name}: expected no outlier share, got {t.outlier}")
     return t if t.active else None
 
 

@@ -53,6 +53,8 @@ DEFAULTS = {
                                      # ((share, scale): (1 - share) N(sigma) + share N(scale
                                      # sigma), sigma the history's sigma_distance_ratio); None:
                                      # the normal
+        "heading_tail": None,        # the same for the motion headings (sigma each step's
+                                     # heading sigma); the motion step draws from it
         "model_check": 0.0,          # level of the bearing/heading model check: an answer whose
                                      # posterior predictive p is below it is widened toward the
                                      # prior's state distribution and flagged (0: report only)
@@ -97,6 +99,7 @@ DEFAULTS = {
         "mc_shrinkage": 1.0,
         "bearing_tail": None,
         "distance_tail": None,
+        "heading_tail": None,
         "model_check": 0.0,
         "min_ess": 1.5,              # less than about one effective draw: flagged (its 1st
                                      # percentile on the same triplets: 1.9)
@@ -244,6 +247,8 @@ def resolve_options(method: str, options: dict, defaults: dict | None = None) ->
         opts["bearing_tail"] = as_tail(opts["bearing_tail"])
     if "distance_tail" in opts:
         opts["distance_tail"] = as_distance_tail(opts["distance_tail"])
+    if "heading_tail" in opts:
+        opts["heading_tail"] = as_distance_tail(opts["heading_tail"], "heading_tail")
     if "model_check" in opts:
         mc = non_negative("model_check", opts["model_check"])
         if mc >= 1:

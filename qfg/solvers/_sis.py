@@ -509,7 +509,16 @@ def _log_pose_target(st: SISState, tid, poses):
     rh = wrap_angle(st.headings[tid] - (np.arctan2(d[..., 1], d[..., 0]) - al[:, :-1]))
     lp = np.sum(_prior.point_log_prior(st.opts["prior"], X), axis=1)
     tail = st.opts.get("bearing_tail")
-    if tail is None:
+    htail = st.opts.get("heading_tail")
+    if htail is not None:
+        # the headings' mixture (normalised per step: a constant per triplet)
+        out = lp + np.sum(_likelihood.log_bearing(rh, sw, htail), axis=1)
+        if tail is None:
+            out = out - 0.5 * np.sum(ra * ra + rb * rb, axis=1) / sv[:, 0] ** 2
+        else:
+            out = out + np.sum(_likelihood.log_bearing(ra, sv, tail)
+                               + _likelihood.log_bearing(rb, sv, tail), axis=1)
+    elif tail is None:
         out = lp - 0.5 * (np.sum(ra * ra + rb * rb, axis=1) / sv[:, 0] ** 2
                           + _heading_sum(rh, sw))
     else:
@@ -908,13 +917,16 @@ def _extend(state: SISState, phi, psi, spread: float, purpose: int) -> SISState:
     counts = np.bincount(tid, minlength=T) * r
 
     tail = opts.get("bearing_tail")
+    htail = opts.get("heading_tail")
 
     def draw(rng, m):
         z = rng.standard_normal((m, 3))
-        return (z,) if tail is None else (z, rng.random((m, 2)), rng.random((m, 2)))
+        out = (z,) if tail is None else (z, rng.random((m, 2)), rng.random((m, 2)))
+        # the heading tail's component choice last: without it the streams are unchanged
+        return out if htail is None else out + (rng.random((m, 1)),)
 
     gens = _gens(state.roots, i, purpose)
-    if tail is None:
+    if tail is None and htail is None:
         # the same draws as _per_triplet(gens, counts, draw), written in place (no
         # concatenation of a million rows)
         z, uv = np.empty((int(counts.sum()), 3)), []
@@ -924,8 +936,9 @@ def _extend(state: SISState, phi, psi, spread: float, purpose: int) -> SISState:
     else:
         z, *uv = _per_triplet(gens, counts, draw)
     if uv:
-        # columns: [heading, A, B] noise; then A/B component choices and outlier places
-        z = np.concatenate([z, uv[0], uv[1]], axis=1)
+        # columns: [heading, A, B] noise; then A/B component choices and outlier places (with
+        # a bearing tail); then the heading's component choice (with a heading tail)
+        z = np.concatenate([z, *uv], axis=1)
     par = np.repeat(np.arange(tid.size), r[tid])
     ct = tid[par]
     st = replace(state, bearings=bearings, headings=headings,
@@ -1055,7 +1068,13 @@ def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
     ct = state.tid[par]
     sb, sh = state.sigma_bearing[ct], state.current_sigma(ct)
     pp = prev[par]
-    th = pp[:, 2] + psi[ct] + spread * sh * z[:, 0]
+    htail = state.opts.get("heading_tail")
+    if htail is None:
+        th = pp[:, 2] + psi[ct] + spread * sh * z[:, 0]
+    else:
+        # the heading noise drawn from the heading tail's mixture (its choice: the last column)
+        hn = np.where(z[:, -1] < htail.share, htail.scale, 1.0) * spread * sh * z[:, 0]
+        th = pp[:, 2] + psi[ct] + hn
     tail = state.opts.get("bearing_tail")
     if tail is None:
         pa = phi[ct, 0] + spread * sb * z[:, 1]
@@ -1079,6 +1098,14 @@ def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
         lab = _likelihood.log_bearing(nab, s2, tail) \
             - _likelihood.log_bearing_proposal(nab, s2, tail, spread)
         lcorr = lcorr + np.sum(np.where((sb > 0)[:, None], lab, 0.0), axis=1)
+    if lcorr is not None and htail is not None:
+        # the heading's part again, for its mixture: target over the spread mixture drawn from
+        plain = np.where(sh > 0, -0.5 * z[:, 0] ** 2 * (spread * spread - 1.0) + np.log(spread),
+                         0.0)
+        with np.errstate(divide="ignore"):
+            mix = _likelihood.log_bearing(hn, sh, htail) \
+                - _likelihood.log_bearing(hn, spread * sh, htail)
+        lcorr = lcorr - plain + np.where(sh > 0, mix, 0.0)
     pts, valid, (ux, uy) = _arcs.ray_locus(pp[:, :2], th, pa, pb)
     mixed = _mixed(state, ct, r, spread)
     if np.any(mixed):
@@ -1140,6 +1167,10 @@ def _mixed(state: SISState, ct, r, spread) -> np.ndarray:
         return np.zeros(ct.size, dtype=bool)
     d = state.distances[ct]
     sh = state.current_sigma(ct)
+    htail = state.opts.get("heading_tail")
+    if htail is not None:
+        # the mixture's wide component must stay a plain (unwrapped) normal too
+        sh = sh * htail.scale
     return (d[:, -1] > 0) & (d[:, -2] > 0) & (r[ct] >= 2) & (sh > 0) \
         & (sh <= _MIX_MAX_SIGMA_HEADING)
 
@@ -1198,7 +1229,13 @@ def _mixture_weight(state: SISState, X, prev, psi, r, par):
     th = np.arctan2(dy, dx)
     sh, sd = state.current_sigma(ct), state.sigma_distance[ct]
     half_log_2pi = 0.5 * np.log(2.0 * np.pi)
-    log_n_th = _likelihood.log_gauss(wrap_angle(th - prev[par, 2] - psi[ct]), sh) - half_log_2pi
+    htail = state.opts.get("heading_tail")
+    if htail is None:
+        log_n_th = _likelihood.log_gauss(wrap_angle(th - prev[par, 2] - psi[ct]), sh) \
+            - half_log_2pi
+    else:
+        # the ray children's heading density and the target's heading factor: the mixture
+        log_n_th = _likelihood.log_bearing(wrap_angle(th - prev[par, 2] - psi[ct]), sh, htail)
     sp = _prev_step(state, par)
     dist = state.distances[ct, -1], state.distances[ct, -2]
     # the circle draws come from the core normal; with a distance tail the target's factor is
@@ -1340,8 +1377,10 @@ def finish(state: SISState, hypotheses: bool = False):
             pval = _model_check.posterior_predictive_p(
                 state.bearings[t], state.headings[t],
                 np.transpose(poses[cb[t]:cb[t + 1]], (1, 0, 2)), Lt, wt, float(sv[t]),
-                np.maximum(shs, float(opts["bearing_floor"])) if np.all(np.asarray(shs) > 0)
-                else 0.0,
+                # (with a heading tail the headings are left out: the check's reference
+                # distribution is for normal headings)
+                np.maximum(shs, float(opts["bearing_floor"]))
+                if np.all(np.asarray(shs) > 0) and opts.get("heading_tail") is None else 0.0,
                 opts.get("bearing_tail"), per_pose=k)
         lam = _model_check.widening(pval, opts.get("model_check", 0.0))
         widen = None

@@ -110,11 +110,14 @@ DEFAULTS = {
     "distance_tail": "normal",             # step-length-ratio noise model (DISTANCE_TAILS)
     "heading_walk": 0.0,                   # per-step heading sigma b sqrt(step duration), b in
                                            # deg / sqrt(s) (0: off; HEADING_WALK measured)
+    "heading_tail": "normal",              # "measured": the headings' two-normal tail
+                                           # (HEADING_WALK_TAIL), for the solvers
 }
 
 #: Options added after runs were recorded without them: a run's params leave them out at their
 #: defaults, so that those runs resume (``qfg mrclam --resume``) as before.
-LATER_KEYS = ("bearing_tail", "model_check", "heading_drift", "distance_tail", "heading_walk")
+LATER_KEYS = ("bearing_tail", "model_check", "heading_drift", "distance_tail", "heading_walk",
+              "heading_tail")
 
 
 #: The odometry's direction-of-travel error (``sigma90``, degrees) against motion capture by the
@@ -131,6 +134,9 @@ HEADING_SIGMA_BY_STEP = ((6.5, 1.59), (20.0, 5.04), (65.0, 9.76))
 #: and the loader's 1.57 deg 7-51 nats below (docs/mrclam.md, "The odometry's heading over a
 #: step"; ``experiments/mrclam_heading_steps.py``).
 HEADING_WALK = 1.21
+#: The same walk with the solvers' two-normal tail (``heading_tail``), fitted the same way:
+#: (b in deg / sqrt(s), (share, scale)); ``--heading-walk measured-tail``.
+HEADING_WALK_TAIL = (0.85, (0.046, 4.84))
 
 
 def walk_sigma_heading(h, sigma_heading: float, walk: float) -> np.ndarray:
@@ -361,7 +367,8 @@ class _Light:
 SOLVE_KEYS = ("path", "robots", "method", "mode", "prior", "partition", "fix_landmarks",
               "min_travel", "max_gap", "max_views", "spread_views", "sigma_bearing_deg",
               "sigma_heading_deg", "distances", "sigma_distance_ratio", "bearing_tail",
-              "model_check", "heading_drift", "distance_tail", "heading_walk", "piece")
+              "model_check", "heading_drift", "distance_tail", "heading_walk", "heading_tail",
+              "piece")
 
 
 @dataclass(frozen=True, eq=False)
@@ -394,7 +401,8 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
                 distances: bool = True, sigma_distance_ratio: float = 0.0,
                 bearing_tail: str = "normal", model_check: float = 0.0,
                 heading_drift: bool = False, distance_tail: str = "normal",
-                heading_walk: float = 0.0, dataset=None) -> Prepared:
+                heading_walk: float = 0.0, heading_tail: str = "normal",
+                dataset=None) -> Prepared:
     """Load (or take ``dataset``, loaded from ``path``), fix the landmark ground truth, make the
     prior and its state distributions, and the histories to solve (module docstring, steps
     1-4). Every data file is read and checked here, before anything is solved."""
@@ -418,6 +426,9 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
         raise ValueError(f"distance_tail: expected one of {tuple(DISTANCE_TAILS)}, "
                          f"got {distance_tail!r}")
     tail_sd, dtail = DISTANCE_TAILS[distance_tail]
+    if heading_tail not in ("normal", "measured"):
+        raise ValueError(f"heading_tail: expected 'normal' or 'measured', got {heading_tail!r}")
+    htail = HEADING_WALK_TAIL[1] if heading_tail == "measured" else None
     sigma_distance_ratio = sigma_distance_ratio or tail_sd
     sig = {}
     if tail_sb and not sigma_bearing_deg:
@@ -448,7 +459,8 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
                     prior_states=q_c, prior_camera_states=q_x, histories=rh, mode=mode,
                     prior_name=prior,
                     solver_options={"bearing_tail": tail, "model_check": float(model_check),
-                                    "distance_tail": dtail if distances else None})
+                                    "distance_tail": dtail if distances else None,
+                                    "heading_tail": htail})
 
 
 def n_pieces(prep: Prepared, piece: int = CHUNK) -> int:
@@ -479,6 +491,7 @@ def solve_piece(prep: Prepared, index: int, *, method: str = "full", seed=0, pie
         # no model check, and no odometry distances in its model
         opts.pop("model_check", None)
         opts.pop("distance_tail", None)
+        opts.pop("heading_tail", None)
     pairs = solve_triplets(hs, method=method, partition=prep.partition, seed=ss,
                            hypotheses=True, **dict(opts, **solver_options, prior=prep.prior))
     out = []
@@ -886,7 +899,7 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
                 sigma_distance_ratio: float = 0.0, map_method: str = "",
                 piece: int = CHUNK, bearing_tail: str = "normal", model_check: float = 0.0,
                 heading_drift: bool = False, distance_tail: str = "normal",
-                heading_walk: float = 0.0, **solver_options):
+                heading_walk: float = 0.0, heading_tail: str = "normal", **solver_options):
     """Solve, combine, map, propagate and score one dataset directory, in memory (``qfg
     mrclam`` runs the same phases and records them: :func:`prepare_run`, :func:`solve_piece`
     per piece, :func:`finish`).
@@ -934,6 +947,8 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
             ``"measured"`` also sets their core sigma unless ``sigma_distance_ratio`` is given).
         heading_walk: each step's heading sigma ``heading_walk sqrt(dt)`` degrees
             (:func:`walk_sigma_heading`; :data:`HEADING_WALK` measured; 0: off).
+        heading_tail: ``"measured"``: the solvers' headings get the two-normal tail of
+            :data:`HEADING_WALK_TAIL` (with ``heading_walk`` its 0.85).
 
     Returns:
         rows (list of dicts; module docstring). With ``return_details``: ``(rows, details)``.
@@ -953,7 +968,7 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
                        distances=distances, sigma_distance_ratio=sigma_distance_ratio,
                        bearing_tail=bearing_tail, model_check=model_check,
                        heading_drift=heading_drift, distance_tail=distance_tail,
-                       heading_walk=heading_walk)
+                       heading_walk=heading_walk, heading_tail=heading_tail)
     t0 = time.perf_counter()
     ests = []
     for c in range(n_pieces(prep, piece)):
