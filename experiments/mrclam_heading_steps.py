@@ -20,7 +20,7 @@ import argparse
 
 import numpy as np
 from scipy.optimize import minimize
-from scipy.stats import norm
+from scipy.stats import norm, spearmanr
 
 from qfg.datasets import mrclam
 from qfg.geometry import motion_heading, wrap_angle
@@ -31,8 +31,9 @@ MIN_STEP = 0.02
 
 def heading_steps(ds, views: int) -> dict:
     """Per step: error (rad), duration (s), odometry length (m), the history's longest step
-    (s) and its heading-drift sigma (rad), and the loader's sigma (rad)."""
-    seen, rows = set(), []
+    (s) and its heading-drift sigma (rad), and the loader's sigma (rad); and ``pairs`` (P, 2)
+    the errors over sqrt(duration) of consecutive steps of one history (both kept)."""
+    seen, rows, pairs = set(), [], []
     for r, h in study.histories(ds, None, spread_views=views, max_gap=120.0):
         key = (r, tuple(np.asarray(h.views).tolist()))
         t = h.truth
@@ -44,13 +45,19 @@ def heading_steps(ds, views: int) -> dict:
         err = wrap_angle(np.asarray(h.headings) - motion_heading(P[:-1], P[1:, :2]))
         dt = np.diff(np.asarray(h.views, dtype=float))
         n = err.size
+        z = np.where(np.asarray(h.distances) >= MIN_STEP, err / np.sqrt(np.maximum(dt, 1e-3)),
+                     np.nan)
+        pairs.append(np.stack([z[:-1], z[1:]], axis=1))
         rows.append(np.stack([err, dt, np.asarray(h.distances, dtype=float),
                               np.full(n, dt.max()),
                               np.full(n, study.drift_sigma_heading(h, h.sigma_heading)),
                               np.full(n, float(h.sigma_heading))], axis=1))
     a = np.concatenate(rows) if rows else np.zeros((0, 6))
     a = a[a[:, 2] >= MIN_STEP]
-    return dict(zip(("err", "dt", "length", "longest", "drift", "loader"), a.T, strict=True))
+    out = dict(zip(("err", "dt", "length", "longest", "drift", "loader"), a.T, strict=True))
+    pr = np.concatenate(pairs) if pairs else np.zeros((0, 2))
+    out["pairs"] = pr[np.all(np.isfinite(pr), axis=1)]
+    return out
 
 
 def fit_walk(err, dt) -> tuple[float, float]:
@@ -92,6 +99,12 @@ def main(argv=None):
     ds = mrclam.load(mrclam.data_root() / f"MRCLAM_Dataset{a.dataset}")
     per_k = {k: heading_steps(ds, k) for k in a.views}
     allk = {c: np.concatenate([v[c] for v in per_k.values()]) for c in next(iter(per_k.values()))}
+    for k, v in per_k.items():
+        pr = v["pairs"]
+        if pr.shape[0] < 3:
+            continue
+        print(f"{k} views: consecutive steps' errors over sqrt(duration), Spearman correlation "
+              f"{spearmanr(pr[:, 0], pr[:, 1])[0]:.2f} ({pr.shape[0]} pairs)")
     a0, b0 = fit_walk(allk["err"], allk["dt"])
     print(f"{allk['err'].size} steps: sigma = sqrt(a^2 + b^2 dt), a {np.degrees(a0):.2f} deg, "
           f"b {np.degrees(b0):.2f} deg/sqrt(s) (the harness: b {study.HEADING_WALK})\n")
