@@ -17,6 +17,10 @@ Per view i of every triplet (AB frame, A = (0, 0), B = (0, 1)):
   :func:`log_distance_factor` of the step-length ratio; such triplets draw half their children
   at the step length the distance ratio predicts instead of along the heading (a circle about
   X_{i-1} meets the arc), weighted by the balance heuristic (:func:`_mixture_weight`).
+* noise models (optional): one heading sigma per step (``SISState.step_sigma``, the step's
+  column going in before its motion step), a two-normal tail on the step-length ratio
+  (``distance_tail``: a factor in the weights) and on the headings (``heading_tail``: the motion
+  step draws from the mixture, so the weights again carry no heading factor).
 * C (views 2..n): its integral ``∫ p1(L) prod_t N(phi_C,t - f(L, X_t); sigma_v) dL`` is
   estimated with ``landmark_samples`` draws from a defensive mixture (Laplace Gaussian about the
   triangulation, and draws along the lines of sight: :func:`._landmarks.sample_landmarks`), which
