@@ -238,7 +238,7 @@ def test_factor_is_the_normal_mixture_of_the_log_ratio():
         return np.exp(-0.5 * (x / w) ** 2) / (w * np.sqrt(2 * np.pi))
 
     direct = np.log((1 - share) * normal(r, sig) + share * normal(r, scale * sig))
-    tail = _likelihood.as_distance_tail(TAIL)
+    tail = _likelihood.as_normal_tail(TAIL, "distance_tail")
     np.testing.assert_allclose(_sis.log_distance_factor(s, sp, d, dp, sig, tail), direct,
                                rtol=1e-10)
     # a density in r: integrates to 1 over the log ratio
@@ -263,7 +263,7 @@ def test_intermediate_weights_carry_the_tail_factor(monkeypatch):
     np.testing.assert_array_equal(a.poses, b.poses)
     st = _steps(b.poses)
     args = (st[:, 1:], st[:, :-1], h.distances[1:], h.distances[:-1], 0.2)
-    f = _sis.log_distance_factor(*args, _likelihood.as_distance_tail(TAIL)) \
+    f = _sis.log_distance_factor(*args, _likelihood.as_normal_tail(TAIL, "distance_tail")) \
         - _sis.log_distance_factor(*args)
     np.testing.assert_allclose(b.lw_base - a.lw_base, f.sum(axis=1), rtol=1e-9, atol=1e-9)
 
@@ -277,7 +277,7 @@ def test_move_target_includes_the_tail_factor():
     lt0, _ = _sis._log_pose_target(replace(st, distances=np.zeros_like(st.distances)), tid, true)
     stp = _steps(true)
     f = _sis.log_distance_factor(stp[:, 1:], stp[:, :-1], h.distances[1:], h.distances[:-1], 0.1,
-                                 _likelihood.as_distance_tail(TAIL))
+                                 _likelihood.as_normal_tail(TAIL, "distance_tail"))
     np.testing.assert_allclose(lt - lt0, f.sum(axis=1), rtol=1e-9)
 
 

@@ -135,7 +135,7 @@ def test_move_target_with_a_heading_tail_is_the_mixture():
     mix = np.sum(np.log((1 - share) * normal(rh, STEPS) + share * normal(rh, scale * STEPS)))
     # the one-sigma target leaves out the normal's constants: -rh^2 / (2 s^2) per step
     np.testing.assert_allclose(lt - l0, mix + 0.5 * np.sum(rh ** 2 / STEPS ** 2), rtol=1e-9)
-    assert _likelihood.as_distance_tail(HTAIL, "heading_tail").share == share
+    assert _likelihood.as_normal_tail(HTAIL, "heading_tail").share == share
 
 
 def test_a_heading_tail_keeps_an_outlier_step_from_vetoing_the_truth():

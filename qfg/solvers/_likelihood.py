@@ -160,13 +160,13 @@ def as_tail(value) -> BearingTail | None:
     return t if t.active else None
 
 
-def as_distance_tail(value, name: str = "distance_tail") -> BearingTail | None:
+def as_normal_tail(value, name: str) -> BearingTail | None:
     """The options ``distance_tail`` and ``heading_tail`` (``name``): None (the normal),
     ``(share, scale)``, a dict of those or a :class:`BearingTail` without outliers (a uniform
     share has no meaning on an unbounded log ratio, and the motion step draws no outlier
     headings); a tail with no share is None.
 
-    >>> as_distance_tail((0.1, 7.0))
+    >>> as_normal_tail((0.1, 7.0), "distance_tail")
     BearingTail(share=0.1, scale=7.0, outlier=0.0)
     """
     if value is None:

@@ -8,7 +8,7 @@ import numpy as np
 
 from .. import priors as _priors
 from .._validate import non_negative, positive_int
-from ._likelihood import as_distance_tail, as_tail
+from ._likelihood import as_normal_tail, as_tail
 from ._prior import resolve_prior
 
 #: Methods :func:`qfg.solvers.solve_triplet` knows.
@@ -246,9 +246,9 @@ def resolve_options(method: str, options: dict, defaults: dict | None = None) ->
     if "bearing_tail" in opts:
         opts["bearing_tail"] = as_tail(opts["bearing_tail"])
     if "distance_tail" in opts:
-        opts["distance_tail"] = as_distance_tail(opts["distance_tail"])
+        opts["distance_tail"] = as_normal_tail(opts["distance_tail"], "distance_tail")
     if "heading_tail" in opts:
-        opts["heading_tail"] = as_distance_tail(opts["heading_tail"], "heading_tail")
+        opts["heading_tail"] = as_normal_tail(opts["heading_tail"], "heading_tail")
     if "model_check" in opts:
         mc = non_negative("model_check", opts["model_check"])
         if mc >= 1:

@@ -1091,25 +1091,27 @@ def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
     # (exactly 0 when the noise is drawn at the model's width)
     if spread == 1.0:
         lcorr = None
-    elif tail is None:
+    elif tail is None and htail is None:
         noisy = np.stack([sh, sb, sb], axis=1) > 0
         lcorr = np.sum(np.where(noisy, -0.5 * z[:, :3] ** 2 * (spread * spread - 1.0)
                                 + np.log(spread), 0.0), axis=1)
     else:
-        lcorr = np.where(sh > 0, -0.5 * z[:, 0] ** 2 * (spread * spread - 1.0) + np.log(spread),
-                         0.0)
-        s2 = sb[:, None]
-        lab = _likelihood.log_bearing(nab, s2, tail) \
-            - _likelihood.log_bearing_proposal(nab, s2, tail, spread)
-        lcorr = lcorr + np.sum(np.where((sb > 0)[:, None], lab, 0.0), axis=1)
-    if lcorr is not None and htail is not None:
-        # the heading's part again, for its mixture: target over the spread mixture drawn from
-        plain = np.where(sh > 0, -0.5 * z[:, 0] ** 2 * (spread * spread - 1.0) + np.log(spread),
-                         0.0)
-        with np.errstate(divide="ignore"):
-            mix = _likelihood.log_bearing(hn, sh, htail) \
+        # the heading's part: the normal's ratio, or its mixture over the spread mixture
+        if htail is None:
+            lh = -0.5 * z[:, 0] ** 2 * (spread * spread - 1.0) + np.log(spread)
+        else:
+            lh = _likelihood.log_bearing(hn, sh, htail) \
                 - _likelihood.log_bearing(hn, spread * sh, htail)
-        lcorr = lcorr - plain + np.where(sh > 0, mix, 0.0)
+        # the A/B part: the normal's ratio per bearing, or the bearing tail's
+        if tail is None:
+            lab = -0.5 * z[:, 1:3] ** 2 * (spread * spread - 1.0) + np.log(spread)
+        else:
+            s2 = sb[:, None]
+            lab = _likelihood.log_bearing(nab, s2, tail) \
+                - _likelihood.log_bearing_proposal(nab, s2, tail, spread)
+        with np.errstate(invalid="ignore"):
+            lcorr = np.where(sh > 0, lh, 0.0) \
+                + np.sum(np.where((sb > 0)[:, None], lab, 0.0), axis=1)
     pts, valid, (ux, uy) = _arcs.ray_locus(pp[:, :2], th, pa, pb)
     mixed = _mixed(state, ct, r, spread)
     if np.any(mixed):
