@@ -184,8 +184,11 @@ def _reference_estimate(meas, part, opts, root) -> TripletEstimate:
     # predecessor's pose (the same pose)
     headings = None if meas.headings is None else meas.headings[keep[1:] - 1]
     o = {k: v for k, v in opts.items() if k != "prior"}
+    # the odometry's distances likewise (0 where unknown: no factor)
+    dist = None if meas.distances is None or headings is None else meas.distances[keep[1:] - 1]
     out = solve_reference(meas.bearings[keep], headings, meas.sigma_bearing, meas.sigma_heading,
-                          part, opts["prior"], np.random.default_rng(root), **o)
+                          part, opts["prior"], np.random.default_rng(root), distances=dist,
+                          sigma_distance_ratio=meas.sigma_distance_ratio, **o)
     reasons = [out["reason"]] if out["degenerate"] and out["reason"] else (
         ["reference solver flagged the answer"] if out["degenerate"] else [])
     if rep.any():

@@ -17,7 +17,7 @@ from ..geometry import wrap_angle
 class Measurements:
     """Validated measurements of one triplet: bearings (n, 3), headings (n - 1,) or None, and
     the odometry's travelled distances (n - 1,) (0 = unknown) with the noise of their log
-    ratios, or None (used by the SIS methods only). ``step_sigma_heading`` (n - 1,): each step's
+    ratios, or None (used by the SIS methods and the reference). ``step_sigma_heading`` (n - 1,): each step's
     heading sigma when they differ (``sigma_heading`` is then their largest), else None."""
 
     bearings: np.ndarray

@@ -60,9 +60,10 @@ from ..geometry import (
     wrap_angle,
 )
 from ._arcs import arc_parameter, log_ray_jacobian
-from ._input import check_bearings, check_headings
+from ._input import DISTANCE_RATIO_FLOOR, check_bearings, check_distances, check_headings
 from ._likelihood import logsumexp
 from ._reference_rb import RB_DEFAULTS as _RB_DEFAULTS
+from ._sis import log_distance_factor
 from ._reference_weights import (  # noqa: F401  (_log_wn: part of this module's interface)
     _log_wn,
     _summaries,
@@ -153,9 +154,11 @@ class _Layout:
     eps_A, eps_B]`` for an anchor view (drawn on its arc: view 1, or every view without motion)
     and ``[eps_psi_{j-1}, eps_A, eps_B]`` for a view reached along the motion ray."""
 
-    def __init__(self, bearings, headings, sv, sw):
+    def __init__(self, bearings, headings, sv, sw, distances=None, sd=0.0):
         self.phi = bearings                      # (n, 3)
         self.psi = headings                      # (n - 1,) or None
+        self.dist = distances                    # (n - 1,) odometry's distances, or None
+        self.sd = sd                             # width of their ratio factor (floored)
         self.n = bearings.shape[0]
         self.sv, self.sw = sv, sw
         self.anchor = np.ones(self.n, bool) if headings is None else np.r_[True, np.zeros(
@@ -165,7 +168,18 @@ class _Layout:
 
     def first(self, k):
         return _Layout(self.phi[:k], None if self.psi is None else self.psi[:k - 1],
-                       self.sv, self.sw)
+                       self.sv, self.sw, None if self.dist is None else self.dist[:k - 1],
+                       self.sd)
+
+    def log_distances(self, X) -> np.ndarray:
+        """(N,) the odometry's step-length-ratio factors of camera positions X (N, n, 2)
+        (:func:`._sis.log_distance_factor`; 0 without distances)."""
+        if self.dist is None or self.n < 3:
+            return np.zeros(X.shape[0])
+        d = np.diff(X, axis=1)
+        step = np.hypot(d[..., 0], d[..., 1])
+        return np.sum(log_distance_factor(step[:, 1:], step[:, :-1], self.dist[1:],
+                                          self.dist[:-1], self.sd), axis=1)
 
 
 def _construct(L, v, r=None, u=None):
@@ -449,7 +463,8 @@ def _round(L, prior, part, rng, mix, N, lam_ray):
         # the likelihoods of the true bearings of A, B and of the true headings, in eps units
         lik = (np.sum(_log_std_normal(vo[:, 1::3]) + _log_std_normal(vo[:, 2::3]), axis=1)
                + np.sum(np.where(L.anchor[None, :], 0.0, _log_std_normal(vo[:, 0::3])), axis=1))
-        lw[ok] = lp - L.n * _LOG2PI + logjac[ok] + lc[ok] + lik - lq[ok]
+        lw[ok] = lp - L.n * _LOG2PI + logjac[ok] + lc[ok] + lik - lq[ok] \
+            + L.log_distances(X[ok])
     lw = np.where(np.isnan(lw), -np.inf, lw)
     return v, r, X, c, lw
 
@@ -485,7 +500,8 @@ def _log_marginal(L, prior, v, r):
     ok = valid & good & np.isfinite(lc)
     if np.any(ok):
         pts = np.concatenate([mu[ok, None, :], X[ok]], axis=1)
-        out[ok] = prior.log_density(pts) - L.n * _LOG2PI + logjac[ok] + lc[ok] + lik[ok]
+        out[ok] = prior.log_density(pts) - L.n * _LOG2PI + logjac[ok] + lc[ok] + lik[ok] \
+            + L.log_distances(X[ok])
     return np.where(np.isnan(out), -np.inf, out)
 
 
@@ -576,7 +592,8 @@ def _weights(lw):
 
 
 def solve_reference(bearings, headings, sigma_bearing, sigma_heading, partition="edc",
-                    prior="world", seed=None, **options) -> dict:
+                    prior="world", seed=None, distances=None, sigma_distance_ratio=None,
+                    **options) -> dict:
     """Exact posterior of the states of C and of the cameras, up to a reported Monte Carlo error.
 
     Args:
@@ -588,6 +605,13 @@ def solve_reference(bearings, headings, sigma_bearing, sigma_heading, partition=
         partition: partition name or object.
         prior: a :class:`qfg.priors.Prior` or a name for :func:`qfg.priors.get`.
         seed: an int, a SeedSequence, a numpy Generator, or None.
+        distances: (n - 1,) the odometry's travelled distance between consecutive views (any
+            unit, >= 0; 0 = unknown), or None: each ratio of consecutive steps is a factor
+            ``N(log(s_i / s_(i-1)) - log(d_i / d_(i-1)); sigma_distance_ratio)`` of the target
+            (:func:`._sis.log_distance_factor`, as in the SIS solvers). The staged sampler only;
+            the conditional one refuses them.
+        sigma_distance_ratio: the noise of that log ratio (>= 0, floored at
+            :data:`._input.DISTANCE_RATIO_FLOOR`); required with distances.
         **options: see :data:`REFERENCE_DEFAULTS`.
 
     Returns a dict: ``landmark`` (m,), ``cameras`` (n, m), ``mc_error`` (m,) and
@@ -636,13 +660,27 @@ def solve_reference(bearings, headings, sigma_bearing, sigma_heading, partition=
     part = _partitions.get(partition)
     pr = _priors.get(prior)
     rng = as_rng(seed)
-    L = _Layout(b, h if (h is not None and h.size) else None, sv, sw)
+    dist, sd = None, 0.0
+    if distances is not None:
+        dist = check_distances(distances, b.shape[0])
+        if sigma_distance_ratio is None:
+            raise ValueError("sigma_distance_ratio: required when distances are given")
+        sd = max(non_negative("sigma_distance_ratio", sigma_distance_ratio),
+                 DISTANCE_RATIO_FLOOR)
+        if h is None or not h.size or not np.any(dist > 0):
+            dist = None
+    L = _Layout(b, h if (h is not None and h.size) else None, sv, sw, dist, sd)
     if opts["sampler"] not in ("auto", "conditional", "staged"):
         raise ValueError(f"sampler: expected 'auto', 'conditional' or 'staged', got "
                          f"{opts['sampler']!r}")
     sampler = opts["sampler"]
     if sampler == "auto":
         sampler = "staged" if L.n <= AUTO_STAGED_VIEWS else "conditional"
+
+    if sampler == "conditional" and L.dist is not None:
+        raise ValueError(f"distances: the conditional sampler (sampler='conditional', or "
+                         f"'auto' beyond {AUTO_STAGED_VIEWS} views) takes no odometry distances; "
+                         f"use sampler='staged' or leave the distances out")
 
     def run(prior):
         if sampler == "conditional":
