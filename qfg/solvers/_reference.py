@@ -13,6 +13,9 @@ Model (AB frame; the same as the other solvers, ``docs/priors.md``): configurati
 uniform), bearings ``phi_{j,L} ~ WN(f(L, X_j, alpha_j), sigma_v^2)`` for L in {A, B, C} and
 headings ``psi_j ~ WN(g(X_j, alpha_j, X_{j+1}), sigma_w^2)`` (WN: the wrapped normal, which for
 sigma below ~20 deg is the normal of the wrapped residual).
+With the odometry's distances ``d`` the target also carries the SIS solvers' factor on each
+ratio of consecutive step lengths, ``N(log(s_j / s_(j-1)) - log(d_j / d_(j-1)); sigma_d)``
+(staged sampler only).
 
 Sampling variables ``u`` (a bijection with theta wherever the target is positive):
 
@@ -63,12 +66,12 @@ from ._arcs import arc_parameter, log_ray_jacobian
 from ._input import DISTANCE_RATIO_FLOOR, check_bearings, check_distances, check_headings
 from ._likelihood import logsumexp
 from ._reference_rb import RB_DEFAULTS as _RB_DEFAULTS
-from ._sis import log_distance_factor
 from ._reference_weights import (  # noqa: F401  (_log_wn: part of this module's interface)
     _log_wn,
     _summaries,
     final_answer,
 )
+from ._sis import log_distance_factor
 
 __all__ = ["solve_reference", "REFERENCE_DEFAULTS"]
 
