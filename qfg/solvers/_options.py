@@ -20,6 +20,10 @@ METHODS = ("full", "fast", "fast-paper", "baseline", "reference")
 PRIORS = _priors.NAMES
 
 
+#: The cameras' prior in the SIS solvers' intermediate weights (``camera_prior``).
+CAMERA_PRIORS = ("point", "joint")
+
+
 #: Triangulation used in the resection step.
 RESECTIONS = ("centroid", "lsq")
 
@@ -80,6 +84,9 @@ DEFAULTS = {
                                      # instead of updated (docs/solvers.md, "More views": +0.03
                                      # at 10 views on development geometries; off: two tail and
                                      # model-check tests not yet squared with it)
+        "camera_prior": "point",     # the cameras' prior in the intermediate weights: "point"
+                                     # (a product of per-point priors) or "joint" (the prior
+                                     # of the cameras so far together; _sis._camera_log_prior)
         "prior": "world",
     },
     "fast": {
@@ -107,6 +114,7 @@ DEFAULTS = {
         "populations": 1,
         "few_views_populations": 1,
         "few_views_budget": None,
+        "camera_prior": "point",
         "prior": "world",
     },
     "fast-paper": {
@@ -231,6 +239,9 @@ def resolve_options(method: str, options: dict, defaults: dict | None = None) ->
         if pr >= 1:
             raise ValueError(f"prune_ratio: expected a number in [0, 1), got {pr}")
         opts["prune_ratio"] = pr
+    if opts.get("camera_prior", "point") not in CAMERA_PRIORS:
+        raise ValueError(f"camera_prior: expected one of {CAMERA_PRIORS}, "
+                         f"got {opts['camera_prior']!r}")
     if opts.get("kernel", "bearing") not in ("bearing", "combined"):
         raise ValueError(f"kernel: expected 'bearing' or 'combined', got {opts['kernel']!r}")
     if opts.get("resection", "centroid") not in RESECTIONS:

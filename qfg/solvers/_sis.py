@@ -176,6 +176,64 @@ def _take_last(levels, idx) -> tuple:
     return _with_last(levels, pose[idx], up[idx])
 
 
+def _log_joint_cameras(opts, X, keep=None) -> np.ndarray:
+    """(J,) log of the prior of the camera positions ``X`` (J, i, 2) together, up to a
+    constant: ``prior.log_density`` of the views ``keep`` (J, i) marks (None: all; views taken
+    as "camera did not move" repeat a point, which the prior of distinct points must not count
+    twice), with the quadrature of the rejuvenation's target (:func:`_target_prior`)."""
+    prior = _target_prior(opts["prior"])
+    if keep is None or np.all(keep):
+        return prior.log_density(X)
+    out = np.empty(X.shape[0])
+    pat, inv = np.unique(keep, axis=0, return_inverse=True)
+    for g in range(pat.shape[0]):
+        rows = np.flatnonzero(inv.reshape(-1) == g)
+        out[rows] = prior.log_density(X[rows][:, pat[g]])
+    return out
+
+
+def _log_camera_prior(opts, X) -> np.ndarray:
+    """(J,) the prior part of the intermediate target of camera trajectories ``X`` (J, i, 2):
+    with ``camera_prior="point"`` the product of per-point priors ``sum_t log p1(X_t)``; with
+    ``"joint"`` the per-point prior of the first camera times the joint prior's conditional of
+    the others given it,
+
+        log p1(X_1) + log prior(X_1..X_i) - log prior(X_1).
+
+    Why ``"joint"``: when the cameras stay close together far from A and B (a short baseline
+    seen from afar, as on MRCLAM), the product counts the prior of one far-away place i times
+    where the joint prior counts it about once, so the intermediate weights push every
+    hypothesis toward A and B by a factor that grows with the views, and the final weights
+    (the whole configuration's prior) rest on the few that survive."""
+    lp = _prior.point_log_prior(opts["prior"], X)
+    if opts.get("camera_prior", "point") == "point" or X.shape[1] < 2:
+        return np.sum(lp, axis=1)
+    with np.errstate(invalid="ignore"):
+        out = lp[:, 0] + _log_joint_cameras(opts, X) - _log_joint_cameras(opts, X[:, :1])
+    # a first camera outside the prior's support gives -inf - (-inf): no weight
+    return np.where(np.isnan(out), -np.inf, out)
+
+
+def _log_camera_step(state, pj, X) -> np.ndarray:
+    """(K,) the log prior factor a child at ``X`` (K, 2) adds to its parent's trajectory (rows
+    ``pj`` (K,) of ``state``'s hypotheses): ``log p1(X)`` with ``camera_prior="point"``, the
+    joint prior's conditional ``log prior(X_1..X_i, X) - log prior(X_1..X_i)`` with ``"joint"``
+    (the distinct views only: :func:`_log_joint_cameras`)."""
+    opts = state.opts
+    if opts.get("camera_prior", "point") == "point" or pj.size == 0:
+        return _prior.point_log_prior(opts["prior"], X)
+    up, back = np.unique(pj, return_inverse=True)
+    past = trajectories(state.levels, up)[..., :2]
+    keep = ~state.same_pose[state.tid[up]]
+    before = _log_joint_cameras(opts, past, keep)
+    K = pj.size
+    both = np.concatenate([past[back.reshape(-1)], X[:, None, :]], axis=1)
+    kb = np.concatenate([keep[back.reshape(-1)], np.ones((K, 1), dtype=bool)], axis=1)
+    with np.errstate(invalid="ignore"):
+        out = _log_joint_cameras(opts, both, kb) - before[back.reshape(-1)]
+    return np.where(np.isnan(out), -np.inf, out)
+
+
 def log_distance_factor(step, prev_step, distance, prev_distance, sigma, tail=None):
     """log of the odometry's scale-free factor on the ratio of consecutive step lengths,
 
@@ -499,7 +557,8 @@ def _log_pose_target(st: SISState, tid, poses):
 
     plus the odometry's step-length-ratio factors (:func:`log_distance_factor`) where distances
     are given: the density (in x, y, alpha) that the sampling and motion steps' weights make the
-    hypotheses represent. Returns (log target (J,), sum_t log p1(X_t) (J,))."""
+    hypotheses represent. Returns (log target (J,), its prior part (J,): sum_t log p1(X_t), or
+    with ``camera_prior="joint"`` :func:`_log_camera_prior`'s)."""
     X, al = poses[..., :2], poses[..., 2]
     b = st.bearings[tid]
     sv = st.sigma_bearing[tid][:, None]
@@ -511,7 +570,7 @@ def _log_pose_target(st: SISState, tid, poses):
     ra, rb = wrap_angle(b[..., 0] - fa), wrap_angle(b[..., 1] - fb)
     d = X[:, 1:] - X[:, :-1]
     rh = wrap_angle(st.headings[tid] - (np.arctan2(d[..., 1], d[..., 0]) - al[:, :-1]))
-    lp = np.sum(_prior.point_log_prior(st.opts["prior"], X), axis=1)
+    lp = _log_camera_prior(st.opts, X)
     tail = st.opts.get("bearing_tail")
     htail = st.opts.get("heading_tail")
     if htail is not None:
@@ -1132,7 +1191,7 @@ def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
     j = flat >> 1
     X = pts.reshape(-1, 2)[flat]
     pj = par[j]
-    lpx = _prior.point_log_prior(state.opts["prior"], X)
+    lpx = _log_camera_step(state, pj, X)
     lw = state.lw_base[pj] + _arcs.log_ray_jacobian_u(X, pp[j, :2], ux[j], uy[j]) + lpx
     if lcorr is not None:
         lw += lcorr[j]
