@@ -79,6 +79,7 @@ def _refused(capsys, argv, *words):
     (["--seed", "-1"], "--seed"), (["--resume", "--overwrite"], "--resume"),
     (["--heading-walk", "-1"], "--heading-walk"), (["--heading-walk", "fast"], "--heading-walk"),
     (["--distance-tail", "wide"], "--distance-tail"),
+    (["--camera-prior", "pairs"], "--camera-prior"),
 ])
 def test_bad_option_is_one_line_naming_it_and_nothing_is_written(root, tmp_path, capsys,
                                                                  no_solving, bad, name):

@@ -322,3 +322,14 @@ def test_noise_model_options_reach_the_histories_and_the_solver(data):
         study.prepare_run(p, robots=[1], heading_walk=1.0, heading_drift=True)
     with pytest.raises(ValueError, match="distance_tail: expected one of"):
         study.prepare_run(p, robots=[1], distance_tail="wide")
+    # --camera-prior joint: to the full/fast solvers (the baseline has no such option), absent
+    # at its default so that older runs solve as before
+    assert plain.solver_options["camera_prior"] is None
+    joint = study.prepare_run(p, robots=[1], spread_views=4, camera_prior="joint")
+    assert joint.solver_options["camera_prior"] == "joint"
+    a = study.solve_piece(joint, 0, method="fast", seed=0, piece=4)
+    b = study.solve_piece(plain, 0, method="fast", seed=0, piece=4)
+    assert any(not np.array_equal(x.landmark, y.landmark) for x, y in zip(a, b, strict=True))
+    assert study.solve_piece(joint, 0, method="baseline", seed=0, piece=2)
+    with pytest.raises(ValueError, match="camera_prior: expected one of"):
+        study.prepare_run(p, robots=[1], camera_prior="pairs")

@@ -114,6 +114,11 @@ def register(sub):
                         "normal (sigma --sigma-distance-ratio, default the loader's 0.074) or "
                         "measured (a normal core of 0.092 with 8.8%% of the ratios from a normal "
                         "7.2x wider, fitted to dataset 6 against motion capture); docs/mrclam.md")
+    p.add_argument("--camera-prior", default="point", choices=("point", "joint"),
+                   help="the cameras' prior in the solvers' intermediate weights: point (a "
+                        "product of per-point priors, default) or joint (the prior of the "
+                        "cameras so far together: closer to the exact posterior when a pass's "
+                        "cameras stay close together far from the landmarks); docs/solvers.md")
     p.add_argument("--heading-walk", default="0",
                    help="each step's heading sigma B sqrt(step seconds) degrees (the odometry's "
                         "heading as a random walk): B a number, 'measured' (1.21, fitted to "
@@ -258,6 +263,7 @@ def check_options(args) -> dict:
                          "measurements (--map joint)")
     later = {"bearing_tail": args.bearing_tail, "heading_drift": bool(args.heading_drift),
              "distance_tail": args.distance_tail,
+             "camera_prior": args.camera_prior,
              **_walk(args),
              "model_check": _number(args, "--model-check", lo=0.0, hi=0.5)}
     # at their defaults these stay out of the run's identity: runs recorded before they existed

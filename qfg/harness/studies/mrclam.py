@@ -112,12 +112,14 @@ DEFAULTS = {
                                            # deg / sqrt(s) (0: off; HEADING_WALK measured)
     "heading_tail": "normal",              # "measured": the headings' two-normal tail
                                            # (HEADING_WALK_TAIL), for the solvers
+    "camera_prior": "point",               # the solvers' camera_prior ("joint": the cameras'
+                                           # joint prior in the intermediate weights)
 }
 
 #: Options added after runs were recorded without them: a run's params leave them out at their
 #: defaults, so that those runs resume (``qfg mrclam --resume``) as before.
 LATER_KEYS = ("bearing_tail", "model_check", "heading_drift", "distance_tail", "heading_walk",
-              "heading_tail")
+              "heading_tail", "camera_prior")
 
 
 #: The odometry's direction-of-travel error (``sigma90``, degrees) against motion capture by the
@@ -368,7 +370,7 @@ SOLVE_KEYS = ("path", "robots", "method", "mode", "prior", "partition", "fix_lan
               "min_travel", "max_gap", "max_views", "spread_views", "sigma_bearing_deg",
               "sigma_heading_deg", "distances", "sigma_distance_ratio", "bearing_tail",
               "model_check", "heading_drift", "distance_tail", "heading_walk", "heading_tail",
-              "piece")
+              "camera_prior", "piece")
 
 
 @dataclass(frozen=True, eq=False)
@@ -402,7 +404,7 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
                 bearing_tail: str = "normal", model_check: float = 0.0,
                 heading_drift: bool = False, distance_tail: str = "normal",
                 heading_walk: float = 0.0, heading_tail: str = "normal",
-                dataset=None) -> Prepared:
+                camera_prior: str = "point", dataset=None) -> Prepared:
     """Load (or take ``dataset``, loaded from ``path``), fix the landmark ground truth, make the
     prior and its state distributions, and the histories to solve (module docstring, steps
     1-4). Every data file is read and checked here, before anything is solved."""
@@ -429,6 +431,10 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
     if heading_tail not in ("normal", "measured"):
         raise ValueError(f"heading_tail: expected 'normal' or 'measured', got {heading_tail!r}")
     htail = HEADING_WALK_TAIL[1] if heading_tail == "measured" else None
+    from qfg.solvers._options import CAMERA_PRIORS
+
+    if camera_prior not in CAMERA_PRIORS:
+        raise ValueError(f"camera_prior: expected one of {CAMERA_PRIORS}, got {camera_prior!r}")
     sigma_distance_ratio = sigma_distance_ratio or tail_sd
     sig = {}
     if tail_sb and not sigma_bearing_deg:
@@ -460,7 +466,10 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
                     prior_name=prior,
                     solver_options={"bearing_tail": tail, "model_check": float(model_check),
                                     "distance_tail": dtail if distances else None,
-                                    "heading_tail": htail})
+                                    "heading_tail": htail,
+                                    # only where set: runs without it solve as before
+                                    "camera_prior": None if camera_prior == "point"
+                                    else camera_prior})
 
 
 def n_pieces(prep: Prepared, piece: int = CHUNK) -> int:
@@ -492,6 +501,7 @@ def solve_piece(prep: Prepared, index: int, *, method: str = "full", seed=0, pie
         opts.pop("model_check", None)
         opts.pop("distance_tail", None)
         opts.pop("heading_tail", None)
+        opts.pop("camera_prior", None)
     pairs = solve_triplets(hs, method=method, partition=prep.partition, seed=ss,
                            hypotheses=True, **dict(opts, **solver_options, prior=prep.prior))
     out = []
@@ -899,7 +909,8 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
                 sigma_distance_ratio: float = 0.0, map_method: str = "",
                 piece: int = CHUNK, bearing_tail: str = "normal", model_check: float = 0.0,
                 heading_drift: bool = False, distance_tail: str = "normal",
-                heading_walk: float = 0.0, heading_tail: str = "normal", **solver_options):
+                heading_walk: float = 0.0, heading_tail: str = "normal",
+                camera_prior: str = "point", **solver_options):
     """Solve, combine, map, propagate and score one dataset directory, in memory (``qfg
     mrclam`` runs the same phases and records them: :func:`prepare_run`, :func:`solve_piece`
     per piece, :func:`finish`).
@@ -949,6 +960,8 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
             (:func:`walk_sigma_heading`; :data:`HEADING_WALK` measured; 0: off).
         heading_tail: ``"measured"``: the solvers' headings get the two-normal tail of
             :data:`HEADING_WALK_TAIL` (with ``heading_walk`` its 0.85).
+        camera_prior: the solvers' ``camera_prior`` (``"joint"``: the cameras' joint prior in
+            the intermediate weights; docs/solvers.md).
 
     Returns:
         rows (list of dicts; module docstring). With ``return_details``: ``(rows, details)``.
@@ -968,7 +981,8 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
                        distances=distances, sigma_distance_ratio=sigma_distance_ratio,
                        bearing_tail=bearing_tail, model_check=model_check,
                        heading_drift=heading_drift, distance_tail=distance_tail,
-                       heading_walk=heading_walk, heading_tail=heading_tail)
+                       heading_walk=heading_walk, heading_tail=heading_tail,
+                       camera_prior=camera_prior)
     t0 = time.perf_counter()
     ests = []
     for c in range(n_pieces(prep, piece)):
