@@ -1,0 +1,266 @@
+"""Where more views per pass stop helping on MRCLAM: the data, or the solver? A synthetic twin.
+
+For dataset 6's histories (120-s passes, ``k`` views spread evenly over each, every view covered
+by motion capture, the ascending ordering of each landmark set), each history is solved in up to
+five variants by one solver (``--method``) with one noise model (``--model measured``: the
+measured bearing tail, the heading walk and the step-length-ratio tail, as ``qfg mrclam
+--bearing-tail measured --heading-walk measured --distance-tail measured``; ``--model simple``:
+normal bearings and headings and a normal ratio, the model the reference solver takes):
+
+* ``real``: as recorded;
+* ``twin``: bearings, headings and step lengths made from the captured poses and the landmarks'
+  ground truth, with noise drawn from the very model the solver assumes (each bearing from the
+  bearing model, each step's heading from its sigma, each log ratio of consecutive step lengths
+  from the ratio model, all independent). The geometry is the real one; only the errors are the
+  model's;
+* ``twin-bearings``: the twin's bearings with the recorded odometry;
+* ``twin-odometry``: the recorded bearings with the twin's odometry;
+* ``clean``: the twin without noise (the captured geometry's exact values).
+
+If more views help the twin but not the real data, the solver is sound on this geometry and the
+loss is in how the real errors differ from the model; the two hybrids say which measurement
+carries it. Prints, per variant and ``k``, the mean log p(truth) of the seen states (clip 1e-4),
+the truth under 1%, and the paired difference against the smallest ``k`` with a standard error
+clustered by landmark set.
+
+    QFG_MRCLAM_DIR=... python experiments/mrclam_synthetic_twin.py [--views 3 5] [--robots 1 2]
+        [--limit 0] [--seed 0] [--method full] [--model measured] [--camera-prior point]
+        [--no-distances] [--csv out/twin.csv] [--against out/other.csv] [--from-csv out/twin.csv]
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import dataclasses
+import time
+from pathlib import Path
+
+import numpy as np
+
+from qfg.datasets import mrclam
+from qfg.geometry import bearing, motion_heading, wrap_angle
+from qfg.harness.studies import mrclam as study
+from qfg.metrics import log_score, truth_under
+from qfg.solvers import solve_triplets
+
+VARIANTS = ("real", "twin", "twin-bearings", "twin-odometry", "clean")
+CHUNK = 64
+
+
+#: the parts of the measured noise model (``qfg mrclam`` options), each on or off
+MODEL_PARTS = {"bearing_tail": "measured", "heading_walk": study.HEADING_WALK,
+               "distance_tail": "measured"}
+
+
+def model_parts(text: str) -> frozenset:
+    """``--model``: "measured" (every part), "simple" (none) or parts joined by commas."""
+    if text in ("measured", "simple"):
+        return frozenset(MODEL_PARTS if text == "measured" else ())
+    parts = frozenset(p.strip().replace("-", "_") for p in text.split(",") if p.strip())
+    if not parts or parts - set(MODEL_PARTS):
+        raise argparse.ArgumentTypeError(
+            f"expected measured, simple or a subset of {', '.join(MODEL_PARTS)}; got {text!r}")
+    return parts
+
+
+def _mixture(rng, shape, sigma, share=0.0, scale=1.0, outlier=0.0) -> np.ndarray:
+    """Draws of ``(1 - share - outlier) N(0, sigma) + share N(0, scale sigma) + outlier U(-pi,
+    pi)``; ``sigma`` broadcasts against ``shape``."""
+    u = rng.random(shape)
+    z = rng.standard_normal(shape) * np.broadcast_to(sigma, shape)
+    z = np.where(u < share, z * scale, z)
+    return np.where(u >= 1.0 - outlier, rng.uniform(-np.pi, np.pi, shape), z)
+
+
+def twin(h, rng, solver_options: dict, *, bearings: bool, odometry: bool, noise: float = 1.0):
+    """History ``h`` with its bearings and/or odometry replaced by the model's draws about the
+    captured geometry (module docstring); ``noise`` 0: the captured geometry's exact values."""
+    t = h.truth
+    P = np.asarray(t.poses_world, dtype=float)
+    out = {}
+    if bearings:
+        tail = solver_options.get("bearing_tail")
+        if tail is not None and not isinstance(tail, tuple):
+            tail = (tail.share, tail.scale, tail.outlier)
+        kw = {} if tail is None else dict(zip(("share", "scale", "outlier"), tail, strict=True))
+        phi = bearing(P[:, None, :], np.asarray(t.landmarks_world)[None, :, :])
+        out["bearings"] = wrap_angle(phi + noise * _mixture(rng, phi.shape, h.sigma_bearing,
+                                                            **kw))
+    if odometry and h.n_views > 1:
+        steps = h.n_views - 1
+        psi = motion_heading(P[:-1], P[1:, :2])
+        sh = np.broadcast_to(np.asarray(h.sigma_heading, dtype=float), (steps,))
+        out["headings"] = wrap_angle(psi + noise * rng.standard_normal(steps) * sh)
+        s = np.maximum(np.hypot(*np.diff(P[:, :2], axis=0).T), 1e-6)
+        dtail = solver_options.get("distance_tail")
+        kw = {} if dtail is None else dict(share=dtail[0], scale=dtail[1])
+        e = _mixture(rng, (steps,), float(h.sigma_distance_ratio or 0.0), **kw)
+        e[0] = 0.0
+        out["distances"] = s * np.exp(noise * np.cumsum(e))
+    return dataclasses.replace(h, **out)
+
+
+def select(prep, limit: int = 0) -> list:
+    """The ascending ordering of each history with motion, covered by the capture throughout."""
+    out, seen = [], set()
+    for r, h in prep.histories:
+        t = h.truth
+        if (list(h.landmarks) != sorted(h.landmarks) or not h.has_motion or h.n_views < 2
+                or t.poses_world is None or h.distances is None
+                or (h.groundtruth_valid is not None and not np.all(h.groundtruth_valid))):
+            continue
+        key = (r, tuple(h.landmarks), float(h.views[0]))
+        if key in seen:
+            continue
+        seen.add(key)
+        out.append((r, h))
+    return out[:limit] if limit else out
+
+
+def solve(prep, hs, seed, method="full", **options) -> np.ndarray:
+    """(T, m) the solver's state distributions, in chunks, seeded per chunk (``options`` on top
+    of the run's)."""
+    opts = dict({k: v for k, v in prep.solver_options.items() if v}, **options)
+    out = []
+    for i in range(0, len(hs), CHUNK):
+        ss = np.random.SeedSequence(int(seed), spawn_key=(i // CHUNK,))
+        est = solve_triplets(hs[i:i + CHUNK], method=method, partition=prep.partition, seed=ss,
+                             prior=prep.prior, **opts)
+        out.extend(e.landmark for e in est)
+    return np.array(out)
+
+
+def clustered_se(d, cluster) -> float:
+    """Standard error of the mean of ``d`` with observations clustered by ``cluster``."""
+    return study.clustered_se(d, np.unique(np.asarray(cluster), return_inverse=True)[1])
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--dataset", type=int, default=6)
+    ap.add_argument("--robots", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--views", type=int, nargs="+", default=[3, 5])
+    ap.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=VARIANTS)
+    ap.add_argument("--limit", type=int, default=0, help="histories per k (0: all)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--method", default="full", choices=("full", "fast", "reference"))
+    ap.add_argument("--model", default="measured", type=model_parts,
+                    help="measured (default): the measured bearing tail, heading walk and "
+                         "ratio tail (the reference takes none of them); simple: normal "
+                         "bearings and headings, one sigma each, and a normal ratio; or a "
+                         "comma-separated subset of " + ", ".join(MODEL_PARTS))
+    ap.add_argument("--camera-prior", default="point", choices=("point", "joint"),
+                    help="the solvers' camera_prior option")
+    ap.add_argument("--no-distances", action="store_true",
+                    help="solve without the odometry's distances")
+    ap.add_argument("--csv", type=Path, default=None)
+    ap.add_argument("--against", type=Path, default=None,
+                    help="another run's --csv: print this run minus that one, paired")
+    ap.add_argument("--from-csv", type=Path, default=None,
+                    help="report a recorded run's --csv instead of solving")
+    a = ap.parse_args(argv)
+    other = read_rows(a.against) if a.against is not None else None
+    if a.from_csv is not None:
+        rows = read_rows(a.from_csv)
+        report(rows, sorted({r["views"] for r in rows}))
+        if other is not None:
+            report_against(rows, other, a.against)
+        return
+    path = mrclam.data_root() / f"MRCLAM_Dataset{a.dataset}"
+    ds = study.prepare(path)[0]
+    rows = []
+    for k in a.views:
+        model = {k: v for k, v in MODEL_PARTS.items() if k in a.model}
+        prep = study.prepare_run(path, dataset=ds, robots=a.robots, spread_views=k, **model)
+        if a.no_distances:
+            prep.solver_options.pop("distance_tail", None)
+        sel = select(prep, a.limit)
+        for v in a.variants:
+            rng = np.random.default_rng(np.random.SeedSequence(a.seed, spawn_key=(k, 7)))
+            hs = [h if v == "real" else twin(h, rng, prep.solver_options,
+                                             bearings=v in ("twin", "twin-bearings", "clean"),
+                                             odometry=v in ("twin", "twin-odometry", "clean"),
+                                             noise=0.0 if v == "clean" else 1.0)
+                  for _, h in sel]
+            t0 = time.time()
+            if a.no_distances:
+                hs = [dataclasses.replace(h, distances=None) for h in hs]
+            P = solve(prep, hs, a.seed, a.method,
+                      **({"camera_prior": a.camera_prior} if a.method != "reference" else {}))
+            g = np.array([h.truth.state for h in hs])
+            ls, under = log_score(P, g), truth_under(P, g)
+            print(f"k={k} {v}: {len(hs)} histories, log p(truth) {ls.mean():.3f}, "
+                  f"under 1% {under.mean():.3f} ({time.time() - t0:.0f} s)", flush=True)
+            for (r, h), s, u in zip(sel, ls, under, strict=True):
+                rows.append(dict(variant=v, views=k, robot=r, landmarks="-".join(map(str, h.landmarks)),
+                                 start=float(h.views[0]), end=float(h.views[-1]),
+                                 log_score=float(s), under=bool(u)))
+    if a.csv:
+        a.csv.parent.mkdir(parents=True, exist_ok=True)
+        with open(a.csv, "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+            w.writeheader()
+            w.writerows(rows)
+    report(rows, a.views)
+    if a.against is not None:
+        report_against(rows, other, a.against)
+
+
+def read_rows(path: Path) -> list[dict]:
+    """Rows of a run's --csv, typed as the run made them."""
+    with open(path, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    if not rows:
+        raise SystemExit(f"{path}: no rows")
+    return [dict(r, views=int(r["views"]), robot=int(r["robot"]), start=float(r["start"]),
+                 end=float(r["end"]), log_score=float(r["log_score"]),
+                 under=r["under"] == "True") for r in rows]
+
+
+def report_against(rows, other, name) -> None:
+    """This run minus ``other`` (rows of another run's csv), paired by variant, views, robot,
+    landmark set and pass."""
+    def key(r):
+        return r["variant"], r["views"], r["robot"], r["landmarks"], round(r["start"], 6)
+    theirs = {key(r): r["log_score"] for r in other}
+    print(f"\n| variant | views | n | this run minus {name}, paired (SE clustered by landmark "
+          "set) |")
+    print("|---|---|---|---|")
+    for v, k in dict.fromkeys((r["variant"], r["views"]) for r in rows):
+        pairs = [(r["log_score"] - theirs[key(r)], r["landmarks"]) for r in rows
+                 if r["variant"] == v and r["views"] == k and key(r) in theirs]
+        if pairs:
+            d = np.array([p[0] for p in pairs])
+            print(f"| {v} | {k} | {len(d)} | {d.mean():+.3f} ± "
+                  f"{clustered_se(d, [p[1] for p in pairs]):.3f} |")
+
+
+def report(rows, views) -> None:
+    """Paired differences against the smallest k, per variant, matched by robot, landmark set
+    and pass (the pass's first view time at the smallest k)."""
+    k0 = min(views)
+    print("\n| variant | views | n | log p(truth) | truth under 1% | paired vs "
+          f"{k0} views (SE clustered by landmark set) |")
+    print("|---|---|---|---|---|---|")
+    for v in dict.fromkeys(r["variant"] for r in rows):
+        base = {(r["robot"], r["landmarks"], r["start"]): r["log_score"] for r in rows
+                if r["variant"] == v and r["views"] == k0}
+        for k in views:
+            sub = [r for r in rows if r["variant"] == v and r["views"] == k]
+            if not sub:
+                continue
+            ls = np.array([r["log_score"] for r in sub])
+            pairs = [(r["log_score"] - base[key], r["landmarks"]) for r in sub
+                     if (key := (r["robot"], r["landmarks"], r["start"])) in base]
+            diff = ""
+            if k != k0 and pairs:
+                d = np.array([p[0] for p in pairs])
+                diff = (f"{d.mean():+.3f} ± {clustered_se(d, [p[1] for p in pairs]):.3f} "
+                        f"({len(d)})")
+            print(f"| {v} | {k} | {len(sub)} | {ls.mean():.3f} | "
+                  f"{np.mean([r['under'] for r in sub]):.3f} | {diff} |")
+
+
+if __name__ == "__main__":
+    main()
