@@ -25,7 +25,7 @@ clustered by landmark set.
 
     QFG_MRCLAM_DIR=... python experiments/mrclam_synthetic_twin.py [--views 3 5] [--robots 1 2]
         [--limit 0] [--seed 0] [--method full] [--model measured] [--camera-prior point]
-        [--no-distances] [--csv out/twin.csv] [--against out/other.csv] [--from-csv out/twin.csv]
+        [--budget 1] [--no-distances] [--csv out/twin.csv] [--against out/other.csv] [--from-csv out/twin.csv]
 """
 
 from __future__ import annotations
@@ -43,6 +43,7 @@ from qfg.geometry import bearing, motion_heading, wrap_angle
 from qfg.harness.studies import mrclam as study
 from qfg.metrics import log_score, truth_under
 from qfg.solvers import solve_triplets
+from qfg.solvers._options import scaled_budget
 
 VARIANTS = ("real", "twin", "twin-bearings", "twin-odometry", "clean")
 CHUNK = 64
@@ -152,6 +153,9 @@ def main(argv=None):
                          "comma-separated subset of " + ", ".join(MODEL_PARTS))
     ap.add_argument("--camera-prior", default="point", choices=("point", "joint"),
                     help="the solvers' camera_prior option")
+    ap.add_argument("--budget", type=float, default=1.0,
+                    help="full only: n_samples, max_hypotheses and posterior_samples this many "
+                         "times their defaults (1: the defaults, with the few-views budget)")
     ap.add_argument("--no-distances", action="store_true",
                     help="solve without the odometry's distances")
     ap.add_argument("--csv", type=Path, default=None)
@@ -160,6 +164,14 @@ def main(argv=None):
     ap.add_argument("--from-csv", type=Path, default=None,
                     help="report a recorded run's --csv instead of solving")
     a = ap.parse_args(argv)
+    if a.budget != 1.0 and a.method != "full":
+        ap.error("--budget: only with --method full")
+    try:
+        extra = scaled_budget("full", a.budget) if a.method == "full" else {}
+    except ValueError as e:
+        ap.error(f"--{e}")
+    if a.method != "reference":
+        extra["camera_prior"] = a.camera_prior
     other = read_rows(a.against) if a.against is not None else None
     if a.from_csv is not None:
         rows = read_rows(a.from_csv)
@@ -186,8 +198,7 @@ def main(argv=None):
             t0 = time.time()
             if a.no_distances:
                 hs = [dataclasses.replace(h, distances=None) for h in hs]
-            P = solve(prep, hs, a.seed, a.method,
-                      **({"camera_prior": a.camera_prior} if a.method != "reference" else {}))
+            P = solve(prep, hs, a.seed, a.method, **extra)
             g = np.array([h.truth.state for h in hs])
             ls, under = log_score(P, g), truth_under(P, g)
             print(f"k={k} {v}: {len(hs)} histories, log p(truth) {ls.mean():.3f}, "

@@ -80,6 +80,8 @@ def _refused(capsys, argv, *words):
     (["--heading-walk", "-1"], "--heading-walk"), (["--heading-walk", "fast"], "--heading-walk"),
     (["--distance-tail", "wide"], "--distance-tail"),
     (["--camera-prior", "pairs"], "--camera-prior"),
+    (["--budget", "0"], "--budget"), (["--budget", "nan"], "--budget"),
+    (["--budget", "2", "--method", "baseline"], "--budget"),
 ])
 def test_bad_option_is_one_line_naming_it_and_nothing_is_written(root, tmp_path, capsys,
                                                                  no_solving, bad, name):

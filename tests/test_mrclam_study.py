@@ -333,3 +333,30 @@ def test_noise_model_options_reach_the_histories_and_the_solver(data):
     assert study.solve_piece(joint, 0, method="baseline", seed=0, piece=2)
     with pytest.raises(ValueError, match="camera_prior: expected one of"):
         study.prepare_run(p, robots=[1], camera_prior="pairs")
+    # --budget F: the full/fast solvers' budget keys at F times their defaults, absent at 1;
+    # the solver then gets exactly that budget (the answers differ from the default's)
+    assert plain.solver_options["budget"] is None
+    big = study.prepare_run(p, robots=[1], spread_views=4, budget=0.5)
+    assert big.solver_options["budget"] == 0.5
+    seen = {}
+    import qfg.solvers as solvers
+
+    def spy(*args, **kw):
+        seen.update(kw)
+        return orig(*args, **kw)
+
+    orig = solvers.solve_triplets
+    solvers.solve_triplets = spy
+    try:
+        study.solve_piece(big, 0, method="fast", seed=0, piece=2)
+    finally:
+        solvers.solve_triplets = orig
+    from qfg.solvers._options import DEFAULTS
+
+    assert seen["n_samples"] == round(DEFAULTS["fast"]["n_samples"] * 0.5)
+    assert seen["max_hypotheses"] == round(DEFAULTS["fast"]["max_hypotheses"] * 0.5)
+    assert "budget" not in seen
+    with pytest.raises(ValueError, match="budget: the baseline solver has no budget factor"):
+        study.solve_piece(big, 0, method="baseline", seed=0, piece=2)
+    with pytest.raises(ValueError, match="budget: expected a factor > 0"):
+        study.prepare_run(p, robots=[1], budget=0.0)

@@ -159,6 +159,35 @@ FEW_VIEWS_OFF = {"few_views_budget": None, "few_views_populations": 1,
 FEW_VIEWS_OVERRIDES = tuple(FEW_VIEWS_OFF) + FEW_VIEWS_KEYS + ("populations",)
 
 
+#: The options that set the SIS solvers' sampling budget (scaled together by
+#: :func:`scaled_budget`).
+BUDGET_KEYS = ("n_samples", "max_hypotheses", "posterior_samples")
+
+
+def scaled_budget(method: str, factor: float) -> dict:
+    """The budget options of ``method`` ("full" or "fast") at ``factor`` times their defaults
+    (:data:`BUDGET_KEYS`, each at least 1): more hypotheses for about ``factor`` times the time,
+    where the default budget is measured not to resolve the posterior (docs/solvers.md,
+    "The budget"). ``factor`` 1 gives ``{}``: the defaults, the few-views package included
+    (any budget option given switches it off, :data:`FEW_VIEWS_OFF`).
+
+    >>> scaled_budget("full", 4.0)
+    {'n_samples': 2400, 'max_hypotheses': 12000, 'posterior_samples': 2048}
+    >>> scaled_budget("full", 1.0)
+    {}
+    """
+    if method not in ("full", "fast"):
+        raise ValueError(f"budget: only the full and fast solvers take a budget factor, not "
+                         f"{method!r}")
+    f = float(factor)
+    if not (np.isfinite(f) and f > 0):
+        raise ValueError(f"budget: expected a factor > 0, got {factor!r}")
+    if f == 1.0:
+        return {}
+    d = DEFAULTS[method]
+    return {k: max(1, int(round(d[k] * f))) for k in BUDGET_KEYS}
+
+
 def _few_views_budget(value):
     """``few_views_budget``: None, or a dict of :data:`FEW_VIEWS_KEYS` to positive ints."""
     if value is None or (isinstance(value, dict) and not value):

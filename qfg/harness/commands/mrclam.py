@@ -119,6 +119,12 @@ def register(sub):
                         "product of per-point priors, default) or joint (the prior of the "
                         "cameras so far together: closer to the exact posterior when a pass's "
                         "cameras stay close together far from the landmarks); docs/solvers.md")
+    p.add_argument("--budget", type=float, default=1.0,
+                   help="the full/fast solvers' sampling budget (n_samples, max_hypotheses, "
+                        "posterior_samples) times this factor, for about as many times the "
+                        "time: where a pass's cameras stay far from close landmarks the default "
+                        "budget does not resolve 5 or more views (docs/solvers.md, \"The "
+                        "budget\"); default 1")
     p.add_argument("--heading-walk", default="0",
                    help="each step's heading sigma B sqrt(step seconds) degrees (the odometry's "
                         "heading as a random walk): B a number, 'measured' (1.21, fitted to "
@@ -264,8 +270,12 @@ def check_options(args) -> dict:
     later = {"bearing_tail": args.bearing_tail, "heading_drift": bool(args.heading_drift),
              "distance_tail": args.distance_tail,
              "camera_prior": args.camera_prior,
+             "budget": _number(args, "--budget", lo=0.0, lo_open=True),
              **_walk(args),
              "model_check": _number(args, "--model-check", lo=0.0, hi=0.5)}
+    if later["budget"] != 1.0 and method not in ("full", "fast"):
+        raise ValueError(f"--budget: only the full and fast solvers take a budget factor; "
+                         f"the method here is {method!r}")
     # at their defaults these stay out of the run's identity: runs recorded before they existed
     # resume as before
     later = {k: v for k, v in later.items() if v != study.DEFAULTS[k]}

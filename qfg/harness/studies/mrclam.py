@@ -112,6 +112,8 @@ DEFAULTS = {
                                            # deg / sqrt(s) (0: off; HEADING_WALK measured)
     "heading_tail": "normal",              # "measured": the headings' two-normal tail
                                            # (HEADING_WALK_TAIL), for the solvers
+    "budget": 1.0,                         # the full/fast solvers' budget (n_samples,
+                                           # max_hypotheses, posterior_samples) times this
     "camera_prior": "point",               # the solvers' camera_prior ("joint": the cameras'
                                            # joint prior in the intermediate weights)
 }
@@ -119,7 +121,7 @@ DEFAULTS = {
 #: Options added after runs were recorded without them: a run's params leave them out at their
 #: defaults, so that those runs resume (``qfg mrclam --resume``) as before.
 LATER_KEYS = ("bearing_tail", "model_check", "heading_drift", "distance_tail", "heading_walk",
-              "heading_tail", "camera_prior")
+              "heading_tail", "camera_prior", "budget")
 
 
 #: The odometry's direction-of-travel error (``sigma90``, degrees) against motion capture by the
@@ -370,7 +372,7 @@ SOLVE_KEYS = ("path", "robots", "method", "mode", "prior", "partition", "fix_lan
               "min_travel", "max_gap", "max_views", "spread_views", "sigma_bearing_deg",
               "sigma_heading_deg", "distances", "sigma_distance_ratio", "bearing_tail",
               "model_check", "heading_drift", "distance_tail", "heading_walk", "heading_tail",
-              "camera_prior", "piece")
+              "camera_prior", "budget", "piece")
 
 
 @dataclass(frozen=True, eq=False)
@@ -404,7 +406,7 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
                 bearing_tail: str = "normal", model_check: float = 0.0,
                 heading_drift: bool = False, distance_tail: str = "normal",
                 heading_walk: float = 0.0, heading_tail: str = "normal",
-                camera_prior: str = "point", dataset=None) -> Prepared:
+                camera_prior: str = "point", budget: float = 1.0, dataset=None) -> Prepared:
     """Load (or take ``dataset``, loaded from ``path``), fix the landmark ground truth, make the
     prior and its state distributions, and the histories to solve (module docstring, steps
     1-4). Every data file is read and checked here, before anything is solved."""
@@ -435,6 +437,9 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
 
     if camera_prior not in CAMERA_PRIORS:
         raise ValueError(f"camera_prior: expected one of {CAMERA_PRIORS}, got {camera_prior!r}")
+    budget = float(budget)
+    if not (np.isfinite(budget) and budget > 0):
+        raise ValueError(f"budget: expected a factor > 0, got {budget!r}")
     sigma_distance_ratio = sigma_distance_ratio or tail_sd
     sig = {}
     if tail_sb and not sigma_bearing_deg:
@@ -469,7 +474,9 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
                                     "heading_tail": htail,
                                     # only where set: runs without it solve as before
                                     "camera_prior": None if camera_prior == "point"
-                                    else camera_prior})
+                                    else camera_prior,
+                                    # a factor, turned into the solver's options in solve_piece
+                                    "budget": None if budget == 1.0 else budget})
 
 
 def n_pieces(prep: Prepared, piece: int = CHUNK) -> int:
@@ -496,6 +503,13 @@ def solve_piece(prep: Prepared, index: int, *, method: str = "full", seed=0, pie
     # the run's noise model and check (prepare_run), only where set: the solvers' defaults
     # otherwise (the baseline takes no model check)
     opts = {k: v for k, v in prep.solver_options.items() if v}
+    budget = opts.pop("budget", None)
+    if budget is not None:
+        if method not in ("full", "fast"):
+            raise ValueError(f"budget: the {method} solver has no budget factor (full, fast)")
+        from qfg.solvers._options import scaled_budget
+
+        opts.update(scaled_budget(method, budget))
     if method == "baseline":
         # no model check, and no odometry distances in its model
         opts.pop("model_check", None)
@@ -910,7 +924,7 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
                 piece: int = CHUNK, bearing_tail: str = "normal", model_check: float = 0.0,
                 heading_drift: bool = False, distance_tail: str = "normal",
                 heading_walk: float = 0.0, heading_tail: str = "normal",
-                camera_prior: str = "point", **solver_options):
+                camera_prior: str = "point", budget: float = 1.0, **solver_options):
     """Solve, combine, map, propagate and score one dataset directory, in memory (``qfg
     mrclam`` runs the same phases and records them: :func:`prepare_run`, :func:`solve_piece`
     per piece, :func:`finish`).
@@ -962,6 +976,8 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
             :data:`HEADING_WALK_TAIL` (with ``heading_walk`` its 0.85).
         camera_prior: the solvers' ``camera_prior`` (``"joint"``: the cameras' joint prior in
             the intermediate weights; docs/solvers.md).
+        budget: the full/fast solvers' budget times this factor
+            (:func:`qfg.solvers._options.scaled_budget`).
 
     Returns:
         rows (list of dicts; module docstring). With ``return_details``: ``(rows, details)``.
@@ -982,7 +998,7 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
                        bearing_tail=bearing_tail, model_check=model_check,
                        heading_drift=heading_drift, distance_tail=distance_tail,
                        heading_walk=heading_walk, heading_tail=heading_tail,
-                       camera_prior=camera_prior)
+                       camera_prior=camera_prior, budget=budget)
     t0 = time.perf_counter()
     ests = []
     for c in range(n_pieces(prep, piece)):
