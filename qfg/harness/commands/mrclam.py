@@ -123,7 +123,7 @@ def register(sub):
                    help="the full/fast solvers' sampling budget (n_samples, max_hypotheses, "
                         "posterior_samples) times this factor, for about as many times the "
                         "time: where a pass's cameras stay far from close landmarks the default "
-                        "budget does not resolve 5 or more views (docs/solvers.md, \"The "
+                        "budget was measured not to resolve 5 views (docs/solvers.md, \"The "
                         "budget\"); default 1")
     p.add_argument("--heading-walk", default="0",
                    help="each step's heading sigma B sqrt(step seconds) degrees (the odometry's "
