@@ -177,8 +177,7 @@ def scaled_budget(method: str, factor: float) -> dict:
     {}
     """
     if method not in ("full", "fast"):
-        raise ValueError(f"budget: only the full and fast solvers take a budget factor, not "
-                         f"{method!r}")
+        raise ValueError(f"budget: the {method} solver has no budget factor (full, fast)")
     f = float(factor)
     if not (np.isfinite(f) and f > 0):
         raise ValueError(f"budget: expected a factor > 0, got {factor!r}")

@@ -433,13 +433,12 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
     if heading_tail not in ("normal", "measured"):
         raise ValueError(f"heading_tail: expected 'normal' or 'measured', got {heading_tail!r}")
     htail = HEADING_WALK_TAIL[1] if heading_tail == "measured" else None
-    from qfg.solvers._options import CAMERA_PRIORS
+    from qfg.solvers._options import CAMERA_PRIORS, scaled_budget
 
     if camera_prior not in CAMERA_PRIORS:
         raise ValueError(f"camera_prior: expected one of {CAMERA_PRIORS}, got {camera_prior!r}")
+    scaled_budget("full", budget)   # checks the factor here, before anything is solved
     budget = float(budget)
-    if not (np.isfinite(budget) and budget > 0):
-        raise ValueError(f"budget: expected a factor > 0, got {budget!r}")
     sigma_distance_ratio = sigma_distance_ratio or tail_sd
     sig = {}
     if tail_sb and not sigma_bearing_deg:
@@ -505,8 +504,6 @@ def solve_piece(prep: Prepared, index: int, *, method: str = "full", seed=0, pie
     opts = {k: v for k, v in prep.solver_options.items() if v}
     budget = opts.pop("budget", None)
     if budget is not None:
-        if method not in ("full", "fast"):
-            raise ValueError(f"budget: the {method} solver has no budget factor (full, fast)")
         from qfg.solvers._options import scaled_budget
 
         opts.update(scaled_budget(method, budget))
