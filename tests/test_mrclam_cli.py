@@ -82,6 +82,8 @@ def _refused(capsys, argv, *words):
     (["--camera-prior", "pairs"], "--camera-prior"),
     (["--budget", "0"], "--budget"), (["--budget", "nan"], "--budget"),
     (["--budget", "2", "--method", "baseline"], "--budget"),
+    (["--populations", "0"], "--populations"), (["--populations", "two"], "--populations"),
+    (["--populations", "2", "--method", "baseline"], "--populations"),
 ])
 def test_bad_option_is_one_line_naming_it_and_nothing_is_written(root, tmp_path, capsys,
                                                                  no_solving, bad, name):

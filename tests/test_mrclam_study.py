@@ -360,3 +360,20 @@ def test_noise_model_options_reach_the_histories_and_the_solver(data):
         study.solve_piece(big, 0, method="baseline", seed=0, piece=2)
     with pytest.raises(ValueError, match="budget: expected a factor > 0"):
         study.prepare_run(p, robots=[1], budget=0.0)
+    # --populations K: the solvers' populations option, absent at 1; the baseline runs none
+    assert plain.solver_options["populations"] is None
+    two = study.prepare_run(p, robots=[1], spread_views=4, populations=2)
+    assert two.solver_options["populations"] == 2
+    seen.clear()
+    solvers.solve_triplets = spy
+    try:
+        study.solve_piece(two, 0, method="fast", seed=0, piece=2)
+        assert seen["populations"] == 2
+        seen.clear()
+        study.solve_piece(two, 0, method="baseline", seed=0, piece=2)
+        assert "populations" not in seen
+    finally:
+        solvers.solve_triplets = orig
+    for bad in (0, 1.5, True):
+        with pytest.raises(ValueError, match="populations: expected a whole number"):
+            study.prepare_run(p, robots=[1], populations=bad)

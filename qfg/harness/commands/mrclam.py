@@ -119,6 +119,10 @@ def register(sub):
                         "product of per-point priors, default) or joint (the prior of the "
                         "cameras so far together: closer to the exact posterior when a pass's "
                         "cameras stay close together far from the landmarks); docs/solvers.md")
+    p.add_argument("--populations", type=int, default=1,
+                   help="the full/fast solvers' independent SIS populations, each with its "
+                        "share of the budget, answers averaged (default 1; docs/solvers.md, "
+                        "'Independent populations')")
     p.add_argument("--budget", type=float, default=1.0,
                    help="the full/fast solvers' sampling budget (n_samples, max_hypotheses, "
                         "posterior_samples) times this factor, for about as many times the "
@@ -271,8 +275,15 @@ def check_options(args) -> dict:
              "distance_tail": args.distance_tail,
              "camera_prior": args.camera_prior,
              "budget": _number(args, "--budget", lo=0.0, lo_open=True),
+             "populations": args.populations,
              **_walk(args),
              "model_check": _number(args, "--model-check", lo=0.0, hi=0.5)}
+    if later["populations"] < 1:
+        raise ValueError(f"--populations: expected a whole number >= 1, got "
+                         f"{later['populations']}")
+    if later["populations"] != 1 and method not in ("full", "fast"):
+        raise ValueError(f"--populations: only the full and fast solvers run populations; "
+                         f"the method here is {method!r}")
     if later["budget"] != 1.0 and method not in ("full", "fast"):
         raise ValueError(f"--budget: only the full and fast solvers take a budget factor; "
                          f"the method here is {method!r}")

@@ -116,12 +116,14 @@ DEFAULTS = {
                                            # max_hypotheses, posterior_samples) times this
     "camera_prior": "point",               # the solvers' camera_prior ("joint": the cameras'
                                            # joint prior in the intermediate weights)
+    "populations": 1,                      # the full/fast solvers' independent SIS
+                                           # populations (their populations option)
 }
 
 #: Options added after runs were recorded without them: a run's params leave them out at their
 #: defaults, so that those runs resume (``qfg mrclam --resume``) as before.
 LATER_KEYS = ("bearing_tail", "model_check", "heading_drift", "distance_tail", "heading_walk",
-              "heading_tail", "camera_prior", "budget")
+              "heading_tail", "camera_prior", "budget", "populations")
 
 
 #: The odometry's direction-of-travel error (``sigma90``, degrees) against motion capture by the
@@ -372,7 +374,7 @@ SOLVE_KEYS = ("path", "robots", "method", "mode", "prior", "partition", "fix_lan
               "min_travel", "max_gap", "max_views", "spread_views", "sigma_bearing_deg",
               "sigma_heading_deg", "distances", "sigma_distance_ratio", "bearing_tail",
               "model_check", "heading_drift", "distance_tail", "heading_walk", "heading_tail",
-              "camera_prior", "budget", "piece")
+              "camera_prior", "budget", "populations", "piece")
 
 
 @dataclass(frozen=True, eq=False)
@@ -406,7 +408,8 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
                 bearing_tail: str = "normal", model_check: float = 0.0,
                 heading_drift: bool = False, distance_tail: str = "normal",
                 heading_walk: float = 0.0, heading_tail: str = "normal",
-                camera_prior: str = "point", budget: float = 1.0, dataset=None) -> Prepared:
+                camera_prior: str = "point", budget: float = 1.0, populations: int = 1,
+                dataset=None) -> Prepared:
     """Load (or take ``dataset``, loaded from ``path``), fix the landmark ground truth, make the
     prior and its state distributions, and the histories to solve (module docstring, steps
     1-4). Every data file is read and checked here, before anything is solved."""
@@ -438,6 +441,8 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
     if camera_prior not in CAMERA_PRIORS:
         raise ValueError(f"camera_prior: expected one of {CAMERA_PRIORS}, got {camera_prior!r}")
     scaled_budget("full", budget)   # checks the factor here, before anything is solved
+    if isinstance(populations, bool) or int(populations) != populations or populations < 1:
+        raise ValueError(f"populations: expected a whole number >= 1, got {populations!r}")
     budget = float(budget)
     sigma_distance_ratio = sigma_distance_ratio or tail_sd
     sig = {}
@@ -475,7 +480,9 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
                                     "camera_prior": None if camera_prior == "point"
                                     else camera_prior,
                                     # a factor, turned into the solver's options in solve_piece
-                                    "budget": None if budget == 1.0 else budget})
+                                    "budget": None if budget == 1.0 else budget,
+                                    "populations": None if populations == 1
+                                    else int(populations)})
 
 
 def n_pieces(prep: Prepared, piece: int = CHUNK) -> int:
@@ -513,6 +520,7 @@ def solve_piece(prep: Prepared, index: int, *, method: str = "full", seed=0, pie
         opts.pop("distance_tail", None)
         opts.pop("heading_tail", None)
         opts.pop("camera_prior", None)
+        opts.pop("populations", None)
     pairs = solve_triplets(hs, method=method, partition=prep.partition, seed=ss,
                            hypotheses=True, **dict(opts, **solver_options, prior=prep.prior))
     out = []
@@ -921,7 +929,8 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
                 piece: int = CHUNK, bearing_tail: str = "normal", model_check: float = 0.0,
                 heading_drift: bool = False, distance_tail: str = "normal",
                 heading_walk: float = 0.0, heading_tail: str = "normal",
-                camera_prior: str = "point", budget: float = 1.0, **solver_options):
+                camera_prior: str = "point", budget: float = 1.0, populations: int = 1,
+                **solver_options):
     """Solve, combine, map, propagate and score one dataset directory, in memory (``qfg
     mrclam`` runs the same phases and records them: :func:`prepare_run`, :func:`solve_piece`
     per piece, :func:`finish`).
@@ -975,6 +984,9 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
             the intermediate weights; docs/solvers.md).
         budget: the full/fast solvers' budget times this factor
             (:func:`qfg.solvers._options.scaled_budget`).
+        populations: the full/fast solvers' independent SIS populations (their
+            ``populations`` option; 1: the default; given, the few-views package is off,
+            docs/solvers.md).
 
     Returns:
         rows (list of dicts; module docstring). With ``return_details``: ``(rows, details)``.
@@ -995,7 +1007,7 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
                        bearing_tail=bearing_tail, model_check=model_check,
                        heading_drift=heading_drift, distance_tail=distance_tail,
                        heading_walk=heading_walk, heading_tail=heading_tail,
-                       camera_prior=camera_prior, budget=budget)
+                       camera_prior=camera_prior, budget=budget, populations=populations)
     t0 = time.perf_counter()
     ests = []
     for c in range(n_pieces(prep, piece)):
