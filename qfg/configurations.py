@@ -104,6 +104,10 @@ def _world_prior(prior) -> _priors.WorldBoxPrior:
     if not isinstance(pr, _priors.WorldBoxPrior):
         raise ValueError(f"prior: configuration inference samples world configurations and needs "
                          f"a world prior (qfg.priors.WorldBoxPrior or 'world'), got {pr!r}")
+    if pr.scale_power:
+        raise ValueError(f"prior: configuration inference draws every landmark i.i.d. in the box; "
+                         f"a pair-scale prior (scale_power={pr.scale_power}) describes one "
+                         f"triplet's frame, not a whole map: give scale_power=0")
     return pr
 
 

@@ -157,17 +157,35 @@ class WorldBoxPrior(Prior):
     them, a coupling of the same negligible order. Evaluating the prior on a subset of the points
     is, likewise, its marginal up to O(d_min^2).
 
+    **The pair's scale** (``scale_power`` p, default 0). With p = 0, B is uniform in the box
+    like every other point, so the distance s = |AB| has density about ∝ s (the area of a ring):
+    a small pair is improbable, and with it every configuration that puts C or a camera many
+    |AB| away (the density falls as the extent^-(2k+2)). Where landmarks stand in clusters (a
+    pair 0.3 m apart in an 8 m arena) that prior decides C's depth against the data. With p ≠ 0
+    B is drawn at distance s from A with density ∝ s^(1+p) on [d_min, the box's diagonal] (p =
+    -2: s log-uniform, every scale of the pair equally likely), in a uniform direction, redrawn
+    while outside the box; the others as before. Only the power of s changes:
+
+        prior(q_1..q_k) ∝ ∫_0^π dρ ∫_{s0}^{s1} s^(2k+1+p) (W - s xr(ρ)) (H - s yr(ρ)) ds,
+
+    normalized up to a constant of k and p (the density of s and the redraws). p is an integer
+    in [-2, 2]; p < 0 needs d_min > 0 (s^(1+p) is not integrable at 0 otherwise).
+
     >>> p = WorldBoxPrior()
     >>> q = np.array([[[0.4, 0.5]], [[-0.4, 0.5]]])        # C and its mirror image
     >>> a, b = p.log_density(q)
     >>> bool(np.isclose(a, b))
+    True
+    >>> far = np.array([[[8.0, 0.5]]])                     # C 8 |AB| from the pair
+    >>> bool(WorldBoxPrior(scale_power=-2).log_density(far)[0] - WorldBoxPrior().log_density(far)[0]
+    ...      > WorldBoxPrior(scale_power=-2).log_density(q[:1])[0] - p.log_density(q[:1])[0])
     True
     """
 
     name = "world"
 
     def __init__(self, width: float = _SIM_WIDTH, height: float = _SIM_HEIGHT,
-                 d_min: float = _SIM_DMIN, n_rho: int = 128):
+                 d_min: float = _SIM_DMIN, n_rho: int = 128, scale_power: int = 0):
         self.width = _length("width", width, MIN_BOX_SIDE)
         self.height = _length("height", height, MIN_BOX_SIDE)
         self.d_min = non_negative("d_min", d_min)
@@ -182,12 +200,34 @@ class WorldBoxPrior(Prior):
                              f"xr(ρ - π/2) needs it even; beyond {MAX_N_RHO} the quadrature "
                              f"error is below 1e-6 nats and time grows linearly), got {n_rho}")
         self.n_rho = n_rho
+        if isinstance(scale_power, (bool, np.bool_)) or not isinstance(
+                scale_power, (int, np.integer)) or not -2 <= scale_power <= 2:
+            raise ValueError(f"scale_power: expected an integer in [-2, 2], got {scale_power!r}")
+        if scale_power < 0 and self.d_min == 0:
+            raise ValueError(f"scale_power: {scale_power} needs d_min > 0 (the pair's distance "
+                             f"s has density ∝ s^{1 + scale_power}, not integrable at 0)")
+        self.scale_power = int(scale_power)
         rho = np.pi * np.arange(n_rho) / n_rho
         self._cos, self._sin = np.cos(rho), np.sin(rho)
 
     def __repr__(self):
         return (f"WorldBoxPrior(width={self.width:g}, height={self.height:g}, "
-                f"d_min={self.d_min:g}, n_rho={self.n_rho})")
+                f"d_min={self.d_min:g}, n_rho={self.n_rho}"
+                + (f", scale_power={self.scale_power}" if self.scale_power else "") + ")")
+
+    def replace(self, **changes) -> "WorldBoxPrior":
+        """The same prior with some parameters changed (``width``, ``height``, ``d_min``,
+        ``n_rho``, ``scale_power``): the solvers' coarser quadratures keep the rest.
+
+        >>> WorldBoxPrior(width=4.0, height=8.0, scale_power=-2).replace(n_rho=16)
+        WorldBoxPrior(width=4, height=8, d_min=0.01, n_rho=16, scale_power=-2)
+        """
+        bad = sorted(set(changes) - {"width", "height", "d_min", "n_rho", "scale_power"})
+        if bad:
+            raise ValueError(f"replace: {bad[0]!r} is not a WorldBoxPrior parameter")
+        kw = {"width": self.width, "height": self.height, "d_min": self.d_min,
+              "n_rho": self.n_rho, "scale_power": self.scale_power}
+        return WorldBoxPrior(**{**kw, **changes})
 
     def log_density(self, points) -> np.ndarray:
         """Log prior of AB-frame configurations (..., k, 2) -> (...,), up to a constant of k.
@@ -255,7 +295,7 @@ class WorldBoxPrior(Prior):
                           0.0 if self.d_min == 0 else np.inf)
         # ∫_{s0}^{s1} s^a (W - s xr)(H - s yr) ds = s1^(a+1) W H ∫_{u0}^1 u^a (1 - αu)(1 - βu) du
         # with u = s / s1, α = s1 xr / W <= 1, β = s1 yr / H <= 1, u0 = s0 / s1
-        a = 2 * k + 1
+        a = 2 * k + 1 + self.scale_power
         # (written with in-place operations: the same arithmetic as the formulas in the
         # comments, without a fresh (M, N) array per step)
         al = np.multiply(s1, xr)
@@ -333,8 +373,42 @@ class WorldBoxPrior(Prior):
         from .geometry import to_frame
 
         n_cameras, size = _sample_args(n_cameras, size)
-        w = self.sample_world(seed, n_cameras + 3, size)
+        if self.scale_power:
+            w = self._sample_scaled(seed, n_cameras + 3, size)
+        else:
+            w = self.sample_world(seed, n_cameras + 3, size)
         return to_frame(w[:, 2:], w[:, :1], w[:, 1:2])
+
+    def _sample_scaled(self, seed, n_points: int, size: int) -> np.ndarray:
+        """(size, n_points, 2) worlds of the ``scale_power`` model (class docstring): A uniform,
+        B at distance s ∝ s^(1+p) on [d_min, diagonal] from A in a uniform direction (redrawn
+        while outside the box), the rest uniform; whole configurations with a pair closer than
+        d_min redrawn."""
+        rng = as_rng(seed)
+        W, H, e = self.width, self.height, 2 + self.scale_power
+        lo, hi = self.d_min, float(np.hypot(W, H))
+        iu = np.triu_indices(n_points, k=1)
+        out = np.empty((size, n_points, 2))
+        todo = np.arange(size)
+        for _ in range(100_000):
+            if todo.size == 0:
+                return out
+            n = todo.size
+            A = rng.uniform((0.0, 0.0), (W, H), size=(n, 2))
+            u = rng.uniform(size=n)
+            # inverse CDF of s^(1+p) on [lo, hi]
+            s = lo * (hi / lo) ** u if e == 0 else (lo ** e + u * (hi ** e - lo ** e)) ** (1 / e)
+            t = rng.uniform(0.0, 2 * np.pi, n)
+            B = A + s[:, None] * np.column_stack([np.cos(t), np.sin(t)])
+            rest = rng.uniform((0.0, 0.0), (W, H), size=(n, n_points - 2, 2))
+            w = np.concatenate([A[:, None], B[:, None], rest], axis=1)
+            d = w[:, iu[0]] - w[:, iu[1]]
+            ok = np.all((B >= 0) & (B <= (W, H)), axis=1) \
+                & ~np.any(np.sum(d * d, axis=-1) < lo * lo, axis=-1)
+            out[todo[ok]] = w[ok]
+            todo = todo[~ok]
+        raise ValueError(f"d_min: could not place {n_points} points {self.d_min} apart in a "
+                         f"{self.width} x {self.height} box")
 
 
 class WindowPrior(Prior):

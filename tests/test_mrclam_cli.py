@@ -84,6 +84,7 @@ def _refused(capsys, argv, *words):
     (["--budget", "2", "--method", "baseline"], "--budget"),
     (["--populations", "0"], "--populations"), (["--populations", "two"], "--populations"),
     (["--populations", "2", "--method", "baseline"], "--populations"),
+    (["--prior", "arena-logscale", "--map", "config-state"], "--prior"),
 ])
 def test_bad_option_is_one_line_naming_it_and_nothing_is_written(root, tmp_path, capsys,
                                                                  no_solving, bad, name):

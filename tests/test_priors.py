@@ -235,3 +235,56 @@ def test_priors_at_the_edges_of_their_ranges_stay_finite():
         for method in ("fast", "baseline"):
             est = solve_triplet(h, method=method, prior=p, seed=0)
             assert np.all(np.isfinite(est.landmark)) and abs(est.landmark.sum() - 1) < 1e-9
+
+
+def test_pair_scale_prior_matches_its_sampler():
+    # scale_power=-2 (|AB| log-uniform): the density against draws of its own generative model,
+    # in radial bins of C over two decades of |AB| (where the power of s matters) and in the
+    # joint (C, X) cells of the i.i.d. test above
+    p = priors.WorldBoxPrior(width=4.0, height=8.0, d_min=0.01, scale_power=-2, n_rho=32)
+    x = p.sample(np.random.default_rng(21), n_cameras=0, size=100_000)[:, 0]
+    edges = np.array([0.25, 0.5, 1, 2, 4, 8, 16, 32])
+    obs = np.histogram(np.linalg.norm(x, axis=1), edges)[0]
+    rr = np.exp(np.linspace(np.log(edges[0]), np.log(edges[-1]), 701))
+    rc = np.sqrt(rr[1:] * rr[:-1])
+    th = np.linspace(-np.pi, np.pi, 360, endpoint=False)
+    R, T = np.meshgrid(rc, th, indexing="ij")
+    G = np.stack([R * np.cos(T), R * np.sin(T)], -1).reshape(-1, 1, 2)
+    f = np.exp(p.log_density(G)).reshape(R.shape) * R ** 2     # dA = r^2 dlog r dtheta
+    mass = f.sum(axis=1) * (th[1] - th[0]) * np.log(rr[1] / rr[0])
+    E = np.array([mass[(rc >= a) & (rc < b)].sum() for a, b in
+                  zip(edges[:-1], edges[1:], strict=True)])
+    n = obs.sum()
+    Eexp = E / E.sum() * n
+    assert float(np.sum((obs - Eexp) ** 2 / Eexp)) < stats.chi2.ppf(1 - 1e-3, 6)
+    # the i.i.d. box puts C within a few |AB|; the pair-scale prior spreads it over the decades
+    iid = priors.WorldBoxPrior(width=4.0, height=8.0, d_min=0.01, n_rho=32)
+    E0 = np.exp(iid.log_density(G)).reshape(R.shape) * R ** 2
+    m0 = E0.sum(axis=1)
+    assert m0[rc > 8].sum() / m0.sum() < 0.1 < mass[rc > 8].sum() / mass.sum()
+    S = p.sample(np.random.default_rng(22), n_cameras=1, size=200_000)
+    inside, c = _cells(S)
+    obs = np.bincount(c[inside], minlength=18)
+    n = obs.sum()
+    Ec, se = _expected_cells(p, seeds=range(6))
+    z = (obs / n - Ec) / np.sqrt(Ec * (1 - Ec) / n + se**2)
+    assert np.max(np.abs(z)) < 4.0, z
+
+
+def test_pair_scale_prior_parameters():
+    p = priors.WorldBoxPrior(width=4.0, height=8.0, d_min=0.01, scale_power=-2)
+    q = p.replace(n_rho=16)
+    assert (q.width, q.height, q.d_min, q.n_rho, q.scale_power) == (4.0, 8.0, 0.01, 16, -2)
+    assert "scale_power=-2" in repr(q) and "scale_power" not in repr(priors.WorldBoxPrior())
+    for bad in (-3, 3, 0.5, True):
+        with pytest.raises(ValueError, match="scale_power: expected an integer"):
+            priors.WorldBoxPrior(scale_power=bad)
+    with pytest.raises(ValueError, match="needs d_min > 0"):
+        priors.WorldBoxPrior(d_min=0.0, scale_power=-1)
+    with pytest.raises(ValueError, match="not a WorldBoxPrior parameter"):
+        p.replace(depth=2)
+    # configuration inference draws every landmark i.i.d.: a pair-scale prior is refused
+    from qfg.configurations import _world_prior
+
+    with pytest.raises(ValueError, match="pair-scale prior"):
+        _world_prior(p)

@@ -218,14 +218,14 @@ def _quadrature(prior):
     angles is evaluated with that many (the same box; the solvers' resolution for the world
     prior, within ~0.02 nats; N x M configurations per triplet at 128 angles cost 10x more)."""
     if isinstance(prior, _priors.WorldBoxPrior) and prior.n_rho > _prior.SOLVER_N_RHO:
-        return _coarse_box(prior.width, prior.height, prior.d_min)
+        return _coarse_box(prior.width, prior.height, prior.d_min, prior.scale_power)
     return prior
 
 
 @functools.lru_cache(maxsize=8)
-def _coarse_box(width, height, d_min):
+def _coarse_box(width, height, d_min, scale_power=0):
     return _priors.WorldBoxPrior(width=width, height=height, d_min=d_min,
-                                 n_rho=_prior.SOLVER_N_RHO)
+                                 n_rho=_prior.SOLVER_N_RHO, scale_power=scale_power)
 
 
 def joint_correction(state: BaselineState, n_tuples: int):

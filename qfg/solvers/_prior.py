@@ -62,7 +62,7 @@ def is_simulator_world(prior) -> bool:
     """True for a :class:`qfg.priors.WorldBoxPrior` with the simulator's box up to scale (the
     AB-frame prior is scale-free: the same ``width / height`` and ``d_min / width``), the box
     :class:`qfg.priors.ProductPrior` was fitted to."""
-    if not isinstance(prior, _priors.WorldBoxPrior):
+    if not isinstance(prior, _priors.WorldBoxPrior) or prior.scale_power:
         return False
     ref = _SIMULATOR_WORLD
     return bool(np.isclose(prior.width / prior.height, ref.width / ref.height, rtol=1e-9)

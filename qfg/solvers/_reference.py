@@ -697,7 +697,8 @@ def solve_reference(bearings, headings, sigma_bearing, sigma_heading, partition=
     if out["log_evidence"] is None and isinstance(pr, _priors.WorldBoxPrior) and pr.d_min > 0:
         # e.g. every view at one pose with zero noise: cameras closer than d_min are impossible
         # under the prior, so nothing has weight; answer under the same box without d_min
-        free = _priors.WorldBoxPrior(pr.width, pr.height, 0.0, pr.n_rho)
+        # (a negative scale_power needs some d_min: keep a vanishing one)
+        free = pr.replace(d_min=0.0 if pr.scale_power >= 0 else 1e-9 * pr.d_min)
         out = run(free)
         out["sampler"] = sampler
         out["n_samples"] *= 2

@@ -750,7 +750,7 @@ def intermediate_prior(prior):
     if isinstance(prior, _priors.WorldBoxPrior):
         if prior.n_rho <= INTER_N_RHO:
             return prior
-        return _priors.WorldBoxPrior(prior.width, prior.height, prior.d_min, INTER_N_RHO)
+        return prior.replace(n_rho=INTER_N_RHO)
     if isinstance(prior, (_priors.ProductPrior, _priors.WindowPrior)):
         return prior
     return None

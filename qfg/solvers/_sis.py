@@ -697,8 +697,7 @@ def _target_prior(prior):
     """``prior`` with :data:`_TARGET_N_RHO` quadrature points if it is a world-box prior with
     more, else ``prior``."""
     if isinstance(prior, _priors.WorldBoxPrior) and prior.n_rho > _TARGET_N_RHO:
-        return _priors.WorldBoxPrior(width=prior.width, height=prior.height, d_min=prior.d_min,
-                                     n_rho=_TARGET_N_RHO)
+        return prior.replace(n_rho=_TARGET_N_RHO)
     return prior
 
 

@@ -82,8 +82,10 @@ def register(sub):
     p.add_argument("--mode", default="honest", choices=("honest", "paper"),
                    help="honest: measured bearings and odometry (default); paper: bearings and "
                         "headings from motion capture (paper emulation; dataset 6)")
-    p.add_argument("--prior", default="arena", choices=("arena", "world"),
-                   help="world-box prior on the arena's extent (default) or the simulator's box")
+    p.add_argument("--prior", default="arena", choices=("arena", "world", "arena-logscale"),
+                   help="world-box prior on the arena's extent (default), the same with every "
+                        "scale of each landmark pair equally likely (arena-logscale: for "
+                        "landmarks that stand in clusters), or the simulator's box")
     p.add_argument("--combine", default="geometric",
                    choices=("prior-once", "geometric", "product"),
                    help="how several histories of one ordered triplet combine, at the state level "
@@ -264,6 +266,11 @@ def check_options(args) -> dict:
     from qfg.harness.studies import mrclam_maps
 
     map_name = map_name or mrclam_maps.DEFAULT_MAP
+    if args.prior == "arena-logscale" and map_name in ("config-state", "config-metric",
+                                                      "seen-config"):
+        raise ValueError(f"--prior arena-logscale: the {map_name} map infers whole landmark "
+                         "configurations, drawn i.i.d. in the arena; a pair-scale prior "
+                         "describes one triplet's frame (use --prior arena)")
     method = args.method
     if method is None:
         method = "full" if mrclam_maps.get(map_name).needs_estimates else "none"

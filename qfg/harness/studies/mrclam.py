@@ -72,7 +72,7 @@ COMBINE = ("prior-once", "geometric", "product")
 #: map methods that work from the raw measurements, e.g. ``--map joint``)
 METHODS = ("fast", "full", "baseline", "none")
 MODES = ("honest", "paper")
-PRIORS = ("arena", "world")
+PRIORS = ("arena", "world", "arena-logscale")
 KINDS = ("seen", "propagated", "camera")
 #: Scores of every row, each also with the ``uniform_`` and ``prior_`` baselines.
 SCORES = ("p_truth", "log_score", "brier", "gt_rating", "truth_under_1pct")
@@ -241,13 +241,16 @@ def arena_extent(ds, *, max_residual: float = 0.15) -> dict:
 
 def make_prior(ds, name: str = "arena"):
     """``"arena"``: :class:`~qfg.priors.WorldBoxPrior` on :func:`arena_extent`'s box (metres; d_min
-    stays 0.01 m); ``"world"``: the simulator's box (:func:`qfg.priors.get`)."""
+    stays 0.01 m); ``"arena-logscale"``: the same box with every scale of the pair AB equally
+    likely (``scale_power=-2``: landmarks that stand in clusters, docs/results/mrclam.md);
+    ``"world"``: the simulator's box (:func:`qfg.priors.get`)."""
     if name not in PRIORS:
         raise ValueError(f"prior: expected one of {PRIORS}, got {name!r}")
     if name == "world":
         return get_prior("world")
     e = arena_extent(ds)
-    return WorldBoxPrior(width=e["width"], height=e["height"])
+    return WorldBoxPrior(width=e["width"], height=e["height"],
+                         scale_power=-2 if name == "arena-logscale" else 0)
 
 
 # ----------------------------------------------------------------------------- histories
