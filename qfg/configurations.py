@@ -96,7 +96,10 @@ _CHUNK = 1 << 21
 
 
 # --------------------------------------------------------------------------- prior
-def _world_prior(prior) -> _priors.WorldBoxPrior:
+def _world_prior(prior, whole_map: bool = False) -> _priors.WorldBoxPrior:
+    """The world prior of ``prior``; ``whole_map``: for inference over whole landmark
+    configurations, drawn i.i.d. in the box (a pair-scale prior, ``scale_power`` != 0, describes
+    one triplet's frame only: per-triplet summaries and state distributions take it)."""
     try:
         pr = _priors.get(prior)
     except ValueError as exc:
@@ -104,7 +107,7 @@ def _world_prior(prior) -> _priors.WorldBoxPrior:
     if not isinstance(pr, _priors.WorldBoxPrior):
         raise ValueError(f"prior: configuration inference samples world configurations and needs "
                          f"a world prior (qfg.priors.WorldBoxPrior or 'world'), got {pr!r}")
-    if pr.scale_power:
+    if whole_map and pr.scale_power:
         raise ValueError(f"prior: configuration inference draws every landmark i.i.d. in the box; "
                          f"a pair-scale prior (scale_power={pr.scale_power}) describes one "
                          f"triplet's frame, not a whole map: give scale_power=0")
@@ -1354,7 +1357,7 @@ def infer_configurations(evidence, prior="world", *, partition="edc", likelihood
     o = {**o, "n_groups": G, "n_particles": P, "floor": float(o["floor"])}
     if likelihood not in LIKELIHOODS:
         raise ValueError(f"likelihood: expected one of {LIKELIHOODS}, got {likelihood!r}")
-    pr = _world_prior(prior)
+    pr = _world_prior(prior, whole_map=True)
     part = _partitions.get(partition)
     items = _evidence_items(evidence, part, pr, likelihood, ess)
     extra = [_as_triplet(t) for t in getattr(evidence, "triplets", ())]

@@ -284,7 +284,12 @@ def test_pair_scale_prior_parameters():
     with pytest.raises(ValueError, match="not a WorldBoxPrior parameter"):
         p.replace(depth=2)
     # configuration inference draws every landmark i.i.d.: a pair-scale prior is refused
-    from qfg.configurations import _world_prior
+    from qfg.configurations import infer_configurations, summarize_position
 
     with pytest.raises(ValueError, match="pair-scale prior"):
-        _world_prior(p)
+        infer_configurations({(0, 1, 2): np.full(20, 1 / 20)}, prior=p)
+    # a per-triplet summary divides by this triplet's prior: it takes it
+    xy = np.random.default_rng(0).normal([3.0, 0.5], 0.1, size=(200, 2))
+    s0 = summarize_position((xy, np.full(200, 1 / 200)), prior=p.replace(scale_power=0))
+    s2 = summarize_position((xy, np.full(200, 1 / 200)), prior=p)
+    assert np.allclose(s2.centres, s0.centres) and not np.allclose(s2.log_weights, s0.log_weights)
