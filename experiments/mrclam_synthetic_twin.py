@@ -25,7 +25,7 @@ clustered by landmark set.
 
     QFG_MRCLAM_DIR=... python experiments/mrclam_synthetic_twin.py [--views 3 5] [--robots 1 2]
         [--limit 0] [--seed 0] [--method full] [--model measured] [--camera-prior point]
-        [--budget 1] [--no-distances] [--csv out/twin.csv] [--against out/other.csv] [--from-csv out/twin.csv]
+        [--budget 1] [--populations 1] [--no-distances] [--csv out/twin.csv] [--against out/other.csv] [--from-csv out/twin.csv]
 """
 
 from __future__ import annotations
@@ -156,6 +156,8 @@ def main(argv=None):
     ap.add_argument("--budget", type=float, default=1.0,
                     help="full only: n_samples, max_hypotheses and posterior_samples this many "
                          "times their defaults (1: the defaults, with the few-views budget)")
+    ap.add_argument("--populations", type=int, default=1,
+                    help="full/fast: the solvers' independent SIS populations (1: the default)")
     ap.add_argument("--no-distances", action="store_true",
                     help="solve without the odometry's distances")
     ap.add_argument("--csv", type=Path, default=None)
@@ -172,6 +174,10 @@ def main(argv=None):
         ap.error(f"--{e}")
     if a.method != "reference":
         extra["camera_prior"] = a.camera_prior
+    if a.populations != 1:
+        if a.method not in ("full", "fast") or a.populations < 1:
+            ap.error("--populations: a whole number >= 1, with --method full or fast")
+        extra["populations"] = a.populations
     other = read_rows(a.against) if a.against is not None else None
     if a.from_csv is not None:
         rows = read_rows(a.from_csv)
