@@ -25,7 +25,8 @@ clustered by landmark set.
 
     QFG_MRCLAM_DIR=... python experiments/mrclam_synthetic_twin.py [--views 3 5] [--robots 1 2]
         [--limit 0] [--seed 0] [--method full] [--model measured] [--camera-prior point]
-        [--budget 1] [--populations 1] [--no-distances] [--csv out/twin.csv] [--against out/other.csv] [--from-csv out/twin.csv]
+        [--budget 1] [--populations 1] [--no-distances] [--csv out/twin.csv]
+        [--against out/other.csv] [--from-csv out/twin.csv]
 """
 
 from __future__ import annotations
