@@ -68,20 +68,24 @@ def _expected_cells(prior, seeds, m=2**13, R=2.0):
     return est.mean(axis=0), est.std(axis=0, ddof=1) / np.sqrt(len(seeds))
 
 
+def _cell_z(samples, prior):
+    """(18,) z-scores of the (C, X) cell counts of ``samples`` (N, 2, 2) against ``prior``'s
+    cell masses (:func:`_expected_cells`)."""
+    inside, c = _cells(samples)
+    obs = np.bincount(c[inside], minlength=18)
+    n = obs.sum()
+    E, se = _expected_cells(prior, seeds=range(6))
+    return (obs / n - E) / np.sqrt(E * (1 - E) / n + se**2)
+
+
 def test_k2_joint_matches_histogram_of_simulated_worlds():
     # C and one camera: cells = radial bin of each (3 x 3) x same side of AB or not. The coupling
     # through AB's scale is what the product prior misses.
     p = priors.get("world")
     S = p.sample(np.random.default_rng(12), n_cameras=1, size=200_000)
-    inside, c = _cells(S)
-    obs = np.bincount(c[inside], minlength=18)
-    n = obs.sum()
-    E, se = _expected_cells(p, seeds=range(6))
-    z = (obs / n - E) / np.sqrt(E * (1 - E) / n + se**2)
+    z = _cell_z(S, p)
     assert np.max(np.abs(z)) < 4.0, z          # 18 cells: P(max |z| > 4) ~ 1e-3
-    Ep, sep = _expected_cells(priors.ProductPrior(), seeds=range(6))
-    zp = (obs / n - Ep) / np.sqrt(Ep * (1 - Ep) / n + sep**2)
-    assert np.max(np.abs(zp)) > 20
+    assert np.max(np.abs(_cell_z(S, priors.ProductPrior()))) > 20
 
 
 @pytest.mark.parametrize("k", [1, 2])
@@ -262,12 +266,7 @@ def test_pair_scale_prior_matches_its_sampler():
     E0 = np.exp(iid.log_density(G)).reshape(R.shape) * R ** 2
     m0 = E0.sum(axis=1)
     assert m0[rc > 8].sum() / m0.sum() < 0.1 < mass[rc > 8].sum() / mass.sum()
-    S = p.sample(np.random.default_rng(22), n_cameras=1, size=200_000)
-    inside, c = _cells(S)
-    obs = np.bincount(c[inside], minlength=18)
-    n = obs.sum()
-    Ec, se = _expected_cells(p, seeds=range(6))
-    z = (obs / n - Ec) / np.sqrt(Ec * (1 - Ec) / n + se**2)
+    z = _cell_z(p.sample(np.random.default_rng(22), n_cameras=1, size=200_000), p)
     assert np.max(np.abs(z)) < 4.0, z
 
 

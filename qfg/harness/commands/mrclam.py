@@ -266,8 +266,7 @@ def check_options(args) -> dict:
     from qfg.harness.studies import mrclam_maps
 
     map_name = map_name or mrclam_maps.DEFAULT_MAP
-    if args.prior == "arena-logscale" and map_name in ("config-state", "config-metric",
-                                                      "seen-config"):
+    if args.prior == "arena-logscale" and mrclam_maps.get(map_name).whole_configurations:
         raise ValueError(f"--prior arena-logscale: the {map_name} map infers whole landmark "
                          "configurations, drawn i.i.d. in the arena; a pair-scale prior "
                          "describes one triplet's frame (use --prior arena)")

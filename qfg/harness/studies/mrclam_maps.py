@@ -134,12 +134,15 @@ class MapResult:
 class MapMethod:
     """A registered map method: ``fn(seen) -> MapResult`` with a name and one line.
     ``needs_estimates``: False for a method that works from the raw measurements alone, so that
-    ``qfg mrclam`` need not run the single-triplet solvers for it (``--method none``)."""
+    ``qfg mrclam`` need not run the single-triplet solvers for it (``--method none``).
+    ``whole_configurations``: True for a method that infers whole landmark configurations
+    (:mod:`qfg.configurations`: landmarks i.i.d. in the box, so a pair-scale prior is refused)."""
 
     name: str
     fn: Callable[[SeenEstimates], MapResult]
     description: str
     needs_estimates: bool = True
+    whole_configurations: bool = False
 
 
 #: The map methods by name (``--map``).
@@ -153,11 +156,12 @@ DEFAULT_MAP = "joint"
 
 
 def register(name: str, fn: Callable[[SeenEstimates], MapResult], description: str, *,
-             needs_estimates: bool = True) -> MapMethod:
+             needs_estimates: bool = True, whole_configurations: bool = False) -> MapMethod:
     """Register ``fn`` as map method ``name`` (a new name; ValueError if taken)."""
     if not isinstance(name, str) or not name or name in MAP_METHODS:
         raise ValueError(f"name: expected a new map method name, got {name!r}")
-    MAP_METHODS[name] = MapMethod(name, fn, description, bool(needs_estimates))
+    MAP_METHODS[name] = MapMethod(name, fn, description, bool(needs_estimates),
+                                  bool(whole_configurations))
     return MAP_METHODS[name]
 
 
@@ -398,12 +402,14 @@ register("pooled", map_pooled, "full map, unseen triplets by pooled composition 
 register("best", map_best, "full map, unseen triplets by the paper's Algorithm 2")
 register("seen", map_seen, "the seen triplets alone (no map)")
 register("config-state", map_configurations,
-         "every triplet by configuration inference over the seen estimates (qfg.configurations)")
+         "every triplet by configuration inference over the seen estimates (qfg.configurations)",
+         whole_configurations=True)
 register("config-metric", map_configurations_metric,
          "every triplet by configuration inference over the seen sets' summaries of C's "
-         "AB-frame position (qfg.configurations, metric likelihood)")
+         "AB-frame position (qfg.configurations, metric likelihood)", whole_configurations=True)
 register("seen-config", map_seen_configurations,
-         "seen triplets as the solvers combined them, the others by configuration inference")
+         "seen triplets as the solvers combined them, the others by configuration inference",
+         whole_configurations=True)
 register("seen-prior", map_seen_prior,
          "seen triplets as the solvers combined them, the others the prior's state distribution")
 register("joint", map_joint, "every triplet and camera from one joint posterior over landmarks "
