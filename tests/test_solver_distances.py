@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from qfg import metrics
+from qfg import metrics, partitions
 from qfg.simulation import TripletHistory, random_triplet_history
 from qfg.solvers import (
     TripletSolver,
@@ -66,18 +66,25 @@ def test_intermediate_weights_carry_the_factor(monkeypatch):
     assert not np.array_equal(e_a.landmark, e_b.landmark)
 
 
-@pytest.mark.parametrize("tail", [None, (0.2, 10.0)])
-def test_mixture_proposal_targets_the_same_posterior(monkeypatch, tail):
-    # Half the children drawn at the distance ratio's step length (balance heuristic) against
-    # the ray proposal alone: the weighted means of the step-length log ratio and of the new
-    # camera agree (both unbiased for the same target), and the mixture's ESS is larger. With
-    # a tail the circle children still come from the core normal while the target's factor is
-    # the mixture; the second step measured 1.6x too long puts weight in the tail.
+@pytest.mark.parametrize("tail,shares,bearing_tail", [
+    (None, (0.5, 0.5, 0.0), None), ((0.2, 10.0), (0.5, 0.5, 0.0), None),
+    (None, (0.25, 0.25, 0.5), None), ((0.2, 10.0), (0.375, 0.25, 0.375), None),
+    (None, (0.375, 0.25, 0.375), (0.2, 3.0, 0.01))])
+def test_mixture_proposal_targets_the_same_posterior(monkeypatch, tail, shares, bearing_tail):
+    # Children drawn at the distance ratio's step length and from the odometry alone (balance
+    # heuristic over the three proposals, _sis._MIX_SHARES) against the ray proposal alone:
+    # the weighted means of the step-length log ratio and of the new camera agree (both
+    # unbiased for the same target), and the mixture's ESS is larger. With a tail the circle
+    # and odometry children still come from the core normal while the target's factor is the
+    # mixture; the second step measured 1.6x too long puts weight in the tail. With a bearing
+    # tail the odometry children's B bearing is weighed by the tail's density.
     h = _hist(900038, 3, 0.02)
     if tail is not None:
         h = replace(h, distances=h.distances * np.array([1.0, 1.6]))
     kw = dict(method="full", n_samples=1000, motion_samples=16, max_hypotheses=10**6,
-              prune_ratio=0.0, sigma_distance_ratio=0.02, distance_tail=tail)
+              prune_ratio=0.0, sigma_distance_ratio=0.02, distance_tail=tail,
+              bearing_tail=bearing_tail)
+    monkeypatch.setattr(_sis, "_MIX_SHARES", shares)
     out = {}
     for mix in (False, True):
         monkeypatch.setattr(_sis, "_MIX_DISTANCE_PROPOSAL", mix)
@@ -95,6 +102,76 @@ def test_mixture_proposal_targets_the_same_posterior(monkeypatch, tail):
         assert out[True][3] > 2 * out[False][3]
 
 
+def test_odometry_draws_follow_the_odometry():
+    # Children from the odometry alone sit where the heading and the ratio put them: their
+    # step's direction is the parent's heading plus psi and its length the previous step
+    # times the distance ratio, each within a few of the model's sigmas; alpha points the
+    # drawn A bearing at A. Checked on the children of one motion step, before any weighting.
+    h = _hist(900038, 3, 0.02)
+    two = replace(h, bearings=h.bearings[:2], headings=h.headings[:1],
+                  distances=h.distances[:1], views=h.views[:2], truth=None)
+    st = TripletSolver.solve(two, method="full", seed=0,
+                             n_samples=50, motion_samples=8, max_hypotheses=10**6,
+                             prune_ratio=0.0, rejuvenate=0, sigma_distance_ratio=0.02)._state
+    T = 1
+    r = np.full(T, 8)
+    par = np.repeat(np.arange(st.tid.size), 8)
+    z = np.random.default_rng(3).standard_normal((par.size, 3))
+    st3 = replace(st, distances=np.concatenate([st.distances, h.distances[1:2][None]], axis=1))
+    old = _sis._MIX_SHARES
+    try:
+        _sis._MIX_SHARES = (0.0, 0.0, 1.0)
+        j, pose, lw, _ = _sis._children(st3, st.last, h.bearings[2][None], h.headings[1:2], r,
+                                        1.0, par, z, 0)
+    finally:
+        _sis._MIX_SHARES = old
+    assert j.size == par.size                                  # one child per draw
+    p = st.last[par[j]]
+    d = pose[:, :2] - p[:, :2]
+    sh = st.sigma_heading[0]
+    dth = np.angle(np.exp(1j * (np.arctan2(d[:, 1], d[:, 0]) - p[:, 2] - h.headings[1])))
+    np.testing.assert_allclose(dth, sh * z[:, 0], atol=1e-9)
+    prev_step = np.hypot(*(p[:, :2] - st.levels[-2][0][st.levels[-1][1][par[j]], :2]).T)
+    ratio = np.hypot(d[:, 0], d[:, 1]) / (prev_step * h.distances[1] / h.distances[0])
+    np.testing.assert_allclose(np.log(ratio), st.sigma_distance[0] * z[:, 2], atol=1e-9)
+    fa = np.arctan2(-pose[:, 1], -pose[:, 0]) - pose[:, 2]
+    np.testing.assert_allclose(np.angle(np.exp(1j * (h.bearings[2, 0] - fa))),
+                               -st.sigma_bearing[0] * z[:, 1], atol=1e-9)
+    assert np.all(np.isfinite(lw))
+
+
+def test_odometry_draws_lift_a_short_step_seen_from_afar():
+    # The MRCLAM regime (short steps, the landmarks far): the arc's children land where the
+    # odometry rejects them, the odometry's do not. 5 views of a camera 8 |AB| away moving
+    # 0.3 |AB| per step, precise odometry: with odometry draws the final ESS is larger and the
+    # answer at least as close to the truth, on the same seeds.
+    rng = np.random.default_rng(7)
+    X = np.array([[-8.0 + 0.3 * k, 1.5 + 0.1 * k] for k in range(5)])
+    C = np.array([0.6, 0.4])
+    alpha = np.arctan2(0.5 - X[:, 1], -X[:, 0])
+    L = np.array([[0.0, 0.0], [0.0, 1.0], C])
+    sb, sh, sd = np.deg2rad(0.5), np.deg2rad(1.0), 0.05
+    phi = np.arctan2(L[None, :, 1] - X[:, None, 1], L[None, :, 0] - X[:, None, 0]) \
+        - alpha[:, None] + sb * rng.standard_normal((5, 3))
+    steps = np.diff(X, axis=0)
+    psi = np.arctan2(steps[:, 1], steps[:, 0]) - alpha[:-1] + sh * rng.standard_normal(4)
+    dist = np.hypot(*steps.T) * np.exp(np.cumsum(np.r_[0.0, sd * rng.standard_normal(3)]))
+    truth = int(partitions.get("edc").state_of(C[None])[0])
+    res = {}
+    for shares in ((0.5, 0.5, 0.0), (0.375, 0.25, 0.375)):
+        _sis_shares = _sis._MIX_SHARES
+        try:
+            _sis._MIX_SHARES = shares
+            es = [solve_triplet(phi, headings=psi, distances=dist, sigma_bearing=sb,
+                                sigma_heading=sh, sigma_distance_ratio=sd, method="full",
+                                seed=s) for s in range(3)]
+        finally:
+            _sis._MIX_SHARES = _sis_shares
+        res[shares] = (np.mean([np.log(max(e.landmark[truth], 1e-4)) for e in es]),
+                       np.median([e.ess for e in es]))
+    (l0, e0), (l1, e1) = res.values()
+    assert e1 > e0
+    assert l1 >= l0 - 0.05
 @pytest.mark.parametrize("method", ["full", "fast"])
 def test_incremental_equals_batch_with_distances(method):
     hs = [_hist(900 + i, 4) for i in range(3)]

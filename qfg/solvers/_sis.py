@@ -1173,18 +1173,35 @@ def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
     pts, valid, (ux, uy) = _arcs.ray_locus(pp[:, :2], th, pa, pb)
     mixed = _mixed(state, ct, r, spread)
     if np.any(mixed):
-        # the last r // 2 draws of each parent: the step length from the distance ratio
-        # (t = t* exp(sigma z0)) instead of the heading; the circle of radius t about X_(i-1)
-        # meets the drawn locus arc at 0, 1 or 2 points
+        # each parent's r draws: the first n_odo from the odometry alone, then n_ray along
+        # the heading (the ray above), the last n_circ at the step length of the distance
+        # ratio (t = t* exp(sigma z0)) instead of the heading: the circle of radius t about
+        # X_(i-1) meets the drawn locus arc at 0, 1 or 2 points (_mix_counts)
         first = np.cumsum(r[state.tid]) - r[state.tid]
         kk = offset + np.arange(par.size) - first[par]
-        rows = np.flatnonzero(mixed & (kk >= r[ct] - r[ct] // 2))
+        n_circ, n_odo = _mix_counts(state, ct, r)
+        rows = np.flatnonzero(mixed & (kk >= r[ct] - n_circ))
         p, tt = par[rows], ct[rows]
         t = _prev_step(state, p) * state.distances[tt, -1] / state.distances[tt, -2] \
             * np.exp(state.sigma_distance[tt] * z[rows, 0])
         circ = locus_circle(pa[rows], pb[rows])
         pts[rows], valid[rows] = _circle_arc_intersection(
             prev[p, :2], t, circ.center, circ.radius, circ.side)
+        # the odometry draws: X = X_(i-1) + t (cos theta, sin theta) with the ray's heading
+        # draw theta and t from the ratio (its normal from the B column, which these draws
+        # leave unused); alpha from the drawn A bearing as for every child. Where the odometry
+        # is sharper than the locus arc (short steps seen from afar, as on MRCLAM) the arc's
+        # children land where the heading and the ratio reject them
+        rows = np.flatnonzero(mixed & (kk < n_odo))
+        if rows.size:
+            p, tt = par[rows], ct[rows]
+            t = _prev_step(state, p) * state.distances[tt, -1] / state.distances[tt, -2] \
+                * np.exp(state.sigma_distance[tt] * z[rows, 2])
+            c, s = _arcs.cos_sin(th[rows])
+            pts[rows, 0, 0] = pp[rows, 0] + t * c
+            pts[rows, 0, 1] = pp[rows, 1] + t * s
+            valid[rows, 0] = t > 0
+            valid[rows, 1] = False
     # the valid (row, slot) pairs in row-major order, as np.nonzero(valid) gives them
     flat = np.flatnonzero(valid)
     j = flat >> 1
@@ -1205,7 +1222,7 @@ def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
         if m.size:
             pm = par[j[m]]
             lw[m] = state.lw_base[pm] + lpx[m] - np.log(r[ct[j[m]]]) \
-                + _mixture_weight(state, X[m], prev, psi, r, pm)
+                + _mixture_weight(state, X[m], prev, psi, r, pm, phi, pa[j[m]])
     pose = np.empty((j.size, 3))
     pose[:, :2] = X
     pose[:, 2] = _arcs.wrap(np.arctan2(-X[:, 1], -X[:, 0]) - pa[j])
@@ -1216,9 +1233,12 @@ def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
 #: ratio: above it the heading's wrapped normal is no longer the plain normal the mixture
 #: density evaluates.
 _MIX_MAX_SIGMA_HEADING = 0.5
-#: Whether triplets with distances draw half their motion-step children from the step-length
-#: ratio (a switch for the tests, which compare both proposals).
+#: Whether triplets with distances draw some of their motion-step children from the step-length
+#: ratio and the odometry (a switch for the tests, which compare the proposals).
 _MIX_DISTANCE_PROPOSAL = True
+#: Shares of a mixed parent's motion-step draws (ray, circle, odometry) (:func:`_mix_counts`;
+#: the ray takes what the floors of the other two leave).
+_MIX_SHARES = (0.375, 0.25, 0.375)
 
 
 def _mixed(state: SISState, ct, r, spread) -> np.ndarray:
@@ -1269,23 +1289,41 @@ def _circle_arc_intersection(origin, radius, center, arc_radius, side):
     return pts, valid
 
 
-def _mixture_weight(state: SISState, X, prev, psi, r, par):
-    """Log of the heading and distance factors over the proposal density, for children ``X``
-    (K, 2) of parents ``par`` whose triplets propose them from a mixture: ``r - r // 2`` draws
-    along the heading (ray, density q_ray) and ``r // 2`` at the step length of the distance
-    ratio (circle, q_circ), both meeting the drawn locus arc. Over
-    the position, with the A/B bearing parts common to both and left out,
+def _mix_counts(state: SISState, ct, r):
+    """(n_circ, n_odo) (B,): of the ``r`` draws of a mixed parent (triplets ``ct``), how many
+    come from the distance ratio's circle and how many from the odometry alone
+    (:data:`_MIX_SHARES`; no odometry draws with noiseless bearings, whose B bearing such a
+    draw cannot meet); the rest follow the heading's ray."""
+    rr = r[ct]
+    n_circ = np.floor(rr * _MIX_SHARES[1]).astype(rr.dtype)
+    n_odo = np.where(state.sigma_bearing[ct] > 0,
+                     np.floor(rr * _MIX_SHARES[2]).astype(rr.dtype), 0)
+    return n_circ, n_odo
 
-        q_ray  = N(theta(X) - theta*; sigma_w) |grad Gamma . u| / t
-        q_circ = N(log t - log t*; sigma_d) |grad Gamma . u_perp| / t
+
+def _mixture_weight(state: SISState, X, prev, psi, r, par, phi, pa):
+    """Log of the target's view-i factors over the proposal density, for children ``X`` (K, 2)
+    of parents ``par`` whose triplets propose them from a mixture (:func:`_mix_counts`):
+    ``n_ray`` draws along the heading (ray, meeting the drawn locus arc), ``n_circ`` at the
+    step length of the distance ratio (circle, meeting the arc) and ``n_odo`` from the
+    odometry alone (heading and step length, the camera's heading alpha from the drawn A
+    bearing ``pa`` (K,)). Over (position, alpha), with the A bearing's density (common to
+    all three) and the prior left out,
+
+        q_ray  = L_B N(theta(X) - theta*; sigma_w) |grad Gamma . u| / t
+        q_circ = L_B N(log t - log t*; sigma_d) |grad Gamma . u_perp| / t
+        q_odo  = N(theta(X) - theta*; sigma_w) N(log t - log t*; sigma_d) / t^2
 
     (t = |X - X_(i-1)|, u its direction, theta* = alpha_(i-1) + psi, t* the previous step times
-    the distance ratio), and the target's heading and distance factors are those two Gaussians
-    (with a ``distance_tail`` the target's distance factor is its mixture, the circle's density
-    still the core normal it draws from): returns ``log(N_theta F / q_mix)``, ``q_mix = (n_ray
-    q_ray + n_circ q_circ) / r`` (balance heuristic; with the circle left out it is the
-    ray-only ``F t / |grad Gamma . u|``). A parent whose last step is 0 draws no circle
-    children (q_circ = 0 there)."""
+    the distance ratio, L_B the B bearing's likelihood at (X, alpha), ``phi`` (T, 3) the
+    view's bearings), and the target's factors are L_B and those two Gaussians (with a
+    ``distance_tail`` the target's distance factor is its mixture, the circle's and the
+    odometry's density still the core normal they draw from; with a heading tail the heading
+    density is its mixture, which the ray and the odometry draw from): returns
+    ``log(L_B N_theta F / q_mix)``, ``q_mix = (n_ray q_ray + n_circ q_circ + n_odo q_odo) / r``
+    (balance heuristic). Without odometry draws L_B cancels and is not evaluated (noiseless
+    bearings); with the circle left out as well it is the ray-only ``F t / |grad Gamma . u|``.
+    A parent whose last step is 0 draws no circle or odometry children (q = 0 there)."""
     ct = state.tid[par]
     O = prev[par, :2]
     dx, dy = X[:, 0] - O[:, 0], X[:, 1] - O[:, 1]
@@ -1302,8 +1340,8 @@ def _mixture_weight(state: SISState, X, prev, psi, r, par):
         log_n_th = _likelihood.log_bearing(wrap_angle(th - prev[par, 2] - psi[ct]), sh, htail)
     sp = _prev_step(state, par)
     dist = state.distances[ct, -1], state.distances[ct, -2]
-    # the circle draws come from the core normal; with a distance tail the target's factor is
-    # the wider mixture (the ray draws cover its tail)
+    # the circle and odometry draws come from the core normal; with a distance tail the
+    # target's factor is the wider mixture (the ray draws cover its tail)
     log_q_f = log_distance_factor(t, sp, *dist, sd)
     tail = state.opts.get("distance_tail")
     log_f = log_q_f if tail is None else log_distance_factor(t, sp, *dist, sd, tail)
@@ -1315,11 +1353,24 @@ def _mixture_weight(state: SISState, X, prev, psi, r, par):
     log_q_ray = log_n_th - lj_ray
     log_q_circ = np.where(sp > 0, log_q_f - lj_circ, -np.inf)
     rr = r[ct].astype(float)
-    n_circ = np.floor(rr / 2.0)
+    n_circ, n_odo = (c.astype(float) for c in _mix_counts(state, ct, r))
+    n_ray = rr - n_circ - n_odo
+    odo = n_odo > 0
+    log_b = np.zeros(X.shape[0])
+    if np.any(odo):
+        # the B bearing's likelihood at (X, alpha), alpha = dir_A(X) - pa
+        alpha = np.arctan2(-X[:, 1], -X[:, 0]) - pa
+        rb = wrap_angle(phi[ct, 1] - (np.arctan2(1.0 - X[:, 1], -X[:, 0]) - alpha))
+        log_b = np.where(odo, _likelihood.log_bearing(rb, state.sigma_bearing[ct],
+                                                      state.opts.get("bearing_tail")), 0.0)
     with np.errstate(divide="ignore", invalid="ignore"):
-        log_mix = np.logaddexp(np.log((rr - n_circ) / rr) + log_q_ray,
+        log_q_odo = np.where(odo & (sp > 0), log_n_th + log_q_f - 2.0 * np.log(t), -np.inf)
+        log_mix = np.logaddexp(np.log(n_ray / rr) + log_q_ray,
                                np.log(n_circ / rr) + log_q_circ)
-        out = log_n_th + log_f - log_mix
+        # L_B multiplies the arc's two proposals and the target: it cancels without odometry
+        # draws (log_b = 0 there)
+        log_mix = np.logaddexp(log_b + log_mix, np.log(n_odo / rr) + log_q_odo)
+        out = log_b + log_n_th + log_f - log_mix
     return np.where(np.isnan(out), -np.inf, out)
 
 
