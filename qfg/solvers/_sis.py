@@ -1182,8 +1182,7 @@ def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
         n_circ, n_odo = _mix_counts(state, ct, r)
         rows = np.flatnonzero(mixed & (kk >= r[ct] - n_circ))
         p, tt = par[rows], ct[rows]
-        t = _prev_step(state, p) * state.distances[tt, -1] / state.distances[tt, -2] \
-            * np.exp(state.sigma_distance[tt] * z[rows, 0])
+        t = _ratio_step(state, p, tt, z[rows, 0])
         circ = locus_circle(pa[rows], pb[rows])
         pts[rows], valid[rows] = _circle_arc_intersection(
             prev[p, :2], t, circ.center, circ.radius, circ.side)
@@ -1195,8 +1194,7 @@ def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
         rows = np.flatnonzero(mixed & (kk < n_odo))
         if rows.size:
             p, tt = par[rows], ct[rows]
-            t = _prev_step(state, p) * state.distances[tt, -1] / state.distances[tt, -2] \
-                * np.exp(state.sigma_distance[tt] * z[rows, 2])
+            t = _ratio_step(state, p, tt, z[rows, 2])
             c, s = _arcs.cos_sin(th[rows])
             pts[rows, 0, 0] = pp[rows, 0] + t * c
             pts[rows, 0, 1] = pp[rows, 1] + t * s
@@ -1263,6 +1261,14 @@ def _prev_step(state: SISState, par) -> np.ndarray:
     """(B,) length of the last step of hypotheses ``par`` (AB units)."""
     last, up = state.levels[-1]
     return np.hypot(*(last[par, :2] - state.levels[-2][0][up[par], :2]).T)
+
+
+def _ratio_step(state: SISState, par, ct, z) -> np.ndarray:
+    """(B,) step lengths drawn from the distance ratio for parents ``par`` of triplets ``ct``:
+    the parent's last step times ``d_i / d_(i-1)`` times ``exp(sigma_d z)``, ``z`` (B,) standard
+    normals."""
+    return _prev_step(state, par) * state.distances[ct, -1] / state.distances[ct, -2] \
+        * np.exp(state.sigma_distance[ct] * z)
 
 
 def _circle_arc_intersection(origin, radius, center, arc_radius, side):
