@@ -1126,7 +1126,8 @@ def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
     component choices and outlier places, :func:`._likelihood.bearing_noise`).
 
     Returns (child index (offset + row), pose (K, 3), log weight,
-    log per-point prior) of the K children whose ray meets the drawn locus arc."""
+    log per-point prior) of the K children: those whose ray (or circle) meets the drawn locus
+    arc, and the odometry draws of mixed parents (:func:`_mix_counts`)."""
     ct = state.tid[par]
     sb, sh = state.sigma_bearing[ct], state.current_sigma(ct)
     pp = prev[par]
