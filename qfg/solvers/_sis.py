@@ -1211,6 +1211,8 @@ def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
     if lcorr is not None:
         lw += lcorr[j]
     lw -= np.log(r)[ct[j]]
+    # every child's alpha points its drawn A bearing at A
+    alpha = _arcs.wrap(np.arctan2(-X[:, 1], -X[:, 0]) - pa[j])
     i = state.n_views
     if i >= 2 and np.any(state.distances[:, -1] > 0) and np.any(state.distances[ct[j], -1] > 0):
         pj, tj = par[j], ct[j]
@@ -1221,10 +1223,10 @@ def _children(state: SISState, prev, phi, psi, r, spread, par, z, offset):
         if m.size:
             pm = par[j[m]]
             lw[m] = state.lw_base[pm] + lpx[m] - np.log(r[ct[j[m]]]) \
-                + _mixture_weight(state, X[m], prev, psi, r, pm, phi, pa[j[m]])
+                + _mixture_weight(state, X[m], prev, psi, r, pm, phi, alpha[m])
     pose = np.empty((j.size, 3))
     pose[:, :2] = X
-    pose[:, 2] = _arcs.wrap(np.arctan2(-X[:, 1], -X[:, 0]) - pa[j])
+    pose[:, 2] = alpha
     return j + offset, pose, lw, lpx
 
 
@@ -1308,13 +1310,13 @@ def _mix_counts(state: SISState, ct, r):
     return n_circ, n_odo
 
 
-def _mixture_weight(state: SISState, X, prev, psi, r, par, phi, pa):
+def _mixture_weight(state: SISState, X, prev, psi, r, par, phi, alpha):
     """Log of the target's view-i factors over the proposal density, for children ``X`` (K, 2)
     of parents ``par`` whose triplets propose them from a mixture (:func:`_mix_counts`):
     ``n_ray`` draws along the heading (ray, meeting the drawn locus arc), ``n_circ`` at the
     step length of the distance ratio (circle, meeting the arc) and ``n_odo`` from the
-    odometry alone (heading and step length, the camera's heading alpha from the drawn A
-    bearing ``pa`` (K,)). Over (position, alpha), with the A bearing's density (common to
+    odometry alone (heading and step length); ``alpha`` (K,) the children's camera headings
+    (each from its drawn A bearing). Over (position, alpha), with the A bearing's density (common to
     all three) and the prior left out,
 
         q_ray  = L_B N(theta(X) - theta*; sigma_w) |grad Gamma . u| / t
@@ -1365,8 +1367,7 @@ def _mixture_weight(state: SISState, X, prev, psi, r, par, phi, pa):
     odo = n_odo > 0
     log_b = np.zeros(X.shape[0])
     if np.any(odo):
-        # the B bearing's likelihood at (X, alpha), alpha = dir_A(X) - pa
-        alpha = np.arctan2(-X[:, 1], -X[:, 0]) - pa
+        # the B bearing's likelihood at (X, alpha)
         rb = wrap_angle(phi[ct, 1] - (np.arctan2(1.0 - X[:, 1], -X[:, 0]) - alpha))
         log_b = np.where(odo, _likelihood.log_bearing(rb, state.sigma_bearing[ct],
                                                       state.opts.get("bearing_tail")), 0.0)
