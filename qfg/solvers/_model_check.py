@@ -66,6 +66,17 @@ def residuals(bearings, headings, poses, landmark):
     return rb, wrap_angle(np.asarray(headings, dtype=float)[:, None] - g)
 
 
+def deviance(u, sigma, tail: BearingTail | None = None) -> np.ndarray:
+    """``d(u) = -2 log(p(u) / p(0))`` of bearing residuals ``u`` (radians) under the normal of
+    width ``sigma`` or ``tail``'s mixture (broadcasts): ``(u / sigma)^2`` for the normal.
+
+    >>> float(deviance(0.02, 0.01))
+    4.0
+    """
+    return -2.0 * (log_bearing(np.asarray(u, dtype=float), sigma, tail)
+                   - log_bearing(0.0, sigma, tail))
+
+
 def discrepancy(rb, rh, sigma_bearing, sigma_heading, tail: BearingTail | None = None):
     """(K,) the discrepancy D of residuals ``rb`` (n, 3, K) and ``rh`` (n - 1, K): bearing
     deviances under the normal of width ``sigma_bearing`` (or ``tail``'s mixture) plus squared
@@ -74,8 +85,7 @@ def discrepancy(rb, rh, sigma_bearing, sigma_heading, tail: BearingTail | None =
     >>> float(discrepancy(np.full((1, 3, 1), 0.02), np.zeros((0, 1)), 0.01, 0.1)[0])
     12.0
     """
-    u = np.asarray(rb, dtype=float)
-    d = -2.0 * (log_bearing(u, sigma_bearing, tail) - log_bearing(0.0, sigma_bearing, tail))
+    d = deviance(rb, sigma_bearing, tail)
     out = d.reshape(-1, d.shape[-1]).sum(axis=0)
     sh = np.asarray(sigma_heading, dtype=float)
     if rh.size and np.all(sh > 0):
@@ -97,8 +107,7 @@ def _reference_table(n_bearings: int, n_headings: int, tail: BearingTail,
     R = REFERENCE_DRAWS
     e = bearing_noise(rng.standard_normal((R, n_bearings)), rng.random((R, n_bearings)),
                       rng.random((R, n_bearings)), sigma, tail)
-    e = wrap_angle(e)
-    D = np.sum(-2.0 * (log_bearing(e, sigma, tail) - log_bearing(0.0, sigma, tail)), axis=1)
+    D = np.sum(deviance(wrap_angle(e), sigma, tail), axis=1)
     if n_headings:
         D = D + rng.chisquare(n_headings, R)
     return np.sort(D)
@@ -128,7 +137,8 @@ def posterior_predictive_p(bearings, headings, poses, landmark, weights, sigma_b
     (``poses`` (n, K, 3) with ``landmark`` (K, 2), ``weights`` (K,) summing to 1); NaN when the
     sample is empty. See the module docstring. With ``per_pose`` r > 1 the sample holds r
     landmarks per trajectory: ``poses`` (n, K / r, 3), trajectory j's landmarks
-    ``landmark[j r:(j + 1) r]`` (its A, B and heading residuals are computed once).
+    ``landmark[j r:(j + 1) r]`` (its A, B and heading residuals are computed once). One triplet
+    of :func:`posterior_predictive_batch`.
 
     >>> P = np.array([[[-1.0, 0.0, 0.0]], [[-1.0, 1.0, 0.0]]])     # two views, one trajectory
     >>> b = np.array([[0.0, np.pi / 4, 0.0], [-np.pi / 4, 0.0, 0.0]])
@@ -138,33 +148,85 @@ def posterior_predictive_p(bearings, headings, poses, landmark, weights, sigma_b
     >>> bool(np.isclose(a, c))
     True
     """
-    w = np.asarray(weights, dtype=float)
-    if w.size == 0 or not np.any(w > 0):
-        return float("nan")
-    if per_pose == 1:
-        keep = w > 0
-        rb, rh = residuals(bearings, headings, poses[:, keep], np.asarray(landmark)[keep])
-        D = discrepancy(rb, rh, sigma_bearing, sigma_heading, tail)
-        n_b, n_h = rb.shape[0] * 3, rh.shape[0]
+    P = np.asarray(poses, dtype=float)
+    L, w = np.asarray(landmark, dtype=float), np.asarray(weights, dtype=float)
+    n, J = P.shape[:2]
+    if L.shape[0] != J * per_pose or w.size != J * per_pose:
+        raise ValueError(f"landmark, weights: expected {J} x per_pose = {J * per_pose} rows, "
+                         f"got {L.shape[0]} and {w.size}")
+    b = np.asarray(bearings, dtype=float)
+    h = np.zeros(max(n - 1, 0)) if headings is None else np.asarray(headings, dtype=float)
+    sh = np.asarray(sigma_heading, dtype=float)
+    if headings is None:
+        sh = np.zeros(())
+    return float(posterior_predictive_batch(
+        b[None], h.reshape(1, -1), np.transpose(P, (1, 0, 2)), np.zeros(J, dtype=np.intp), L,
+        w, np.array([float(sigma_bearing)]), sh[None], tail, per_pose)[0])
+
+
+def posterior_predictive_batch(bearings, headings, poses, tid, landmark, weights,
+                               sigma_bearing, sigma_heading, tail: BearingTail | None = None,
+                               per_pose: int = 1) -> np.ndarray:
+    """:func:`posterior_predictive_p` of T triplets at once (the SIS engine's final samples).
+
+    Args:
+        bearings: (T, n, 3) measured [phi_A, phi_B, phi_C] per view (radians).
+        headings: (T, n - 1) measured headings (radians).
+        poses: (J, n, 3) the sample's trajectories, trajectory j of triplet ``tid[j]``.
+        tid: (J,) int, each trajectory's triplet.
+        landmark: (J r, 2) C draws, r = ``per_pose`` per trajectory (rows j r .. j r + r - 1).
+        weights: (J r,) their weights (any positive scale per triplet).
+        sigma_bearing: (T,) bearing width per triplet (NaN p where it is not > 0).
+        sigma_heading: (T,) or (T, n - 1) heading widths; a triplet whose widths are not all
+            > 0 leaves its headings out of D (and out of the reference distribution).
+        tail: the bearing noise's :class:`BearingTail`, or None for the normal.
+
+    Returns (T,) p-values, NaN for a triplet without a positive weight.
+    """
+    b = np.asarray(bearings, dtype=float)
+    T, n = b.shape[:2]
+    P = np.asarray(poses, dtype=float)
+    tid = np.asarray(tid, dtype=np.intp)
+    L, w = np.asarray(landmark, dtype=float), np.asarray(weights, dtype=float)
+    r = int(per_pose)
+    J = P.shape[0]
+    if L.shape[0] != J * r or w.size != J * r:
+        raise ValueError(f"landmark, weights: expected {J} x per_pose = {J * r} rows, got "
+                         f"{L.shape[0]} and {w.size}")
+    sv_in = np.asarray(sigma_bearing, dtype=float).reshape(T)
+    sv = np.where(sv_in > 0, sv_in, 1.0)             # (NaN p where not > 0: below)
+    sh = np.asarray(sigma_heading, dtype=float).reshape(T, -1)
+    with_h = np.all(sh > 0, axis=1) & (n >= 2)                         # (T,)
+    svj = sv[tid][:, None, None]
+    # A, B and the headings once per trajectory
+    pred = np.stack([bearing(P, np.zeros(2)), bearing(P, np.array([0.0, 1.0]))], axis=-1)
+    rb = wrap_angle(b[tid, :, :2] - pred)                             # (J, n, 2)
+    d = deviance(rb, svj, tail).reshape(J, -1).sum(axis=1)
+    if n >= 2 and np.any(with_h):
+        rh = wrap_angle(np.asarray(headings, dtype=float).reshape(T, n - 1)[tid]
+                        - motion_heading(P[:, :-1], P[:, 1:, :2]))   # (J, n - 1)
+        shj = np.where(with_h[:, None], sh, 1.0)[tid]
+        with np.errstate(over="ignore"):   # inf: a residual the model cannot explain (p = 0)
+            d = d + np.where(with_h[tid], np.sum((rh / shj) ** 2, axis=1), 0.0)
+    # C per (trajectory, draw)
+    tr = np.repeat(tid, r)
+    rc = wrap_angle(b[tr, :, 2] - bearing(np.repeat(P, r, axis=0), L[:, None, :]))
+    D = np.repeat(d, r) + np.sum(deviance(rc, sv[tr][:, None], tail), axis=1)
+    n_h = np.where(with_h, n - 1, 0)
+    keep = w > 0
+    sf = np.zeros(D.size)
+    if tail is None:
+        sf[keep] = chdtrc((3 * n + n_h)[tr[keep]], D[keep])
     else:
-        P, L = np.asarray(poses, dtype=float), np.asarray(landmark, dtype=float)
-        n, J = P.shape[:2]
-        if L.shape[0] != J * per_pose or w.size != J * per_pose:
-            raise ValueError(f"landmark, weights: expected {J} x per_pose = {J * per_pose} rows, "
-                             f"got {L.shape[0]} and {w.size}")
-        # A, B and the headings per trajectory; C per (trajectory, landmark)
-        rb, rh = residuals(np.asarray(bearings, dtype=float)[:, :2], headings, P, None)
-        d = discrepancy(rb, rh, sigma_bearing, sigma_heading, tail)
-        rc = wrap_angle(np.asarray(bearings, dtype=float)[:, 2:3]
-                        - bearing(np.repeat(P, per_pose, axis=1), L[None]))
-        D = np.repeat(d, per_pose) + discrepancy(rc[:, None], np.zeros((0, rc.shape[1])),
-                                                 sigma_bearing, 0.0, tail)
-        keep = w > 0
-        D = D[keep]
-        n_b, n_h = n * 3, rh.shape[0]
-    sf = reference_sf(D, n_b, n_h if np.all(np.asarray(sigma_heading) > 0) else 0, tail,
-                      sigma_bearing)
-    return float(np.sum(w[keep] * sf) / np.sum(w[keep]))
+        for s, k in {(float(a), int(c)) for a, c in zip(sv, n_h, strict=True)}:
+            rows = keep & (sv[tr] == s) & (n_h[tr] == k)
+            sf[rows] = reference_sf(D[rows], 3 * n, k, tail, s)
+    wk = np.where(keep, w, 0.0)
+    num = np.bincount(tr, weights=wk * sf, minlength=T)
+    den = np.bincount(tr, weights=wk, minlength=T)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        p = num / den
+    return np.where((den > 0) & (sv_in > 0), p, np.nan)
 
 
 def widening(p: float, level: float) -> float:
