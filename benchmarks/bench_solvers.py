@@ -19,7 +19,8 @@ from 3 views is about twice the whole budget's own (docs/solvers.md).
 older tree's ``qfg`` package in DIR (``git archive <commit> qfg | tar -x -C DIR``), interleaved in
 one process: the ratio survives the shared machine's load (also as process time, and in units of
 the fixed workload); ``--set JSON`` gives the working tree other options (the older tree's
-defaults otherwise), ``--views N`` other numbers of views than 3.
+defaults otherwise), ``--both JSON`` options to both trees, ``--views N`` other numbers of
+views than 3.
 
 ``python -m benchmarks.bench_solvers --logsumexp`` times the solvers' ``logsumexp``
 (:mod:`qfg.solvers._likelihood`) against ``scipy.special.logsumexp`` on the shapes the solvers
@@ -165,19 +166,20 @@ def _load_tree(src, name="qfg_before"):
     return mod
 
 
-def compare(src, method="full", T=50, repeats=5, seed=2024, extra=None, views=3):
+def compare(src, method="full", T=50, repeats=5, seed=2024, extra=None, views=3, both=None):
     """Time per triplet of ``method`` in the working tree and in an older tree ``src`` (its
     ``qfg`` package), interleaved in one process on the same histories (the benchmark's), with
     the older tree's default options (options it lacks at the working tree's defaults), next to
     ``fast-paper`` as a yardstick of the machine's speed; ``extra``: options for the working
-    tree only (e.g. an option the older tree lacks, at its neutral value). Returns a dict of
+    tree only (e.g. an option the older tree lacks, at its neutral value); ``both``: options
+    for both trees (e.g. ``camera_prior``). Returns a dict of
     medians (ms) and the largest difference of the landmark distributions between the trees."""
     import importlib
 
     old = _load_tree(src)
     old_solvers = importlib.import_module(old.__name__ + ".solvers")
     old_sim = importlib.import_module(old.__name__ + ".simulation")
-    old_opts = old_solvers.DEFAULTS[method]
+    old_opts = {**old_solvers.DEFAULTS[method], **(both or {})}
     from qfg.solvers import DEFAULTS
 
     new_opts = {**DEFAULTS[method], **old_opts, **(extra or {})}
@@ -255,13 +257,14 @@ if __name__ == "__main__":
     ap.add_argument("--triplets", type=int, default=50)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--set", default="{}", help="JSON options for the working tree only")
+    ap.add_argument("--both", default="{}", help="JSON options for both trees")
     ap.add_argument("--views", type=int, default=3, help="views per triplet (default 3)")
     a = ap.parse_args()
     load = os.getloadavg()[0]
     import json
 
     r = compare(a.against, a.method, a.triplets, a.repeats, extra=json.loads(a.set),
-                views=a.views)
+                views=a.views, both=json.loads(a.both))
     print(f"{a.method}, {a.views} views, {a.triplets} triplets per call, median of {a.repeats} "
           f"(load {load:.1f} "
           f"-> {os.getloadavg()[0]:.1f}): before {r['before']:.2f} ms/triplet, after "

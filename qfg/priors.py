@@ -246,11 +246,18 @@ class WorldBoxPrior(Prior):
         return out.reshape(lead)
 
     def _log_density_flat(self, q):
-        N, k = q.shape[:2]
         # work on the configuration {A, B, q_1..q_k} (A = 0, B = i) scaled by c >= 1 so that huge
         # inputs cannot overflow; only s1 scales (s1 = s1' / c), the ratios alpha, beta, u0
         # below are scale-free
         c = np.maximum(1.0, np.max(np.abs(q), axis=(1, 2)))
+        hi, lo, d2 = self._extents(q, c)
+        return self._from_extents(np.subtract(hi, lo, out=hi), d2, c, q.shape[1])
+
+    def _extents(self, q, c):
+        """The x extents over the rotations rho, hi and lo (M, N), and the least squared pairwise
+        distance d2 (N,) of the configurations {A, B, q_1..q_k} (``q`` (N, k, 2), k >= 0)
+        scaled by ``1 / c`` (N,)."""
+        N, k = q.shape[:2]
         qx, qy = q[..., 0] / c[:, None], q[..., 1] / c[:, None]
         by = 1.0 / c
         # x coordinate after rotation by rho: x cos - y sin; extents over the points, accumulated
@@ -265,7 +272,6 @@ class WorldBoxPrior(Prior):
             pj -= qy[:, j] * sn
             np.maximum(hi, pj, out=hi)
             np.minimum(lo, pj, out=lo)
-        xr = np.subtract(hi, lo, out=hi)                              # (M, N)
         # least pairwise distance among A, B and the q_j (A-B is 1), in the scaled configuration
         px = [np.zeros(N), np.zeros(N)] + [qx[:, j] for j in range(k)]
         py = [np.zeros(N), by] + [qy[:, j] for j in range(k)]
@@ -274,7 +280,65 @@ class WorldBoxPrior(Prior):
             for j in range(i + 1, k + 2):
                 dx, dy = px[i] - px[j], py[i] - py[j]
                 np.minimum(d2, dx * dx + dy * dy, out=d2)
-        return self._from_extents(xr, d2, c, k)
+        return hi, lo, d2
+
+    def log_density_extended(self, base, extra, rows=None, with_base: bool = False):
+        """``log_density`` of configurations that add one point to a shared base: configuration
+        i is ``base[rows[i]]`` (k points) plus ``extra[i]``, (K,) from ``base`` (U, k, 2),
+        ``extra`` (K, 2) and ``rows`` (K,) ints into U (default ``arange(K)``, K = U). The
+        base's extents over the rotations are computed once per base row, so K configurations
+        cost O(U k + K k) elementwise work on the rotations' axis instead of O(K k) (the SIS
+        solvers' final weights: several C draws per camera trajectory; the joint camera prior:
+        several children per parent trajectory). Equal to ``log_density`` of the stacked
+        configurations up to rounding (the density is symmetric in the points). With
+        ``with_base`` also returns ``log_density(base)`` (U,) from the same extents (k >= 1).
+
+        >>> p = WorldBoxPrior()
+        >>> base = np.array([[[1.0, 0.5], [0.2, -1.0]]])
+        >>> extra = np.array([[0.4, 0.5], [3.0, 2.0]])
+        >>> a = p.log_density_extended(base, extra, [0, 0])
+        >>> b = p.log_density(np.concatenate([np.repeat(base, 2, axis=0), extra[:, None]], 1))
+        >>> bool(np.allclose(a, b, rtol=0, atol=1e-12))
+        True
+        """
+        b = as_float_array("base", base, min_ndim=3, last_dim=2)
+        if b.ndim != 3:
+            raise ValueError(f"base: expected shape (U, k, 2), got {b.shape}")
+        e = as_float_array("extra", extra, min_ndim=2, last_dim=2)
+        if e.ndim != 2:
+            raise ValueError(f"extra: expected shape (K, 2), got {e.shape}")
+        U, k = b.shape[:2]
+        r = np.arange(e.shape[0]) if rows is None else np.asarray(rows)
+        if r.shape != (e.shape[0],) or not np.issubdtype(r.dtype, np.integer) or (
+                r.size and (r.min() < 0 or r.max() >= U)):
+            raise ValueError(f"rows: expected {e.shape[0]} integers in [0, {U}) (one base row "
+                             f"per extra point), got shape {r.shape}")
+        out = np.empty(e.shape[0])
+        if with_base and not k:
+            raise ValueError("base: with_base needs at least one base point (k >= 1)")
+        cb = np.maximum(1.0, np.max(np.abs(b), axis=(1, 2))) if k else np.ones(U)
+        hb, lb, db = self._extents(b, cb)                              # (M, U), (U,)
+        own = self._from_extents(hb - lb, db, cb, k) if with_base else None
+        cs, sn = self._cos[:, None], self._sin[:, None]
+        step = max(1, _CHUNK_ELEMENTS // self.n_rho)
+        for i in range(0, e.shape[0], step):
+            rr, ee = r[i:i + step], e[i:i + step]
+            # the configuration's scale covers the new point too; the base's extents rescale
+            c = np.maximum(cb[rr], np.max(np.abs(ee), axis=1))
+            f = cb[rr] / c
+            ex, ey = ee[:, 0] / c, ee[:, 1] / c
+            pe = ex * cs - ey * sn                                    # (M, n)
+            hi = np.maximum(hb[:, rr] * f, pe)
+            lo = np.minimum(lb[:, rr] * f, pe)
+            # the new point's least squared distance to A, B and the base points
+            d2 = np.minimum(db[rr] * (f * f), ex * ex + ey * ey)
+            np.minimum(d2, ex * ex + (ey - 1.0 / c) ** 2, out=d2)
+            if k:
+                dd = ee[:, None, :] - b[rr]                           # (n, k, 2), unscaled
+                dd /= c[:, None, None]
+                np.minimum(d2, np.min(np.sum(dd * dd, axis=2), axis=1), out=d2)
+            out[i:i + step] = self._from_extents(np.subtract(hi, lo, out=hi), d2, c, k + 1)
+        return (out, own) if with_base else out
 
     def _from_extents(self, xr, d2, c, k):
         """The log density from the scaled configurations' x extents ``xr`` (M, N) over the
@@ -302,8 +366,6 @@ class WorldBoxPrior(Prior):
         al /= W                                                       # α = s1 xr / W
         be = np.multiply(s1, yr, out=yr)
         be /= H                                                       # β = s1 yr / H
-        u0 = np.divide(s0, s1)
-        np.minimum(u0, 1.0, out=u0)                                   # u0 = min(s0 / s1, 1)
         ab = np.add(al, be)
         aab = np.multiply(al, be, out=al)
         c1 = 1.0 / (a + 1)
@@ -312,10 +374,16 @@ class WorldBoxPrior(Prior):
         np.subtract(c1, inner, out=inner)
         inner += np.divide(aab, a + 3, out=be)                        # G(1)
         # u0^(a+1) by repeated squaring (it underflows to 0 for the usual tiny u0: d_min much
-        # smaller than the scale, and then the G(u0) term is skipped)
+        # smaller than the scale, and then the G(u0) term is skipped: first checked at each
+        # configuration's largest u0, which bounds the others, on (N,) instead of (M, N))
+        with np.errstate(under="ignore", divide="ignore", invalid="ignore"):
+            top = np.minimum(np.divide(s0, np.min(s1, axis=0)), 1.0)
+            need = bool(np.any(_int_power(top, a + 1) > 0))
         with np.errstate(under="ignore"):
-            u0p = _int_power(u0, a + 1)
-            if np.any(u0p > 0):
+            if need:
+                u0 = np.divide(s0, s1)
+                np.minimum(u0, 1.0, out=u0)                           # u0 = min(s0 / s1, 1)
+                u0p = _int_power(u0, a + 1)
                 g = np.multiply(ab, u0, out=ab)
                 g /= a + 2
                 np.subtract(c1, g, out=g)

@@ -292,3 +292,40 @@ def test_pair_scale_prior_parameters():
     s0 = summarize_position((xy, np.full(200, 1 / 200)), prior=p.replace(scale_power=0))
     s2 = summarize_position((xy, np.full(200, 1 / 200)), prior=p)
     assert np.allclose(s2.centres, s0.centres) and not np.allclose(s2.log_weights, s0.log_weights)
+
+
+@pytest.mark.parametrize("kw", [{}, {"scale_power": -2}, {"width": 4.0, "height": 9.0,
+                                                          "d_min": 0.3, "n_rho": 16}])
+def test_extended_density_equals_the_stacked_configurations(kw):
+    """A point added to a shared base (the solvers' C draws per trajectory, a child's camera
+    per parent) gives the density of the stacked configuration: every base size, scales from
+    1e-3 to 40 |AB|, points closer than d_min (-inf in both), a point far outside the base's
+    scale (the configuration's rescaling)."""
+    p = priors.WorldBoxPrior(**kw)
+    rng = np.random.default_rng(5)
+    for k in (0, 1, 3):
+        U, r = 7, 3
+        base = rng.normal(size=(U, k, 2)) * rng.choice([1e-3, 1.0, 30.0], (U, 1, 1))
+        rows = np.repeat(np.arange(U), r)
+        extra = rng.normal(size=(U * r, 2)) * rng.choice([0.5, 5.0, 40.0], (U * r, 1))
+        if k:
+            extra[0] = base[0, 0] + 1e-9                         # on a base point
+        extra[1] = [0.0, 1.0 + 1e-9]                             # on B
+        got = p.log_density_extended(base, extra, rows)
+        want = p.log_density(np.concatenate([base[rows], extra[:, None]], axis=1))
+        fin = np.isfinite(want)
+        np.testing.assert_array_equal(np.isfinite(got), fin)
+        np.testing.assert_allclose(got[fin], want[fin], rtol=1e-10, atol=1e-9)
+        if kw.get("d_min", 0.01) > 0:
+            assert not fin[1] and (k == 0 or not fin[0])
+        assert fin.sum() >= 4                                   # something to compare
+
+
+def test_extended_density_bad_input():
+    p = priors.WorldBoxPrior()
+    with pytest.raises(ValueError, match="rows"):
+        p.log_density_extended(np.zeros((2, 1, 2)), np.ones((3, 2)), [0, 1, 2])
+    with pytest.raises(ValueError, match="base"):
+        p.log_density_extended(np.zeros((1, 2)), np.ones((1, 2)))
+    with pytest.raises(ValueError, match="extra"):
+        p.log_density_extended(np.zeros((1, 1, 2)), np.ones((1, 1, 2)))

@@ -74,6 +74,19 @@ _SIMULATOR_WORLD = _priors.WorldBoxPrior(n_rho=4)
 _PRODUCT = _priors.ProductPrior()
 
 
+def log_joint_prior_draws(prior, landmarks, cameras) -> np.ndarray:
+    """:func:`log_joint_prior` of ``[L_jr, X_j]`` for r draws of C per camera trajectory:
+    landmarks (J, r, 2), cameras (J, n, 2) -> (J, r). A world-box prior computes each
+    trajectory's part once (:meth:`qfg.priors.WorldBoxPrior.log_density_extended`)."""
+    L = np.asarray(landmarks, dtype=float)
+    X = np.asarray(cameras, dtype=float)
+    J, r = L.shape[:2]
+    if isinstance(prior, _priors.WorldBoxPrior) and L.size:
+        return prior.log_density_extended(X, L.reshape(-1, 2),
+                                          np.repeat(np.arange(J), r)).reshape(J, r)
+    return log_joint_prior(prior, L, np.broadcast_to(X[:, None], (J, r) + X.shape[1:]))
+
+
 def log_joint_prior(prior, landmark, cameras) -> np.ndarray:
     """``prior.log_density`` of configurations ``[C, X_1..X_n]``: landmark (..., 2), cameras
     (..., n, 2) -> (...)."""

@@ -222,15 +222,41 @@ def _log_camera_step(state, pj, X) -> np.ndarray:
     opts = state.opts
     if opts.get("camera_prior", "point") == "point" or pj.size == 0:
         return _prior.point_log_prior(opts["prior"], X)
-    up, back = np.unique(pj, return_inverse=True)
+    if np.all(pj[1:] >= pj[:-1]):       # children come in their parents' order: no sort
+        first = np.r_[True, pj[1:] != pj[:-1]]
+        up, back = pj[first], np.cumsum(first) - 1
+    else:
+        up, back = np.unique(pj, return_inverse=True)
+        back = back.reshape(-1)
     past = trajectories(state.levels, up)[..., :2]
     keep = ~state.same_pose[state.tid[up]]
-    before = _log_joint_cameras(opts, past, keep)
+    prior = _target_prior(opts["prior"])
     K = pj.size
-    both = np.concatenate([past[back.reshape(-1)], X[:, None, :]], axis=1)
-    kb = np.concatenate([keep[back.reshape(-1)], np.ones((K, 1), dtype=bool)], axis=1)
+    if isinstance(prior, _priors.WorldBoxPrior):
+        # each parent's extents once, each child adds its point: O(1) per child in the views
+        # (the stacked path below is O(i) per child)
+        out = np.empty(K)
+        if keep.all():
+            pat, inv = keep[:1], np.zeros(up.size, dtype=np.intp)
+        else:
+            pat, inv = np.unique(keep, axis=0, return_inverse=True)
+            inv = inv.reshape(-1)
+        for g in range(pat.shape[0]):
+            ug = np.flatnonzero(inv == g)
+            local = np.zeros(up.size, dtype=np.intp)
+            local[ug] = np.arange(ug.size)
+            ch = np.flatnonzero(inv[back] == g)
+            base = past[ug][:, pat[g]]
+            with np.errstate(invalid="ignore"):
+                kids, before = prior.log_density_extended(base, X[ch], local[back[ch]],
+                                                          with_base=True)
+                out[ch] = kids - before[local[back[ch]]]
+        return np.where(np.isnan(out), -np.inf, out)
+    before = _log_joint_cameras(opts, past, keep)
+    both = np.concatenate([past[back], X[:, None, :]], axis=1)
+    kb = np.concatenate([keep[back], np.ones((K, 1), dtype=bool)], axis=1)
     with np.errstate(invalid="ignore"):
-        out = _log_joint_cameras(opts, both, kb) - before[back.reshape(-1)]
+        out = _log_joint_cameras(opts, both, kb) - before[back]
     return np.where(np.isnan(out), -np.inf, out)
 
 
@@ -1440,8 +1466,7 @@ def finish(state: SISState, hypotheses: bool = False):
         for g in range(pat.shape[0]):
             rows = np.flatnonzero(inv.reshape(-1) == g)
             X = poses[rows][:, :, :2][:, pat[g]]
-            lp[rows] = _prior.log_joint_prior(opts["prior"], L[rows],
-                                              np.broadcast_to(X[:, None], (rows.size, k) + X.shape[1:]))
+            lp[rows] = _prior.log_joint_prior_draws(opts["prior"], L[rows], X)
         with np.errstate(invalid="ignore"):
             lw = lp + log_lik - log_q - (state.lw_c[idx] + state.lp_x[idx])[:, None]
         lw = np.where(np.isnan(lw), -np.inf, lw)
@@ -1468,6 +1493,20 @@ def finish(state: SISState, hypotheses: bool = False):
     # the estimate reports the caller's options (their few-views budget among them)
     shown = opts if state.full_opts is None else state.full_opts
     cb = np.searchsorted(tid, np.arange(T + 1))
+    shs_all = (np.repeat(state.sigma_heading[:, None], max(n - 1, 1), axis=1)
+               if state.step_sigma is None else state.step_sigma[:, :max(n - 1, 1)])
+    pvals = np.full(T, np.nan)
+    if tid.size:
+        # the heading width floored like the bearings' (a sigma of 1e-300 is the noiseless
+        # model to the solver, and its residuals of 1e-16 must not read as a misfit); with a
+        # heading tail the headings are left out (the check's reference is for normal headings)
+        use_h = np.all(shs_all > 0, axis=1) & (opts.get("heading_tail") is None)
+        sh_check = np.where(use_h[:, None], np.maximum(shs_all, float(opts["bearing_floor"])),
+                            0.0)
+        pvals = _model_check.posterior_predictive_batch(
+            state.bearings, state.headings, poses, tid, Lf, w,
+            np.where(state.sigma_bearing > 0, sv, 0.0), sh_check, opts.get("bearing_tail"),
+            per_pose=k)
     out = []
     for t in range(T):
         shs = float(state.sigma_heading[t]) if state.step_sigma is None else \
@@ -1493,18 +1532,7 @@ def finish(state: SISState, hypotheses: bool = False):
             landmark_samples=Lt, landmark_weights=wt, camera_samples=cam,
             camera_weights=np.broadcast_to(wt, (n, wt.size)).copy(), joint=True)
         p_land, p_cams = lm[t] / lm[t].sum(), cm[t] / cm[t].sum(axis=1, keepdims=True)
-        pval = float("nan")
-        if state.sigma_bearing[t] > 0:
-            # the heading width floored like the bearings' (a sigma of 1e-300 is the noiseless
-            # model to the solver, and its residuals of 1e-16 must not read as a misfit)
-            pval = _model_check.posterior_predictive_p(
-                state.bearings[t], state.headings[t],
-                np.transpose(poses[cb[t]:cb[t + 1]], (1, 0, 2)), Lt, wt, float(sv[t]),
-                # (with a heading tail the headings are left out: the check's reference
-                # distribution is for normal headings)
-                np.maximum(shs, float(opts["bearing_floor"]))
-                if np.all(np.asarray(shs) > 0) and opts.get("heading_tail") is None else 0.0,
-                opts.get("bearing_tail"), per_pose=k)
+        pval = float(pvals[t])
         lam = _model_check.widening(pval, opts.get("model_check", 0.0))
         widen = None
         if lam > 0:
