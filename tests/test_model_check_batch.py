@@ -51,6 +51,15 @@ def test_batch_equals_one_triplet_at_a_time(tail):
             assert 0 < want < 1
             assert got[k] == pytest.approx(want, abs=1e-12)
     assert np.isnan(got[2]) and np.isnan(got[3])
+    # C's deviances from the draws' log likelihoods (as the SIS engine hands them over)
+    from qfg.geometry import bearing, wrap_angle
+    from qfg.solvers._likelihood import log_bearing
+
+    rc = wrap_angle(b[tr, :, 2] - bearing(np.repeat(P, r, axis=0), L[:, None, :]))
+    svc = np.where(sv > 0, sv, 1.0)[tr][:, None]
+    ll = np.sum(log_bearing(rc, svc, t), axis=1)
+    via = mc.posterior_predictive_batch(b, h, P, tid, L, w, sv, sh, t, per_pose=r, c_loglik=ll)
+    np.testing.assert_allclose(via, got, rtol=0, atol=1e-10)
 
 
 def test_each_estimate_reports_the_check_of_its_own_sample():

@@ -166,7 +166,7 @@ def posterior_predictive_p(bearings, headings, poses, landmark, weights, sigma_b
 
 def posterior_predictive_batch(bearings, headings, poses, tid, landmark, weights,
                                sigma_bearing, sigma_heading, tail: BearingTail | None = None,
-                               per_pose: int = 1) -> np.ndarray:
+                               per_pose: int = 1, c_loglik=None) -> np.ndarray:
     """:func:`posterior_predictive_p` of T triplets at once (the SIS engine's final samples).
 
     Args:
@@ -180,6 +180,9 @@ def posterior_predictive_batch(bearings, headings, poses, tid, landmark, weights
         sigma_heading: (T,) or (T, n - 1) heading widths; a triplet whose widths are not all
             > 0 leaves its headings out of D (and out of the reference distribution).
         tail: the bearing noise's :class:`BearingTail`, or None for the normal.
+        c_loglik: (J r,) optional, each draw's C-bearing log likelihood summed over the views
+            (:func:`._landmarks.sample_landmarks`' ``log lik``, at these widths and tail): C's
+            deviances are then ``-2 (c_loglik - n log p(0))`` instead of recomputed.
 
     Returns (T,) p-values, NaN for a triplet without a positive weight.
     """
@@ -210,8 +213,13 @@ def posterior_predictive_batch(bearings, headings, poses, tid, landmark, weights
             d = d + np.where(with_h[tid], np.sum((rh / shj) ** 2, axis=1), 0.0)
     # C per (trajectory, draw)
     tr = np.repeat(tid, r)
-    rc = wrap_angle(b[tr, :, 2] - bearing(np.repeat(P, r, axis=0), L[:, None, :]))
-    D = np.repeat(d, r) + np.sum(deviance(rc, sv[tr][:, None], tail), axis=1)
+    if c_loglik is None:
+        rc = wrap_angle(b[tr, :, 2] - bearing(np.repeat(P, r, axis=0), L[:, None, :]))
+        dc = np.sum(deviance(rc, sv[tr][:, None], tail), axis=1)
+    else:
+        dc = -2.0 * (np.asarray(c_loglik, dtype=float).reshape(J * r)
+                     - n * log_bearing(0.0, sv[tr], tail))
+    D = np.repeat(d, r) + dc
     n_h = np.where(with_h, n - 1, 0)
     keep = w > 0
     sf = np.zeros(D.size)

@@ -1506,7 +1506,7 @@ def finish(state: SISState, hypotheses: bool = False):
         pvals = _model_check.posterior_predictive_batch(
             state.bearings, state.headings, poses, tid, Lf, w,
             np.where(state.sigma_bearing > 0, sv, 0.0), sh_check, opts.get("bearing_tail"),
-            per_pose=k)
+            per_pose=k, c_loglik=log_lik)
     out = []
     for t in range(T):
         shs = float(state.sigma_heading[t]) if state.step_sigma is None else \
