@@ -83,6 +83,11 @@ from ._histories import (
                       triplet_segments,
                       view_poses,
 )
+from ._calibration import (
+                      DEFAULT_BEARING_CALIBRATION,
+                      calibrate_bearings,
+                      measure_bearing_calibration,
+)
 from ._io import DataFormatError
 from ._load import data_root, find_datasets, load
 from ._noise import NoiseMeasurement, RobustStats, measure_noise, noise_table
@@ -118,6 +123,9 @@ __all__ = [
     "summary_rows",
     "quirk_table",
     "NoiseMeasurement",
+    "DEFAULT_BEARING_CALIBRATION",
+    "calibrate_bearings",
+    "measure_bearing_calibration",
     "RobustStats",
     "view_poses",
     "measure_noise",

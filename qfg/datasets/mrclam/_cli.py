@@ -58,6 +58,9 @@ def _main(argv=None) -> int:
                     help="also check the data: landmark identities, bearing residuals, odometry drift")
     ap.add_argument("--noise", action="store_true",
                     help="measure the noise against motion capture (datasets with ground truth)")
+    ap.add_argument("--calibration", action="store_true",
+                    help="measure each robot's bearing calibration (bias, scale) against motion "
+                         "capture (datasets with ground truth)")
     a = ap.parse_args(argv)
     try:
         roots = a.paths or [data_root()]
@@ -100,6 +103,16 @@ def _main(argv=None) -> int:
         for ds in with_gt:
             print()
             print(noise_table(measure_noise(ds)))
+    if a.calibration:
+        from ._calibration import measure_bearing_calibration
+
+        for ds in datasets:
+            if not any(rd.has_groundtruth for rd in ds.robots.values()):
+                continue
+            print(f"\n{ds.name}: bearing calibration, measured = bias + (1 + scale) captured")
+            print("| robot | rows | bias (deg) | scale |\n|---|---|---|---|")
+            for n, (b, sc, k) in measure_bearing_calibration(ds).items():
+                print(f"| {n} | {k} | {np.rad2deg(b):+.3f} | {sc:+.4f} |")
     return 0
 
 

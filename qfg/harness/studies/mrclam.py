@@ -114,16 +114,22 @@ DEFAULTS = {
                                            # (HEADING_WALK_TAIL), for the solvers
     "budget": 1.0,                         # the full/fast solvers' budget (n_samples,
                                            # max_hypotheses, posterior_samples) times this
+    "bearing_calibration": "none",         # "measured": each robot's bearing bias and scale
+                                           # measured on dataset 6 undone first (every dataset)
     "camera_prior": "point",               # the solvers' camera_prior ("joint": the cameras'
                                            # joint prior in the intermediate weights)
     "populations": 1,                      # the full/fast solvers' independent SIS
                                            # populations (their populations option)
 }
 
+#: Bearing calibrations of ``--bearing-calibration``: none, or each robot's bias and scale
+#: measured against motion capture on dataset 6 (:mod:`qfg.datasets.mrclam._calibration`).
+BEARING_CALIBRATIONS = ("none", "measured")
+
 #: Options added after runs were recorded without them: a run's params leave them out at their
 #: defaults, so that those runs resume (``qfg mrclam --resume``) as before.
 LATER_KEYS = ("bearing_tail", "model_check", "heading_drift", "distance_tail", "heading_walk",
-              "heading_tail", "camera_prior", "budget", "populations")
+              "heading_tail", "camera_prior", "budget", "populations", "bearing_calibration")
 
 
 #: The odometry's direction-of-travel error (``sigma90``, degrees) against motion capture by the
@@ -377,7 +383,7 @@ SOLVE_KEYS = ("path", "robots", "method", "mode", "prior", "partition", "fix_lan
               "min_travel", "max_gap", "max_views", "spread_views", "sigma_bearing_deg",
               "sigma_heading_deg", "distances", "sigma_distance_ratio", "bearing_tail",
               "model_check", "heading_drift", "distance_tail", "heading_walk", "heading_tail",
-              "camera_prior", "budget", "populations", "piece")
+              "camera_prior", "budget", "populations", "bearing_calibration", "piece")
 
 
 @dataclass(frozen=True, eq=False)
@@ -412,7 +418,7 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
                 heading_drift: bool = False, distance_tail: str = "normal",
                 heading_walk: float = 0.0, heading_tail: str = "normal",
                 camera_prior: str = "point", budget: float = 1.0, populations: int = 1,
-                dataset=None) -> Prepared:
+                bearing_calibration: str = "none", dataset=None) -> Prepared:
     """Load (or take ``dataset``, loaded from ``path``), fix the landmark ground truth, make the
     prior and its state distributions, and the histories to solve (module docstring, steps
     1-4). Every data file is read and checked here, before anything is solved."""
@@ -425,6 +431,11 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
         swaps = tuple(tuple(int(x) for x in s) for s in
                       (_mrclam.check_landmarks(dataset).swaps if fix_landmarks else ()))
         ds = _mrclam.swap_landmarks(dataset, swaps) if swaps else dataset
+    if bearing_calibration not in BEARING_CALIBRATIONS:
+        raise ValueError(f"bearing_calibration: expected one of {BEARING_CALIBRATIONS}, got "
+                         f"{bearing_calibration!r}")
+    if bearing_calibration == "measured":
+        ds = _mrclam.calibrate_bearings(ds, _mrclam.DEFAULT_BEARING_CALIBRATION)
     pr = make_prior(ds, prior)
     q_c = prior_state_distribution(pr, part, samples=PRIOR_SAMPLES, seed=1)
     q_x = prior_state_distribution(pr, part, point=1, n_cameras=1, samples=PRIOR_SAMPLES, seed=2)
@@ -933,7 +944,7 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
                 heading_drift: bool = False, distance_tail: str = "normal",
                 heading_walk: float = 0.0, heading_tail: str = "normal",
                 camera_prior: str = "point", budget: float = 1.0, populations: int = 1,
-                **solver_options):
+                bearing_calibration: str = "none", **solver_options):
     """Solve, combine, map, propagate and score one dataset directory, in memory (``qfg
     mrclam`` runs the same phases and records them: :func:`prepare_run`, :func:`solve_piece`
     per piece, :func:`finish`).
@@ -990,6 +1001,9 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
         populations: the full/fast solvers' independent SIS populations (their
             ``populations`` option; 1: the default; given, the few-views package is off,
             docs/solvers.md).
+        bearing_calibration: ``"measured"``: each robot's bearings corrected by its bias and
+            scale measured against motion capture on dataset 6
+            (:data:`qfg.datasets.mrclam.DEFAULT_BEARING_CALIBRATION`) before anything else.
 
     Returns:
         rows (list of dicts; module docstring). With ``return_details``: ``(rows, details)``.
@@ -1010,7 +1024,8 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
                        bearing_tail=bearing_tail, model_check=model_check,
                        heading_drift=heading_drift, distance_tail=distance_tail,
                        heading_walk=heading_walk, heading_tail=heading_tail,
-                       camera_prior=camera_prior, budget=budget, populations=populations)
+                       camera_prior=camera_prior, budget=budget, populations=populations,
+                       bearing_calibration=bearing_calibration)
     t0 = time.perf_counter()
     ests = []
     for c in range(n_pieces(prep, piece)):
