@@ -61,6 +61,21 @@ def test_histories_carry_the_calibrated_bearings(synth):
         np.testing.assert_array_equal(h1.headings, h0.headings)
 
 
+def test_forward_axis_of_rotated_markers():
+    """Captured headings 0.9 deg off the direction the robot drives (straight segments joined
+    by turns in place): the forward axis is found at +0.9 deg, and turns are left out."""
+    t = np.arange(0.0, 200.0, 0.05)
+    seg = (t // 20).astype(int)
+    heading = np.deg2rad(40.0) * seg                               # 20 s straight, then turn
+    step = np.where((t % 20) < 15, 0.1 * 0.05, 0.0)               # the last 5 s: turn in place
+    x = np.cumsum(step * np.cos(heading))
+    y = np.cumsum(step * np.sin(heading))
+    turn = np.where((t % 20) >= 15, np.deg2rad(40.0) * ((t % 20) - 15) / 5 - np.deg2rad(40), 0.0)
+    captured = heading + turn * (seg > 0) - np.deg2rad(0.9)
+    g = np.c_[t, x, y, captured]
+    assert mrclam.forward_axis(g) == pytest.approx(np.deg2rad(0.9), abs=np.deg2rad(0.02))
+
+
 def test_bad_calibration(synth):
     with pytest.raises(ValueError, match="robot 1"):
         mrclam.calibrate_bearings(synth, {1: (0.0, 0.9)})

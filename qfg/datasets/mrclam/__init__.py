@@ -86,6 +86,7 @@ from ._histories import (
 from ._calibration import (
                       DEFAULT_BEARING_CALIBRATION,
                       calibrate_bearings,
+                      forward_axis,
                       measure_bearing_calibration,
 )
 from ._io import DataFormatError
@@ -125,6 +126,7 @@ __all__ = [
     "NoiseMeasurement",
     "DEFAULT_BEARING_CALIBRATION",
     "calibrate_bearings",
+    "forward_axis",
     "measure_bearing_calibration",
     "RobustStats",
     "view_poses",
