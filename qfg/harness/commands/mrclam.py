@@ -123,7 +123,7 @@ def register(sub):
                         "cameras stay close together far from the landmarks); docs/solvers.md")
     p.add_argument("--bearing-calibration", default="none", choices=("none", "measured"),
                    help="each robot's bearings corrected first by its bias and scale measured "
-                        "against motion capture on dataset 6 (measured; robot 4: -1.3 deg and "
+                        "against motion capture on dataset 6 (measured; robot 4: -0.8 deg and "
                         "+3.9%%, docs/mrclam.md) or as recorded (none, default)")
     p.add_argument("--populations", type=int, default=1,
                    help="the full/fast solvers' independent SIS populations, each with its "
