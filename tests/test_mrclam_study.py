@@ -377,3 +377,24 @@ def test_noise_model_options_reach_the_histories_and_the_solver(data):
     for bad in (0, 1.5, True):
         with pytest.raises(ValueError, match="populations: expected a whole number"):
             study.prepare_run(p, robots=[1], populations=bad)
+
+
+def test_bearing_calibration_reaches_the_histories_and_the_map(data):
+    # --bearing-calibration measured: every robot's bearings corrected by dataset 6's constants
+    # before the histories are made (the joint map reads the same dataset), headings unchanged
+    from qfg.datasets import mrclam
+    from qfg.geometry import wrap_angle
+
+    p = data / "MRCLAM_Dataset1"
+    plain = study.prepare_run(p, robots=[1], spread_views=4)
+    cal = study.prepare_run(p, robots=[1], spread_views=4, bearing_calibration="measured")
+    b, s = mrclam.DEFAULT_BEARING_CALIBRATION[1]
+    assert len(plain.histories) == len(cal.histories) > 0
+    for (_, h0), (_, h) in zip(plain.histories, cal.histories, strict=True):
+        np.testing.assert_allclose(h.bearings, wrap_angle((h0.bearings - b) / (1 + s)),
+                                   atol=1e-12)
+        np.testing.assert_array_equal(h.headings, h0.headings)
+    rd0, rd = plain.dataset.robot(1), cal.dataset.robot(1)
+    assert not np.allclose(rd.view_bearings[rd0.visible], rd0.view_bearings[rd0.visible])
+    with pytest.raises(ValueError, match="bearing_calibration: expected one of"):
+        study.prepare_run(p, robots=[1], bearing_calibration="fitted")
