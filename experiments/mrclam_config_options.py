@@ -42,16 +42,24 @@ def _value(key, text):
     return float(text) if "." in text or "e" in text else int(text)
 
 
-def load_run(out: Path):
-    """``(prep, seen, tau)`` of a recorded run's folder: its prepared dataset, its seen
-    estimates combined as the run combined them, and the tempering power it chose."""
+def run_estimates(out: Path):
+    """``(prep, estimates, options)`` of a recorded run's folder: its prepared dataset, every
+    history's solved estimate (untempered) and the options of its last finish
+    (``summary.json``: ``combine``, ``temper_chosen``, ...)."""
     params = json.loads((out / "run.json").read_text())["params"]
     prep = study.prepare_run(params["path"], **{k: params[k] for k in PREP_KEYS if k in params})
     rows = [r for line in open(out / "records.jsonl") for r in json.loads(line)["rows"]]
     opts = json.loads((out / "summary.json").read_text())["options"]
+    return prep, study.estimates_from_rows(prep, rows), opts
+
+
+def load_run(out: Path):
+    """``(prep, seen, tau)`` of a recorded run's folder: its prepared dataset, its seen
+    estimates combined as the run combined them, and the tempering power it chose."""
+    prep, ests, opts = run_estimates(out)
     tau = float(opts.get("temper_chosen") or 1.0)
-    seen, _, _ = study.seen_estimates(prep, study.estimates_from_rows(prep, rows),
-                                      combine=opts.get("combine", "geometric"), temper=tau)
+    seen, _, _ = study.seen_estimates(prep, ests, combine=opts.get("combine", "geometric"),
+                                      temper=tau)
     return prep, seen, tau
 
 

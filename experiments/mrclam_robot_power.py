@@ -15,7 +15,6 @@ The folder is a recorded ``qfg mrclam`` run (``run.json``, ``records.jsonl``, ``
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
@@ -25,7 +24,8 @@ from qfg.combine import temper
 from qfg.graph import truth_states
 from qfg.harness.studies import mrclam as study
 
-PREP_KEYS = tuple(k for k in study.SOLVE_KEYS if k not in ("path", "method", "piece"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from mrclam_config_options import run_estimates  # noqa: E402
 
 
 def _score(prep, ests, combine):
@@ -42,12 +42,8 @@ def main(argv=None) -> int:
         return 2
     out = Path(argv[0])
     rule = argv[1] if len(argv) > 1 else "auto-1se"
-    params = json.loads((out / "run.json").read_text())["params"]
-    prep = study.prepare_run(params["path"], **{k: params[k] for k in PREP_KEYS if k in params})
-    rows = [r for line in open(out / "records.jsonl") for r in json.loads(line)["rows"]]
-    combine = json.loads((out / "summary.json").read_text())["options"].get("combine",
-                                                                           "geometric")
-    ests = study.estimates_from_rows(prep, rows)
+    prep, ests, opts = run_estimates(out)
+    combine = opts.get("combine", "geometric")
     q = prep.prior_states
     P = np.array([e.landmark for e in ests])
     groups = study._history_groups(prep)
