@@ -30,18 +30,29 @@ earlier view. ``docs/mrclam.md`` explains and measures these choices.
 
 :func:`measure_noise` measures the bearing, odometry heading and distance noise and the clock
 offsets against motion capture (dataset 6); the ``DEFAULT_SIGMA_*`` values come from it.
+:func:`measure_bearing_calibration` measures each robot's bearing bias and scale there;
+:func:`calibrate_bearings` undoes them (``DEFAULT_BEARING_CALIBRATION``; docs/mrclam.md: not
+adopted).
 
 The data directory is never built in: pass it, or set ``QFG_MRCLAM_DIR`` (:func:`data_root`).
 
 Data flows one way: this package reads files and produces measurements (histories); it does not
 import solvers or plotting (figures are in ``qfg.harness.plotting_mrclam``). Modules, by concern:
 ``_io`` (bytes, text, tables, errors), ``_data`` (types and the load report), ``_load``,
-``_odometry``, ``_checks`` (the data against itself), ``_histories``, ``_noise``, ``_cli``.
+``_odometry``, ``_checks`` (the data against itself), ``_histories``, ``_noise``,
+``_calibration``, ``_cli``.
 
-Run ``python -m qfg.datasets.mrclam [DIR ...] [--quirks] [--check] [--noise]`` for summaries.
+Run ``python -m qfg.datasets.mrclam [DIR ...] [--quirks] [--check] [--noise] [--calibration]``
+for summaries.
 """
 
 
+from ._calibration import (
+                      DEFAULT_BEARING_CALIBRATION,
+                      calibrate_bearings,
+                      forward_axis,
+                      measure_bearing_calibration,
+)
 from ._checks import (
                       LandmarkCheck,
                       LandmarkFixes,
@@ -66,13 +77,13 @@ from ._constants import (
                       DEFAULT_VIEW_GAP,
 )
 from ._data import (
-    LoadReport,
-    MRCLAMDataset,
-    Odometry,
-    RobotData,
-    RobotQuirks,
-    interpolate_poses,
-    repeated_views,
+                      LoadReport,
+                      MRCLAMDataset,
+                      Odometry,
+                      RobotData,
+                      RobotQuirks,
+                      interpolate_poses,
+                      repeated_views,
 )
 from ._histories import (
                       MRCLAMHistory,
@@ -82,12 +93,6 @@ from ._histories import (
                       triplet_histories,
                       triplet_segments,
                       view_poses,
-)
-from ._calibration import (
-                      DEFAULT_BEARING_CALIBRATION,
-                      calibrate_bearings,
-                      forward_axis,
-                      measure_bearing_calibration,
 )
 from ._io import DataFormatError
 from ._load import data_root, find_datasets, load
