@@ -176,6 +176,18 @@ def _take_last(levels, idx) -> tuple:
     return _with_last(levels, pose[idx], up[idx])
 
 
+def _view_patterns(keep) -> list:
+    """``[(pattern (i,) bool, rows)]``: the rows of ``keep`` (J, i) grouped by their pattern of
+    kept views (views taken as "camera did not move" repeat a point, which the prior of distinct
+    points must not count twice); one group without a sort when every view is kept."""
+    if keep.all():
+        return [(keep[0] if keep.shape[0] else np.ones(keep.shape[1], dtype=bool),
+                 np.arange(keep.shape[0]))]
+    pat, inv = np.unique(keep, axis=0, return_inverse=True)
+    inv = inv.reshape(-1)
+    return [(pat[g], np.flatnonzero(inv == g)) for g in range(pat.shape[0])]
+
+
 def _log_joint_cameras(opts, X, keep=None) -> np.ndarray:
     """(J,) log of the prior of the camera positions ``X`` (J, i, 2) together, up to a
     constant: ``prior.log_density`` of the views ``keep`` (J, i) marks (None: all; views taken
@@ -185,10 +197,8 @@ def _log_joint_cameras(opts, X, keep=None) -> np.ndarray:
     if keep is None or np.all(keep):
         return prior.log_density(X)
     out = np.empty(X.shape[0])
-    pat, inv = np.unique(keep, axis=0, return_inverse=True)
-    for g in range(pat.shape[0]):
-        rows = np.flatnonzero(inv.reshape(-1) == g)
-        out[rows] = prior.log_density(X[rows][:, pat[g]])
+    for pat, rows in _view_patterns(keep):
+        out[rows] = prior.log_density(X[rows][:, pat])
     return out
 
 
@@ -236,17 +246,12 @@ def _log_camera_step(state, pj, X) -> np.ndarray:
         # each parent's extents once, each child adds its point: O(1) per child in the views
         # (the stacked path below is O(i) per child)
         out = np.empty(K)
-        if keep.all():
-            pat, inv = keep[:1], np.zeros(up.size, dtype=np.intp)
-        else:
-            pat, inv = np.unique(keep, axis=0, return_inverse=True)
-            inv = inv.reshape(-1)
-        for g in range(pat.shape[0]):
-            ug = np.flatnonzero(inv == g)
-            local = np.zeros(up.size, dtype=np.intp)
-            local[ug] = np.arange(ug.size)
-            ch = np.flatnonzero(inv[back] == g)
-            base = past[ug][:, pat[g]]
+        group = np.empty(up.size, dtype=np.intp)
+        local = np.empty(up.size, dtype=np.intp)
+        for g, (pat, ug) in enumerate(_view_patterns(keep)):
+            group[ug], local[ug] = g, np.arange(ug.size)
+            ch = np.flatnonzero(group[back] == g)
+            base = past[ug][:, pat]
             with np.errstate(invalid="ignore"):
                 kids, before = prior.log_density_extended(base, X[ch], local[back[ch]],
                                                           with_base=True)
@@ -1457,16 +1462,10 @@ def finish(state: SISState, hypotheses: bool = False):
         L, log_q, log_lik, spread = _c_weight(state, tid, poses, state.bearings[..., 2], gens,
                                               k, laplace=_final_proposal(state, idx, poses))
         lp = np.empty(L.shape[:2])
-        keep_mask = ~state.same_pose[tid]
         # the prior of the distinct points: views taken as "not moved" repeat a camera
-        if keep_mask.all():
-            pat, inv = np.ones((1, n), dtype=bool), np.zeros(tid.size, dtype=np.int64)
-        else:
-            pat, inv = np.unique(keep_mask, axis=0, return_inverse=True)
-        for g in range(pat.shape[0]):
-            rows = np.flatnonzero(inv.reshape(-1) == g)
-            X = poses[rows][:, :, :2][:, pat[g]]
-            lp[rows] = _prior.log_joint_prior_draws(opts["prior"], L[rows], X)
+        for pat, rows in _view_patterns(~state.same_pose[tid]):
+            lp[rows] = _prior.log_joint_prior_draws(opts["prior"], L[rows],
+                                                    poses[rows][:, pat, :2])
         with np.errstate(invalid="ignore"):
             lw = lp + log_lik - log_q - (state.lw_c[idx] + state.lp_x[idx])[:, None]
         lw = np.where(np.isnan(lw), -np.inf, lw)
@@ -1493,8 +1492,7 @@ def finish(state: SISState, hypotheses: bool = False):
     # the estimate reports the caller's options (their few-views budget among them)
     shown = opts if state.full_opts is None else state.full_opts
     cb = np.searchsorted(tid, np.arange(T + 1))
-    shs_all = (np.repeat(state.sigma_heading[:, None], max(n - 1, 1), axis=1)
-               if state.step_sigma is None else state.step_sigma[:, :max(n - 1, 1)])
+    shs_all = state.step_sigmas(np.arange(T))                       # (T, n - 1)
     pvals = np.full(T, np.nan)
     if tid.size:
         # the heading width floored like the bearings' (a sigma of 1e-300 is the noiseless

@@ -57,6 +57,8 @@ def measure_bearing_calibration(dataset: MRCLAMDataset, *, offset: float = CAPTU
     :data:`GROSS` of the captured bearing ``phi`` (module docstring); robots with fewer than
     ``min_rows`` such rows are left out. ValueError naming the dataset when none has capture."""
     off = float(as_float_array("offset", offset, ndim=0))
+    if not any(rd.groundtruth is not None for rd in dataset.robots.values()):
+        raise ValueError(f"dataset: {dataset.name} has no robot ground truth (RobotN_Groundtruth)")
     out = {}
     for n, rd in sorted(dataset.robots.items()):
         if rd.groundtruth is None:
@@ -71,8 +73,6 @@ def measure_bearing_calibration(dataset: MRCLAMDataset, *, offset: float = CAPTU
         X = np.c_[np.ones(use.sum()), phi[use]]
         bias, scale = np.linalg.lstsq(X, e[use], rcond=None)[0]
         out[int(n)] = (float(bias + forward_axis(rd.groundtruth)), float(scale), int(use.sum()))
-    if not any(rd.groundtruth is not None for rd in dataset.robots.values()):
-        raise ValueError(f"dataset: {dataset.name} has no robot ground truth (RobotN_Groundtruth)")
     return out
 
 
