@@ -13,7 +13,12 @@ and, for ``state``, ``shared=1``: each pass's estimate tempered by its composite
 weight before the passes of a set are pooled (:func:`shared_image_weights`: every bearing counted
 once over the landmark sets whose passes use its image).
 
-The landmark ground truth is used only to score, as ``qfg mrclam`` does.
+The landmark ground truth is used only to score, as ``qfg mrclam`` does, except by the diagnostic
+KIND ``truth:c=C`` (``0 < C < 1``): every seen set's evidence replaced by ``C onehot(true state)
++ (1 - C) q`` (``q`` the prior's state distribution), correct evidence as strong as ``C`` says, to
+ask how much the map can make of the run's seen sets on this layout::
+
+    python experiments/mrclam_config_options.py out/d2 "state,truth:c=0.15,truth:c=0.98"
 """
 
 from __future__ import annotations
@@ -99,6 +104,12 @@ def _shared_evidence(out: Path, prep, seen) -> dict:
     return one_ordering_per_set(pooled)
 
 
+def _true_evidence(evidence: dict, state: dict, q, c: float) -> dict:
+    """The seen sets of ``evidence`` (same keys), each ``c onehot(state[t]) + (1 - c) q``."""
+    q = np.asarray(q, dtype=float)
+    return {t: c * np.eye(q.size)[state[t]] + (1.0 - c) * q for t in evidence}
+
+
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if not argv:
@@ -112,6 +123,7 @@ def main(argv=None) -> int:
     truth = truth_states(wanted, ds.landmark_xy, prep.partition.name)
     keys = {tuple(t) for t in seen.triplets.tolist()}
     is_seen = np.array([tuple(t) in keys for t in wanted.tolist()])
+    state = dict(zip(map(tuple, wanted.tolist()), truth.tolist(), strict=True))
     print(f"{out}: temper {tau:g}; the prior alone: seen "
           f"{np.log(prep.prior_states[truth[is_seen]]).mean():.2f}, unseen "
           f"{np.log(prep.prior_states[truth[~is_seen]]).mean():.2f}")
@@ -119,21 +131,34 @@ def main(argv=None) -> int:
         kind, *rest = v.split(":")
         kw = dict(maps.CONFIG_OPTIONS, widen=maps.CONFIG_WIDEN, unlinked=maps.CONFIG_UNLINKED,
                   seed=0)
-        shared = False
+        shared, c = False, None
         for r in rest:
             k, text = r.split("=")
             if k == "shared":
                 shared = text == "1"
                 continue
+            if k == "c":
+                c = float(text)
+                continue
             kw[k] = _value(k, text)
+        if kind not in ("state", "metric", "truth"):
+            raise ValueError(f"{v}: expected a KIND of state, metric or truth, got {kind!r}")
         if shared and kind != "state":
             raise ValueError(f"{v}: shared=1 is an option of the state likelihood only")
-        ev = (maps.metric_evidence(seen) if kind == "metric" else _shared_evidence(out, prep, seen)
-              if shared else maps.state_evidence(seen))
+        if (kind == "truth") != (c is not None) or (c is not None and not 0.0 < c < 1.0):
+            raise ValueError(f"{v}: truth takes c=C with 0 < C < 1, and only truth takes c")
+        if kind == "truth":
+            ev = _true_evidence(maps.state_evidence(seen), state, seen.prior_states, c)
+        else:
+            ev = (maps.metric_evidence(seen) if kind == "metric"
+                  else _shared_evidence(out, prep, seen) if shared else maps.state_evidence(seen))
+        strength = ("" if kind == "metric" else "; evidence %.2f" % np.mean(
+            [np.log(max(float(ev[t][state[t]]), 1e-4)) for t in ev]))
         t0 = time.perf_counter()
         res = configuration_marginals(ev, prior=seen.prior,
                                       triplets=[tuple(t) for t in wanted.tolist()],
-                                      partition=prep.partition.name, likelihood=kind,
+                                      partition=prep.partition.name,
+                                      likelihood="metric" if kind == "metric" else "state",
                                       check=maps.CONFIG_CHECK, **kw)
         P = np.asarray(res.probabilities, dtype=float)
         P = P / P.sum(axis=1, keepdims=True)
@@ -143,7 +168,7 @@ def main(argv=None) -> int:
         print(f"{v}: seen {lp[is_seen].mean():.2f} ({np.mean(p[is_seen] < 0.01):.3f}) unseen "
               f"{lp[~is_seen].mean():.2f} ({np.mean(p[~is_seen] < 0.01):.3f}); widened "
               f"{np.mean(w > 0.5):.2f}; MC error {np.max(res.info['mc_error']):.2f}; "
-              f"{time.perf_counter() - t0:.0f} s", flush=True)
+              f"{time.perf_counter() - t0:.0f} s{strength}", flush=True)
     return 0
 
 
