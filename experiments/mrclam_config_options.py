@@ -3,7 +3,8 @@
 Rebuilds the run's seen estimates from its folder (``run.json``, ``records.jsonl``, the temper
 it chose in ``summary.json``), then makes the configuration map with each variant and prints the
 mean log p(truth) (clip 1e-4) of its seen and unseen triplets, the share of truths under 1 %, the
-share of rows widened mostly to the prior and the largest Monte Carlo error. A variant is
+share of rows widened mostly to the prior, the share unsettled (Monte Carlo error above
+:data:`qfg.configurations.UNSETTLED_ERROR`) and the largest Monte Carlo error. A variant is
 ``KIND[:option=value...]`` with KIND ``state`` or ``metric`` and options of
 :func:`qfg.configurations.configuration_marginals` (``widen=none`` for no widening)::
 
@@ -167,7 +168,8 @@ def main(argv=None) -> int:
         w = np.asarray(res.info.get("widened", np.zeros(len(P))))
         print(f"{v}: seen {lp[is_seen].mean():.2f} ({np.mean(p[is_seen] < 0.01):.3f}) unseen "
               f"{lp[~is_seen].mean():.2f} ({np.mean(p[~is_seen] < 0.01):.3f}); widened "
-              f"{np.mean(w > 0.5):.2f}; MC error {np.max(res.info['mc_error']):.2f}; "
+              f"{np.mean(w > 0.5):.2f}; unsettled {np.mean(res.info['unsettled']):.2f}; "
+              f"MC error {np.max(res.info['mc_error']):.2f}; "
               f"{time.perf_counter() - t0:.0f} s{strength}", flush=True)
     return 0
 

@@ -50,6 +50,7 @@ likelihoods in from the current particles.
 from __future__ import annotations
 
 import functools
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
@@ -62,7 +63,7 @@ from ._validate import as_float_array, as_rng, non_negative, positive_int
 __all__ = ["PositionSummary", "summarize_position", "combine_positions", "ConfigurationPosterior",
            "infer_configurations", "configuration_marginals", "prior_states",
            "one_ordering_per_set", "LeaveOneOutCheck", "CHECK_GRID", "LIKELIHOODS",
-           "DEFAULTS"]
+           "DEFAULTS", "NotSettledWarning", "UNSETTLED_ERROR", "UNSETTLED_SHARE"]
 
 #: Likelihood kinds of :func:`infer_configurations`.
 LIKELIHOODS = ("state", "metric")
@@ -87,6 +88,22 @@ ESS_PRIOR = {"state": 3.0, "metric": 10.0}
 
 #: Samples behind the prior's state distribution (:func:`prior_states`).
 PRIOR_STATE_SAMPLES = 200_000
+
+#: A row of :meth:`ConfigurationPosterior.marginals` is *unsettled* when its largest Monte Carlo
+#: error (the spread of the populations' answers) is above this: the ``widen`` of the MRCLAM
+#: maps, i.e. the rows that widening replaces by the prior's states there. (Small maps at the
+#: default budget have errors of 0.01-0.04.)
+UNSETTLED_ERROR = 0.05
+#: Share of unsettled rows above which :meth:`ConfigurationPosterior.marginals` warns
+#: (:class:`NotSettledWarning`). MRCLAM's chains of landmarks (datasets 1 and 2) leave a
+#: quarter to four fifths of the map's rows more than half widened even under correct evidence
+#: (docs/configurations.md, "How strong the seen evidence must be").
+UNSETTLED_SHARE = 0.25
+
+
+class NotSettledWarning(UserWarning):
+    """The sampler's populations disagree on many rows of the marginals: their answers there are
+    one population's guess (or, with ``widen``, mostly the prior's states)."""
 
 #: A position summary made from fewer effective samples than this is flagged ``low_ess``.
 LOW_ESS = 30.0
@@ -1128,6 +1145,10 @@ class ConfigurationPosterior:
         ``check``: when True, every row is mixed toward ``q`` by the weight
         :meth:`loo_check` finds (0 when the seen triplets predict each other at least as well as
         the prior does); ``info["check"]``: the :class:`LeaveOneOutCheck`.
+
+        ``info["unsettled"]``: (n,) bool, rows whose largest Monte Carlo error is above
+        :data:`UNSETTLED_ERROR`; a :class:`NotSettledWarning` when they are more than
+        :data:`UNSETTLED_SHARE` of the rows.
         """
         if unlinked not in ("sample", "prior"):
             raise ValueError(f"unlinked: expected 'sample' or 'prior', got {unlinked!r}")
@@ -1174,8 +1195,18 @@ class ConfigurationPosterior:
             chk = self.loo_check()
             f = (1.0 - chk.widen) * f + chk.widen * self._q
             info["check"] = chk
+        unsettled = se.max(axis=1, initial=0.0) > UNSETTLED_ERROR if G > 1 else np.zeros(R, bool)
+        if R and unsettled.mean() > UNSETTLED_SHARE:
+            warnings.warn(
+                f"configuration marginals: the sampler's {G} populations disagree on "
+                f"{unsettled.sum()} of {R} rows (Monte Carlo error above {UNSETTLED_ERROR}); "
+                + ("they are mixed toward the prior's states (widen), " if widen is not None
+                   else "they are one population's guess, ")
+                + "so more particles or sweeps (n_particles, n_sweeps) may sharpen them; on real "
+                "data check that a settled answer is not confidently wrong "
+                "(docs/configurations.md)", NotSettledWarning, stacklevel=2)
         info.update(mc_error=se, mc_error_max=float(np.max(se)) if se.size else 0.0,
-                    seen=np.array([t in seen for t in ts], dtype=bool),
+                    unsettled=unsettled, seen=np.array([t in seen for t in ts], dtype=bool),
                     configurations=self)
         return Marginals(tuple(ts), self.partition.name, f, f"configurations-{self.likelihood}",
                          info)

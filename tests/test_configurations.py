@@ -11,7 +11,10 @@ import pytest
 from qfg.combine import temper
 from qfg.configurations import (
     TEMPER,
+    UNSETTLED_ERROR,
+    UNSETTLED_SHARE,
     ConfigurationPosterior,
+    NotSettledWarning,
     PositionSummary,
     configuration_marginals,
     infer_configurations,
@@ -171,6 +174,30 @@ def test_widen_mixes_each_row_toward_the_prior_by_its_monte_carlo_error(posterio
     one = infer_configurations(EVIDENCE, seed=3, n_particles=200, n_groups=1)
     with pytest.raises(ValueError, match="n_groups"):
         one.marginals(ts, widen=0.1)
+
+
+def test_unsettled_rows_are_the_ones_the_populations_disagree_on_and_warned_about():
+    """``info["unsettled"]`` is the rows whose largest Monte Carlo error is above the threshold,
+    and the warning comes exactly when they are more than the threshold share; a few particles
+    per population leave most rows unsettled, many particles none."""
+    import warnings
+
+    ts = _all_triplets(4)
+    for n, seed in ((40, 5), (4000, 6)):
+        post = infer_configurations(EVIDENCE, seed=seed, n_particles=n, n_groups=4)
+        with warnings.catch_warnings(record=True) as got:
+            warnings.simplefilter("always")
+            r = post.marginals(ts)
+        se = np.asarray(r.info["mc_error"]).max(axis=1)
+        assert np.array_equal(r.info["unsettled"], se > UNSETTLED_ERROR)
+        warned = [w for w in got if issubclass(w.category, NotSettledWarning)]
+        assert len(warned) == int(np.mean(se > UNSETTLED_ERROR) > UNSETTLED_SHARE)
+        if n == 40:
+            assert warned and "n_particles" in str(warned[0].message)
+        else:
+            assert not warned
+    with pytest.warns(NotSettledWarning, match="mixed toward the prior"):
+        infer_configurations(EVIDENCE, seed=5, n_particles=40).marginals(ts, widen=0.05)
 
 
 def test_labelled_result_for_every_triplet(posterior):
