@@ -1147,8 +1147,8 @@ class ConfigurationPosterior:
         the prior does); ``info["check"]``: the :class:`LeaveOneOutCheck`.
 
         ``info["unsettled"]``: (n,) bool, rows whose largest Monte Carlo error is above
-        :data:`UNSETTLED_ERROR`; a :class:`NotSettledWarning` when they are more than
-        :data:`UNSETTLED_SHARE` of the rows.
+        :data:`UNSETTLED_ERROR` (not the unlinked rows with ``unlinked="prior"``); a
+        :class:`NotSettledWarning` when they are more than :data:`UNSETTLED_SHARE` of the rows.
         """
         if unlinked not in ("sample", "prior"):
             raise ValueError(f"unlinked: expected 'sample' or 'prior', got {unlinked!r}")
@@ -1196,6 +1196,8 @@ class ConfigurationPosterior:
             f = (1.0 - chk.widen) * f + chk.widen * self._q
             info["check"] = chk
         unsettled = se.max(axis=1, initial=0.0) > UNSETTLED_ERROR if G > 1 else np.zeros(R, bool)
+        if unlinked == "prior":
+            unsettled &= ~cut   # answered by q, whatever the populations say
         if R and unsettled.mean() > UNSETTLED_SHARE:
             warnings.warn(
                 f"configuration marginals: the sampler's {G} populations disagree on "

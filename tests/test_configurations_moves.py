@@ -109,5 +109,12 @@ def test_unlinked_triplets_can_answer_the_prior():
     np.testing.assert_allclose(b.probabilities[2], q)
     np.testing.assert_allclose(b.probabilities[[0, 3]], a.probabilities[[0, 3]])
     assert np.abs(a.probabilities[1] - q).max() > 1e-3       # the samples' own answer differs
+    # rows answered by the prior are not counted as unsettled, whatever the populations say
+    few = infer_configurations({(0, 1, 2): v, (3, 4, 5): v}, pr, n_particles=40, seed=0)
+    with pytest.warns(UserWarning):
+        fa = few.marginals(ts)
+    fb = few.marginals(ts, unlinked="prior")
+    assert fa.info["unsettled"][[1, 2]].all() and not fb.info["unsettled"][[1, 2]].any()
+    np.testing.assert_array_equal(fb.info["unsettled"][[0, 3]], fa.info["unsettled"][[0, 3]])
     with pytest.raises(ValueError, match="unlinked"):
         post.marginals(ts, unlinked="yes")
