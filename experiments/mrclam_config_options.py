@@ -153,8 +153,8 @@ def main(argv=None) -> int:
         else:
             ev = (maps.metric_evidence(seen) if kind == "metric"
                   else _shared_evidence(out, prep, seen) if shared else maps.state_evidence(seen))
-        strength = ("" if kind == "metric" else "; evidence %.2f" % np.mean(
-            [np.log(max(float(ev[t][state[t]]), 1e-4)) for t in ev]))
+        strength = ("" if kind == "metric" else "; evidence %.2f" % np.mean(log_score(
+            np.array([ev[t] for t in ev]), np.array([state[t] for t in ev]))))
         t0 = time.perf_counter()
         res = configuration_marginals(ev, prior=seen.prior,
                                       triplets=[tuple(t) for t in wanted.tolist()],

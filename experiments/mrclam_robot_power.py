@@ -23,6 +23,7 @@ import numpy as np
 from qfg.combine import temper
 from qfg.graph import truth_states
 from qfg.harness.studies import mrclam as study
+from qfg.metrics import log_score
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from mrclam_config_options import run_estimates  # noqa: E402
@@ -32,7 +33,7 @@ def _score(prep, ests, combine):
     seen, _, _ = study.seen_estimates(prep, ests, combine=combine, temper=1.0)
     truth = truth_states(seen.triplets, prep.dataset.landmark_xy, prep.partition.name)
     p = seen.probabilities[np.arange(truth.size), truth]
-    return seen.triplets, np.log(np.clip(p, 1e-4, None)), p
+    return seen.triplets, log_score(seen.probabilities, truth), p
 
 
 def main(argv=None) -> int:
@@ -63,8 +64,8 @@ def main(argv=None) -> int:
 
     trip, la, pa = _score(prep, tempered(lambda k: tau_all), combine)
     _, lb, pb = _score(prep, tempered(lambda k: taus[int(robot[k])]), combine)
-    prior = np.log(np.clip(q[truth_states(trip, prep.dataset.landmark_xy,
-                                          prep.partition.name)], 1e-4, None))
+    truth = truth_states(trip, prep.dataset.landmark_xy, prep.partition.name)
+    prior = log_score(np.tile(q, (truth.size, 1)), truth)
     sets = [tuple(sorted(t)) for t in trip.tolist()]
     d = {}
     for s, x in zip(sets, lb - la, strict=True):

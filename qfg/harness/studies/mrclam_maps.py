@@ -297,7 +297,7 @@ def _configuration_map(seen: SeenEstimates, evidence: dict, likelihood: str) -> 
         info["mc_error_max"] = float(np.max(err))
     w = np.asarray(res.info.get("widened", np.zeros(len(wanted))))
     info["widened_half"] = float(np.mean(w > 0.5))   # share of rows mostly the prior
-    info["unsettled"] = float(np.mean(res.info.get("unsettled", np.zeros(len(wanted)))))
+    info["unsettled"] = float(np.mean(res.info["unsettled"]))
     info["unlinked"] = float(np.mean(res.info.get("unlinked", np.zeros(len(wanted)))))
     chk = res.info.get("check")
     if chk is not None:
