@@ -44,6 +44,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import itertools
+import pathlib
 import time
 
 import numpy as np
@@ -53,7 +54,7 @@ from qfg import nonlinear as nl
 from qfg import partitions
 from qfg.datasets import mrclam
 from qfg.geometry import to_frame, wrap_angle
-from qfg.harness.studies.mrclam import prepare
+from qfg.harness.studies.mrclam import arena_extent, prepare
 
 #: The kinematic prior (m/s, rad/s; set from --measure-prior on datasets 1-4 and 6: forward speed
 #: mean 0.048-0.060, rms 0.056-0.063 m/s; lateral rms 0.0015-0.0017 m/s; turn rms 0.13-0.17 rad/s).
@@ -190,8 +191,6 @@ def run_one(path, robot, start, chunk, noise=0.0, seed=0):
     if start in ("truth", "arena"):
         rng = np.random.default_rng(seed)
         if start == "arena":
-            from qfg.harness.studies.mrclam import arena_extent
-
             e = arena_extent(ds)
             points = np.column_stack([rng.uniform(*e["x"], len(ids)), rng.uniform(*e["y"], len(ids))])
         else:
@@ -257,8 +256,6 @@ def agree(folder, tolerance):
     """Per dataset: the largest group of robots whose fits agree pairwise (``_misfit`` on
     their common landmarks, both ways, at most ``tolerance``), and each member's landmark error
     against the ground truth (the score only)."""
-    import pathlib
-
     fits = {}
     for f in sorted(pathlib.Path(folder).glob("d*_r*.npz")):
         z = np.load(f)
@@ -350,8 +347,6 @@ def main(argv=None) -> int:
         if len(rows) > 1:
             show(d, rb, f"least cost of chunks {a.chunk}", best)
         if a.save and "points" in best:
-            import pathlib
-
             out = pathlib.Path(a.save)
             out.mkdir(parents=True, exist_ok=True)
             np.savez(out / f"d{d}_r{rb}.npz", points=best["points"], cost=best["cost"],
