@@ -31,11 +31,13 @@ the fitted landmarks is the true one. Ground truth is used for these scores only
 ``--save DIR`` keeps each robot's fit (of least cost over ``--chunk`` sizes); ``--agree DIR``
 then finds, per dataset, the largest group of robots whose fits agree pairwise (the median misfit
 after a similarity, over the configuration's rms radius, at most ``--tolerance``): a check
-that needs no ground truth (docs/joint.md).
+that needs no ground truth (docs/joint.md); ``--joint DIR`` runs :func:`qfg.joint.solve` over each
+dataset's agreeing robots, started from their saved fits, and scores every ordered triplet.
 
     python experiments/joint_without_odometry.py 2:1 1:1 6:1 5:1 [--start truth] [--chunk 50]
     python experiments/joint_without_odometry.py --chunk 25,50,100 --save DIR 5:1 5:2 ...
     python experiments/joint_without_odometry.py --agree DIR
+    python experiments/joint_without_odometry.py --joint DIR
     python experiments/joint_without_odometry.py --measure-prior
 """
 
@@ -218,7 +220,7 @@ def run_one(path, robot, start, chunk, noise=0.0, seed=0):
         tri = np.array([t for t in itertools.permutations(np.flatnonzero(have), 3)])
         same = (part.state_of(to_frame(P[tri[:, 2]], P[tri[:, 0]], P[tri[:, 1]]))
                 == part.state_of(to_frame(truth[tri[:, 2]], truth[tri[:, 0]], truth[tri[:, 1]])))
-        row["points"] = P
+        row["points"], row["poses_fit"] = P, f.poses
         row.update(cost=float(f.cost), median_residual=float(np.median(rb)), beyond_4=float(np.mean(rb > 4)),
                    shape_error_m=_similarity_error(P[ok], truth[ok]),
                    states_right=float(np.mean(same)))
@@ -256,10 +258,7 @@ def agree(folder, tolerance):
     """Per dataset: the largest group of robots whose fits agree pairwise (``_misfit`` on
     their common landmarks, both ways, at most ``tolerance``), and each member's landmark error
     against the ground truth (the score only)."""
-    fits = {}
-    for f in sorted(pathlib.Path(folder).glob("d*_r*.npz")):
-        z = np.load(f)
-        fits.setdefault(int(z["dataset"]), {})[int(z["robot"])] = z["points"]
+    fits = {d: {k: v[0] for k, v in rob.items()} for d, rob in _saved(folder).items()}
     root = mrclam.data_root()
     print("| dataset | robots fitted | agreeing group | members' landmark error (m) | others' |")
     print("|---|---|---|---|---|")
@@ -275,6 +274,63 @@ def agree(folder, tolerance):
         print(f"| {d} | {len(names)} | {', '.join(map(str, best)) or 'none'} | "
               f"{', '.join(f'{errs[i]:.2f}' for i in best) or '-'} | "
               f"{', '.join(f'{i}: {errs[i]:.2f}' for i in names if i not in best) or '-'} |")
+
+
+def _saved(folder) -> dict:
+    fits = {}
+    for f in sorted(pathlib.Path(folder).glob("d*_r*.npz")):
+        z = np.load(f)
+        fits.setdefault(int(z["dataset"]), {})[int(z["robot"])] = (
+            z["points"], z["poses"] if "poses" in z.files else None)
+    return fits
+
+
+def joint_maps(folder, tolerance, samples=2000):
+    """Per dataset: :func:`qfg.joint.solve` over the agreeing robots (their runs with the
+    kinematic prior as odometry, each robot started from its saved fit instead of the solver's
+    odometry chain), every ordered triplet's state distribution (:func:`qfg.joint.
+    triplet_marginals`, the arena prior's states as the floor), scored against the ground
+    truth beside the prior alone: mean log p(truth) (clip 1e-4), truth under 1 %."""
+    from qfg.configurations import prior_states
+    from qfg.harness.studies.mrclam import make_prior
+
+    root = mrclam.data_root()
+    print("| dataset | robots | method, flags | mean log p(truth) | truth under 1 % | prior alone | s |")
+    print("|---|---|---|---|---|---|---|")
+    for d, saved in sorted(_saved(folder).items()):
+        pts = {k: v[0] for k, v in saved.items()}
+        group = _largest_agreeing(pts, tolerance)
+        ds, _ = prepare(root / f"MRCLAM_Dataset{d}")
+        q = prior_states(make_prior(ds, "arena"))
+        part = partitions.get("edc")
+        if not group:
+            print(f"| {d} | none agree | - | - | - | - | - |")
+            continue
+        t0 = time.perf_counter()
+        meas = J.mrclam_runs(ds, list(group), min_move=0.0, min_turn_deg=0.0)
+        runs = tuple(kinematic_run(r) for r in meas.runs)
+        starts = {}
+        for r in runs:
+            P, X = saved[r.robot]
+            have = np.isfinite(P[:, 0])
+            starts[r.robot] = (X.copy(), np.where(have[:, None], P, 0.0), have, True)
+        orig = J._solve_run
+        J._solve_run = lambda r, lm_index, _s=starts, **kw: _s[r.robot]   # noqa: E731
+        try:
+            post = J.solve(J.JointMeasurements(runs, meas.landmark_ids), seed=0)
+        finally:
+            J._solve_run = orig
+        res = J.triplet_marginals(post, prior_states=q, samples=samples, seed=0)
+        ids = list(ds.landmark_ids)
+        truth = np.asarray(ds.landmark_xy)
+        tri = np.array([[ids.index(x) for x in t] for t in res.triplets], dtype=np.intp)
+        s_true = part.state_of(to_frame(truth[tri[:, 2]], truth[tri[:, 0]], truth[tri[:, 1]]))
+        pt = np.asarray(res.probabilities)[np.arange(len(tri)), s_true]
+        lp = np.log(np.clip(pt, 1e-4, None))
+        print(f"| {d} | {', '.join(map(str, group))} | {post.method}, {', '.join(post.flags) or '-'} | "
+              f"{lp.mean():.2f} | {100 * np.mean(pt < 0.01):.1f} % | "
+              f"{np.log(np.clip(q[s_true], 1e-4, None)).mean():.2f} | "
+              f"{time.perf_counter() - t0:.0f} |", flush=True)
 
 
 def measure_prior():
@@ -306,6 +362,8 @@ def main(argv=None) -> int:
     ap.add_argument("--measure-prior", action="store_true")
     ap.add_argument("--save", help="directory: each robot's kept fit (landmark ids, points, cost)")
     ap.add_argument("--agree", help="directory of --save: the robots of each dataset that agree")
+    ap.add_argument("--joint", help="directory of --save: the joint map of each dataset's agreeing "
+                                    "robots (qfg.joint.solve started from their fits), scored")
     ap.add_argument("--tolerance", type=float, default=AGREE,
                     help="agreement: median misfit after a similarity over the configuration's "
                          "rms radius")
@@ -315,6 +373,9 @@ def main(argv=None) -> int:
         return 0
     if a.agree:
         agree(a.agree, a.tolerance)
+        return 0
+    if a.joint:
+        joint_maps(a.joint, a.tolerance)
         return 0
     root = mrclam.data_root()
     print("| dataset | robot | start | images | landmarks placed | median whitened residual | "
@@ -349,8 +410,8 @@ def main(argv=None) -> int:
         if a.save and "points" in best:
             out = pathlib.Path(a.save)
             out.mkdir(parents=True, exist_ok=True)
-            np.savez(out / f"d{d}_r{rb}.npz", points=best["points"], cost=best["cost"],
-                     dataset=d, robot=rb)
+            np.savez(out / f"d{d}_r{rb}.npz", points=best["points"], poses=best["poses_fit"],
+                     cost=best["cost"], dataset=d, robot=rb)
     return 0
 
 
