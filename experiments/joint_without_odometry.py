@@ -360,7 +360,8 @@ def main(argv=None) -> int:
                     help="images per batch; a comma list runs each and adds the fit of least "
                          "cost (a multi-start that needs no ground truth)")
     ap.add_argument("--measure-prior", action="store_true")
-    ap.add_argument("--save", help="directory: each robot's kept fit (landmark ids, points, cost)")
+    ap.add_argument("--save", help="directory: each robot's kept fit (landmark points, poses, "
+                                   "cost), incremental starts only")
     ap.add_argument("--agree", help="directory of --save: the robots of each dataset that agree")
     ap.add_argument("--joint", help="directory of --save: the joint map of each dataset's agreeing "
                                     "robots (qfg.joint.solve started from their fits), scored")
@@ -392,7 +393,10 @@ def main(argv=None) -> int:
               f"{row['time_s']:.0f} |", flush=True)
 
     for spec in a.runs:
-        d, rb = (int(x) for x in spec.split(":"))
+        try:
+            d, rb = (int(x) for x in spec.split(":"))
+        except ValueError:
+            ap.error(f"run {spec!r}: expected DATASET:ROBOT, e.g. 2:1")
         rows = []
         if a.start != "incremental":
             for k in range(a.seeds):
