@@ -57,6 +57,7 @@ from qfg import partitions
 from qfg.datasets import mrclam
 from qfg.geometry import to_frame, wrap_angle
 from qfg.harness.studies.mrclam import arena_extent, prepare
+from qfg.metrics import brier, log_score, truth_under
 
 #: The kinematic prior (m/s, rad/s; set from --measure-prior on datasets 1-4 and 6: forward speed
 #: mean 0.048-0.060, rms 0.056-0.063 m/s; lateral rms 0.0015-0.0017 m/s; turn rms 0.13-0.17 rad/s).
@@ -187,7 +188,7 @@ def run_one(path, robot, start, chunk, noise=0.0, seed=0):
     meas = J.mrclam_runs(ds, [robot], min_move=0.0, min_turn_deg=0.0)
     ids = list(meas.landmark_ids)
     lm_index = {lm: i for i, lm in enumerate(ids)}
-    truth = np.asarray(ds.landmark_xy)[[list(ds.landmark_ids).index(lm) for lm in ids]]
+    truth = np.asarray(ds.landmark_xy)              # mrclam_runs keeps the dataset's landmark order
     r = kinematic_run(meas.runs[0])
     t0 = time.perf_counter()
     if start in ("truth", "arena"):
@@ -290,21 +291,22 @@ def joint_maps(folder, tolerance, samples=2000):
     kinematic prior as odometry, each robot started from its saved fit instead of the solver's
     odometry chain), every ordered triplet's state distribution (:func:`qfg.joint.
     triplet_marginals`, the arena prior's states as the floor), scored against the ground
-    truth beside the prior alone: mean log p(truth) (clip 1e-4), truth under 1 %."""
+    truth beside the prior alone: mean log p(truth) (clip 1e-4), Brier, truth under 1 %."""
     from qfg.configurations import prior_states
     from qfg.harness.studies.mrclam import make_prior
 
     root = mrclam.data_root()
-    print("| dataset | robots | method, flags | mean log p(truth) | truth under 1 % | prior alone | s |")
-    print("|---|---|---|---|---|---|---|")
+    part = partitions.get("edc")
+    print("| dataset | robots | method, flags | mean log p(truth) | Brier | truth under 1 % | "
+          "prior alone: log p, Brier | s |")
+    print("|---|---|---|---|---|---|---|---|")
     for d, saved in sorted(_saved(folder).items()):
         pts = {k: v[0] for k, v in saved.items()}
         group = _largest_agreeing(pts, tolerance)
         ds, _ = prepare(root / f"MRCLAM_Dataset{d}")
         q = prior_states(make_prior(ds, "arena"))
-        part = partitions.get("edc")
         if not group:
-            print(f"| {d} | none agree | - | - | - | - | - |")
+            print(f"| {d} | none agree | - | - | - | - | - | - |")
             continue
         t0 = time.perf_counter()
         meas = J.mrclam_runs(ds, list(group), min_move=0.0, min_turn_deg=0.0)
@@ -325,11 +327,12 @@ def joint_maps(folder, tolerance, samples=2000):
         truth = np.asarray(ds.landmark_xy)
         tri = np.array([[ids.index(x) for x in t] for t in res.triplets], dtype=np.intp)
         s_true = part.state_of(to_frame(truth[tri[:, 2]], truth[tri[:, 0]], truth[tri[:, 1]]))
-        pt = np.asarray(res.probabilities)[np.arange(len(tri)), s_true]
-        lp = np.log(np.clip(pt, 1e-4, None))
+        P = np.asarray(res.probabilities)
+        Q = np.broadcast_to(q, P.shape)
         print(f"| {d} | {', '.join(map(str, group))} | {post.method}, {', '.join(post.flags) or '-'} | "
-              f"{lp.mean():.2f} | {100 * np.mean(pt < 0.01):.1f} % | "
-              f"{np.log(np.clip(q[s_true], 1e-4, None)).mean():.2f} | "
+              f"{log_score(P, s_true).mean():.2f} | {brier(P, s_true).mean():.3f} | "
+              f"{100 * truth_under(P, s_true).mean():.1f} % | "
+              f"{log_score(Q, s_true).mean():.2f}, {brier(Q, s_true).mean():.3f} | "
               f"{time.perf_counter() - t0:.0f} |", flush=True)
 
 
