@@ -37,8 +37,11 @@ The method (docs/joint.md has the math and the measurements behind each default)
    unconstrained landmark are mixed toward ``prior_states`` (weight ``widen``; 1 for
    unconstrained), every row toward it with weight ``floor``.
 
-Robots without odometry are left out of the metric solve (flag ``no_odometry``); when no robot
-has odometry the posterior has ``method == "none"`` and every triplet is the prior: the
+Robots without odometry (MRCLAM dataset 5) are solved with a kinematic motion prior in place
+of it, started from the bearings alone at several batch sizes (:mod:`qfg.joint_start`), and
+kept only when their maps agree in shape with other robots' (flag ``kinematic``; a lone robot
+without odometry cannot be checked and is left out, flag ``unverified``). When nothing can be
+solved the posterior has ``method == "none"`` and every triplet is the prior: the
 solver-based pipeline must answer (:func:`mrclam_marginals` says which method answered).
 
 >>> import numpy as np
@@ -62,6 +65,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from . import joint_start as _start
 from . import nonlinear as _nl
 from . import partitions as _partitions
 from ._validate import as_float_array, as_rng, non_negative, positive_int
@@ -80,9 +84,6 @@ __all__ = ["RobotRun", "JointMeasurements", "Mode", "JointPosterior", "solve",
 #: spread of keyframe-to-keyframe errors binned by step length, docs/joint.md).
 ODOMETRY_NOISE = {"c0": (0.004, 0.002, 0.010), "c_turn": (0.0, 0.0, 0.10),
                   "c_dist": (0.15, 0.15, 0.30)}
-#: A landmark farther from the poses that see it than this many times the median such distance
-#: has diverged along its rays (:func:`_diverged`).
-DIVERGED = 10.0
 #: Bearings beyond this many sigmas at a fit are gross errors (MRCLAM dataset 6: dropping them
 #: takes robots 3 and 5's maps from 15-17 cm to 5-6 cm median error, docs/joint.md).
 OUTLIER = 4.0
@@ -219,19 +220,6 @@ def odometry_steps(poses, noise=None):
     return z, s
 
 
-def _chain(start, steps):
-    """Poses from ``start`` (3,) composed with relative ``steps`` (n, 3): (n + 1, 3)."""
-    out = np.empty((len(steps) + 1, 3))
-    out[0] = start
-    x, y, th = (float(v) for v in start)
-    for i, (dx, dy, dt) in enumerate(np.asarray(steps, float)):
-        c, s = np.cos(th), np.sin(th)
-        x, y, th = x + c * dx - s * dy, y + s * dx + c * dy, th + dt
-        out[i + 1] = (x, y, th)
-    out[:, 2] = wrap_angle(out[:, 2])
-    return out
-
-
 # ----------------------------------------------------------------------------- results
 @dataclass(frozen=True, eq=False)
 class Mode:
@@ -255,15 +243,22 @@ class JointPosterior:
         constrained: (L,) bool, landmarks in the metric solve.
         landmark_flags: (L,) tuple of ``"ok"``, ``"weak"`` (few rays: sampled from its exact
             conditional), ``"inconsistent"`` (residual check failed), ``"unconstrained"``.
-        robot_flags: dict robot -> ``"ok"``, ``"no_odometry"``, ``"local_minimum"`` (dropped),
-            ``"unaligned"`` (fewer than 2 landmarks shared with the others: dropped).
+        robot_flags: dict robot -> ``"ok"``, ``"kinematic"`` (no odometry: solved with the
+            kinematic motion prior in its place), ``"no_odometry"`` (left out:
+            ``without_odometry="skip"``), ``"unverified"`` (no odometry and its map agrees
+            with no other robot's: left out), ``"local_minimum"`` (dropped), ``"unaligned"``
+            (fewer than 2 landmarks shared with the others: dropped).
         flags: overall flags (``"local_minimum"``, ``"second_mode"``, ``"no_odometry"``,
-            ``"inconsistent_landmark"``, ``"unconstrained_landmark"``).
-        method: ``"joint"`` (metric posterior) or ``"none"`` (nothing could be solved: no
-            robot with odometry; every triplet is the prior).
+            ``"kinematic_prior"`` (some run solved without odometry), ``"unverified"``,
+            ``"indeterminate"``, ``"inconsistent_landmark"``, ``"unconstrained_landmark"``).
+        method: ``"joint"`` (metric posterior) or ``"none"`` (nothing could be solved, e.g. a
+            lone robot without odometry; every triplet is the prior).
         poses: dict robot -> (P, 3) poses of that run in the map frame (best mode; NaN rows for
             robots not solved).
-        info: extras (``cost``, ``n_bearings``, ``n_poses``, ``time_s``, ``starts``).
+        info: extras (``cost``, ``n_bearings``, ``n_poses``, ``time_s``, ``starts``;
+            ``robot_maps``: robot -> (L, 2) its landmarks as placed by its own start, in its
+            own frame, NaN where not placed; ``kinematic_starts``: robot -> the batch size
+            whose start was kept and every size's cost, for runs without odometry).
     """
 
     landmark_ids: tuple
@@ -295,160 +290,14 @@ class JointPosterior:
 
 
 # ----------------------------------------------------------------------------- solve
-def _problem_of(runs, lm_index, points_ok, anchor_robot, *, robust, weak_prior=None):
-    """One BearingProblem over ``runs`` (poses stacked run by run) and the landmarks with
-    ``points_ok``; the first pose of ``anchor_robot`` anchored."""
-    offs, n = {}, 0
-    for r in runs:
-        offs[r.robot] = n
-        n += r.n_poses
-    col = -np.ones(len(lm_index), np.intp)
-    ok = np.flatnonzero(points_ok)
-    col[ok] = np.arange(ok.size)
-    bp, bl, b, sb, ef, et, z, zs = [], [], [], [], [], [], [], []
-    for r in runs:
-        j = col[np.array([lm_index[int(x)] for x in r.bearing_landmark.tolist()], dtype=np.intp)
-                if r.bearing_landmark.size else np.zeros(0, np.intp)]
-        keep = j >= 0
-        bp.append(r.bearing_pose[keep] + offs[r.robot])
-        bl.append(j[keep])
-        b.append(r.bearing[keep])
-        sb.append(np.full(int(keep.sum()), r.sigma_bearing))
-        if r.has_odometry and r.n_poses > 1:
-            ef.append(np.arange(r.n_poses - 1) + offs[r.robot])
-            et.append(np.arange(1, r.n_poses) + offs[r.robot])
-            z.append(r.odometry)
-            zs.append(r.odometry_sigma)
-    def cat(xs, shape):
-        return (np.concatenate(xs) if xs else np.zeros(shape))
-    kw = {}
-    if weak_prior is not None:
-        kw = dict(point_prior_index=np.arange(ok.size), point_prior=weak_prior[0][ok],
-                  point_prior_sigma=weak_prior[1])
-    pr = _nl.BearingProblem(
-        n_poses=n, n_points=ok.size, bearing_pose=cat(bp, 0), bearing_point=cat(bl, 0),
-        bearing=cat(b, 0), sigma_bearing=cat(sb, 0) if sb else 1.0,
-        between_from=cat(ef, 0), between_to=cat(et, 0), between=cat(z, (0, 3)),
-        between_sigma=cat(zs, (0, 3)) if zs else 1.0,
-        pose_prior_index=[offs[anchor_robot]], pose_prior=[[0.0, 0.0, 0.0]],
-        pose_prior_sigma=1e-6, robust_bearing=robust, **kw)
-    return pr, offs, ok
-
-
-def _init_landmarks(poses, r, lm_index, points, have, *, upto, min_rays, min_par):
-    """Initialise landmarks of run ``r`` not yet in ``have`` from its rays at poses < upto."""
-    sel = r.bearing_pose < upto
-    if not sel.any():
-        return
-    ids = r.bearing_landmark[sel]
-    P = poses[r.bearing_pose[sel]]
-    ang = P[:, 2] + r.bearing[sel]
-    for lid in np.unique(ids).tolist():
-        j = lm_index[lid]
-        if have[j]:
-            continue
-        m = ids == lid
-        if m.sum() < min_rays:
-            continue
-        p, ok, par = _nl.intersect_rays(P[m, :2], ang[m], r.sigma_bearing)
-        if ok and par >= min_par and np.all(np.isfinite(p)):
-            points[j] = p
-            have[j] = True
-
-
-def _solve_run(r, lm_index, *, chunk, min_rays, min_par, robust, max_iterations,
-               outlier=0.0):
-    """Incremental batches for one run with odometry, first pose at the origin."""
-    L = len(lm_index)
-    poses = _chain(np.zeros(3), r.odometry)
-    points = np.zeros((L, 2))
-    have = np.zeros(L, bool)
-    fit = None
-    ends = list(range(chunk, r.n_poses, chunk)) + [r.n_poses]
-    for end in ends:
-        _init_landmarks(poses, r, lm_index, points, have, upto=end, min_rays=min_rays,
-                        min_par=min_par)
-        if not have.any():
-            continue
-        sub = _cut(r, end)
-        while True:
-            pr, _, ok = _problem_of([sub], lm_index, have, r.robot, robust=robust)
-            fit = _nl.fit(pr, poses[:end], points[ok], max_iterations=max_iterations)
-            far = _diverged(pr, fit)
-            if not far.any():
-                break
-            have[ok[far]] = False  # re-initialised later, from more rays
-            if not have.any():
-                fit = None
-                break
-        if fit is None:
-            continue
-        if end == r.n_poses:
-            pr, fit, _ = _drop_outliers(pr, fit, outlier, max_iterations)
-        poses[:end] = fit.poses
-        points[ok] = fit.points
-        if end < r.n_poses:
-            poses[end - 1:] = _chain(fit.poses[-1], r.odometry[end - 1:])
-    return poses, points, have, fit
-
-
-def _drop_outliers(pr, fit, limit, max_iterations):
-    """Bearings whose whitened residual exceeds ``limit`` left out and the fit redone from it
-    (misread barcodes and the like; a point keeps at least 3 rays). Returns (problem, fit,
-    number dropped)."""
-    if not limit:
-        return pr, fit, 0
-    drop = np.abs(fit.bearing_residuals) > limit
-    left = np.bincount(pr.bearing_point[~drop], minlength=pr.n_points)
-    drop &= left[pr.bearing_point] >= 3
-    if not drop.any():
-        return pr, fit, 0
-    pr2 = _nl.without_bearings(pr, drop)
-    return pr2, _nl.fit(pr2, fit.poses, fit.points, max_iterations=max_iterations), int(drop.sum())
-
-
-def _diverged(pr, fit, factor: float = DIVERGED) -> np.ndarray:
-    """Points that ran away along their rays: median distance from the poses that see them
-    above ``factor`` times the median of that distance over all points (a landmark initialised
-    from rays of too little parallax drifts towards infinity, where every bearing fits)."""
-    d = np.hypot(*(fit.points[pr.bearing_point] - fit.poses[pr.bearing_pose, :2]).T)
-    n = pr.n_points
-    med = np.array([np.median(d[pr.bearing_point == c]) if np.any(pr.bearing_point == c)
-                    else 0.0 for c in range(n)])
-    return med > factor * max(float(np.median(med)), 1e-12)
-
-
-def _cut(r: RobotRun, end: int) -> RobotRun:
-    """The first ``end`` poses of a run (bearings of those poses only)."""
-    if end >= r.n_poses:
-        return r
-    m = r.bearing_pose < end
-    return RobotRun(robot=r.robot, times=r.times[:end], bearing_pose=r.bearing_pose[m],
-                    bearing_landmark=r.bearing_landmark[m], bearing=r.bearing[m],
-                    sigma_bearing=r.sigma_bearing,
-                    odometry=None if r.odometry is None else r.odometry[:end - 1],
-                    odometry_sigma=None if r.odometry is None else r.odometry_sigma[:end - 1])
-
-
-def _rigid(src, dst):
-    """Rigid transform (R, t) with ``dst ~ R src + t`` (least squares, no scale)."""
-    ms, md = src.mean(0), dst.mean(0)
-    H = (src - ms).T @ (dst - md)
-    U, _, Vt = np.linalg.svd(H)
-    R = Vt.T @ U.T
-    if np.linalg.det(R) < 0:
-        Vt[-1] *= -1
-        R = Vt.T @ U.T
-    return R, md - R @ ms
-
-
-def _apply(R, t, poses=None, points=None):
+def _apply(sc, R, t, poses=None, points=None):
+    """Poses and points moved by the similarity ``x -> sc R x + t`` (headings turned by R)."""
     out = []
     if poses is not None:
-        xy = poses[:, :2] @ R.T + t
+        xy = sc * poses[:, :2] @ R.T + t
         out.append(np.column_stack([xy, wrap_angle(poses[:, 2] + np.arctan2(R[1, 0], R[0, 0]))]))
     if points is not None:
-        out.append(points @ R.T + t)
+        out.append(sc * points @ R.T + t)
     return out
 
 
@@ -475,7 +324,10 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
           min_parallax_deg: float = 10.0, starts: int = 3, robust: float = _nl.HUBER_K,
           residual_limit: float = 2.0, landmark_limit: float = 3.0, mode_cost: float = 10.0,
           inflate: float = 1.0, sir_rays: int = 20, max_iterations: int = 100,
-          outlier: float = OUTLIER, seed=0) -> JointPosterior:
+          outlier: float = OUTLIER, without_odometry: str = "kinematic",
+          kinematic: _start.KinematicPrior = _start.KINEMATIC,
+          kinematic_chunks=(25, 50, 100), agree: float | None = _start.AGREE,
+          seed=0) -> JointPosterior:
     """The joint posterior of :class:`JointMeasurements` (module docstring, steps 1-4).
 
     Args:
@@ -495,6 +347,16 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
         mode_cost: another start's minimum within this much cost of the best is kept as a mode.
         inflate: factor on every covariance (1: the Laplace approximation as is).
         sir_rays: landmarks with fewer rays are ``weak`` (sampled from their exact conditional).
+        without_odometry: ``"kinematic"``: a run without odometry is solved with the
+            ``kinematic`` motion prior in its place (:mod:`qfg.joint_start`), started at each
+            of ``kinematic_chunks`` batch sizes (the fit of least cost kept), and used only if
+            its map agrees with other robots' (``agree``); ``"skip"``: left out (flag
+            ``no_odometry``).
+        agree: a run without odometry is kept only if it is in the largest group of robots
+            whose maps agree pairwise (:func:`qfg.joint_start.agreeing_group` with this
+            tolerance); a fit without odometry can pass every residual check in a wrong
+            minimum, so a lone run without odometry is left out (flag ``unverified``). None:
+            no check (every such run kept, at the user's risk).
         seed: for the starts' order of tie-breaking (the solve is otherwise deterministic).
     """
     if not isinstance(measurements, JointMeasurements):
@@ -508,6 +370,16 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
     non_negative("residual_limit", residual_limit)
     non_negative("mode_cost", mode_cost)
     inflate = non_negative("inflate", inflate)
+    if without_odometry not in ("kinematic", "skip"):
+        raise ValueError(f"without_odometry: expected 'kinematic' or 'skip', got "
+                         f"{without_odometry!r}")
+    if not isinstance(kinematic, _start.KinematicPrior):
+        raise ValueError(f"kinematic: expected a qfg.joint_start.KinematicPrior, got "
+                         f"{type(kinematic).__name__}")
+    kinematic_chunks = tuple(positive_int("kinematic_chunks", c, minimum=2)
+                             for c in np.atleast_1d(kinematic_chunks).tolist())
+    if agree is not None:
+        agree = non_negative("agree", agree)
     as_rng(seed)
     t0 = _time.perf_counter()
     ids = measurements.landmark_ids
@@ -515,27 +387,47 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
     lm_index = {l: i for i, l in enumerate(ids)}
     robot_flags = {r.robot: "ok" for r in measurements.runs}
     flags = []
-    runs = [r for r in measurements.runs if r.has_odometry]
+    runs = []
     for r in measurements.runs:
-        if not r.has_odometry:
+        if r.has_odometry:
+            runs.append(r)
+        elif without_odometry == "kinematic":
+            runs.append(_start.kinematic_run(r, kinematic))
+            robot_flags[r.robot] = "kinematic"
+        else:
             robot_flags[r.robot] = "no_odometry"
             flags.append("no_odometry")
+    kinematic_robots = {r.robot for r in runs if robot_flags[r.robot] == "kinematic"}
     nan_poses = {r.robot: np.full((r.n_poses, 3), np.nan) for r in measurements.runs}
-    if not runs:
+
+    def nothing(**extra):
         return JointPosterior(ids, (), np.zeros(L, bool), ("unconstrained",) * L, robot_flags,
                               tuple(dict.fromkeys(flags)), "none", nan_poses,
-                              {"time_s": _time.perf_counter() - t0})
+                              {"time_s": _time.perf_counter() - t0, **extra})
+    if not runs:
+        return nothing()
     opts = dict(chunk=chunk, min_rays=min_rays, min_par=min_par, robust=robust,
                 max_iterations=max_iterations, outlier=outlier)
     # 1. each run alone, in its own frame
-    per = {}
+    per, starts_info = {}, {}
     for r in runs:
-        # several starts: other batch sizes when a run ends in a wrong minimum
-        for ch in dict.fromkeys((chunk, 2 * chunk, max(chunk // 2, 2))):
-            poses, points, have, fit = _solve_run(r, lm_index, **{**opts, "chunk": ch})
+        if r.robot in kinematic_robots:
+            # the minimum reached depends on the batch size; the least cost is kept
+            tries = [_start.kinematic_start(r, lm_index, chunk=ch, robust=robust,
+                                            prior=kinematic) for ch in kinematic_chunks]
+            costs = [np.inf if t[3] is None else float(t[3].cost) for t in tries]
+            best_try = int(np.argmin(costs))
+            candidates = [tries[best_try]] if np.isfinite(costs[best_try]) else []
+            starts_info[r.robot] = {"chunk": kinematic_chunks[best_try], "costs": costs}
+        else:
+            # several starts: other batch sizes when a run ends in a wrong minimum
+            candidates = (_start.odometry_start(r, lm_index, **{**opts, "chunk": ch})
+                          for ch in dict.fromkeys((chunk, 2 * chunk, max(chunk // 2, 2))))
+        fit = None
+        for poses, points, have, fit in candidates:
             if fit is None:
                 continue
-            pr1, offs1, ok1 = _problem_of([r], lm_index, have, r.robot, robust=robust)
+            pr1, offs1, ok1 = _start.problem_of([r], lm_index, have, r.robot, robust=robust)
             chk = _robot_checks(pr1, _nl.Fit(poses, points[ok1], 0.0, 0, True, None, None),
                                 offs1, [r], outlier)[r.robot]
             if not _failed(chk, residual_limit, outlier):
@@ -544,15 +436,25 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
         else:
             robot_flags[r.robot] = "unconstrained" if fit is None else "local_minimum"
             flags.append("local_minimum" if fit is not None else "unconstrained_robot")
+    robot_maps = {k: np.where(v[2][:, None], v[1], np.nan) for k, v in per.items()}
+    if agree is not None and kinematic_robots & set(per):
+        # a fit without odometry is trusted only when another robot's map has its shape
+        group = set(_start.agreeing_group(robot_maps, agree))
+        for k in sorted(kinematic_robots & set(per) - group):
+            del per[k]
+            robot_flags[k] = "unverified"
+            flags.append("unverified")
+    if kinematic_robots & set(per):
+        flags.append("kinematic_prior")
     runs = [r for r in runs if r.robot in per]
     if not runs:
-        flags.append("unconstrained_landmark")
-        return JointPosterior(ids, (), np.zeros(L, bool), ("unconstrained",) * L, robot_flags,
-                              tuple(dict.fromkeys(flags)), "none", nan_poses,
-                              {"time_s": _time.perf_counter() - t0})
+        if "unverified" not in flags:
+            flags.append("unconstrained_landmark")
+        return nothing(robot_maps=robot_maps, kinematic_starts=starts_info)
     # 2. align to the reference run; 3. joint solve, dropping runs in wrong minima
     while True:
-        ref = max(runs, key=lambda r: (per[r.robot][2].sum(), -r.robot)).robot
+        ref = max(runs, key=lambda r: (r.robot not in kinematic_robots, per[r.robot][2].sum(),
+                                       -r.robot)).robot
         pts = np.where(per[ref][2][:, None], per[ref][1], 0.0)
         have = per[ref][2].copy()
         init = {ref: per[ref][0]}
@@ -564,14 +466,17 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
             if common.sum() < 2:
                 robot_flags[r.robot] = "unaligned"
                 continue
-            R, t = _rigid(q[common], pts[common])
-            Xr, Pr = _apply(R, t, p, q)
+            # without odometry a run's scale is the kinematic prior's guess: a similarity
+            sc, R, t = _start.similarity(q[common], pts[common],
+                                         scale=r.robot in kinematic_robots)
+            Xr, Pr = _apply(sc, R, t, p, q)
             init[r.robot] = Xr
             new = h & ~have
             pts[new] = Pr[new]
             have |= new
         use = [r for r in runs if r.robot in init]
-        pr, offs, ok = _problem_of(use, lm_index, have, ref, robust=robust)
+        pr, offs, ok = _start.problem_of(use, lm_index, have, ref, robust=robust,
+                                         anchor=init[ref][0])
         X0 = np.concatenate([init[r.robot] for r in use])
         starts_list = [(X0, pts[ok])]
         for f in (0.5, 2.0)[:starts - 1]:
@@ -579,14 +484,14 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
         fits = [_nl.fit(pr, X, P, max_iterations=max_iterations) for X, P in starts_list]
         best = int(np.argmin([f.cost for f in fits]))
         fit = fits[best]
-        far = _diverged(pr, fit)
+        far = _start.diverged(pr, fit)
         if far.any():
             # a landmark ran away in the joint solve: leave it out (unconstrained) and redo
             for rr in runs:
                 per[rr.robot][2][ok[far]] = False
             continue
         pr_all = pr
-        pr, fit, n_out = _drop_outliers(pr, fit, outlier, max_iterations)
+        pr, fit, n_out = _start.drop_outliers(pr, fit, outlier, max_iterations)
         chk = _robot_checks(pr_all, fit, offs, use, outlier)
         med = {r: c[0] for r, c in chk.items()}
         bad = [r for r, c in chk.items() if _failed(c, residual_limit, outlier)]
@@ -615,10 +520,8 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
             if exc.key is None or exc.key < pr.n_poses:
                 # no covariance at all: an honest "cannot say", flagged
                 flags.append("indeterminate")
-                return JointPosterior(ids, (), np.zeros(L, bool), ("unconstrained",) * L,
-                                      robot_flags, tuple(dict.fromkeys(flags)), "none",
-                                      nan_poses, {"time_s": _time.perf_counter() - t0,
-                                                  "error": str(exc)})
+                return nothing(error=str(exc), robot_maps=robot_maps,
+                               kinematic_starts=starts_info)
             # a landmark whose rays leave it undetermined (nearly parallel after outliers were
             # dropped): leave it out, flagged unconstrained, and solve again
             for rr in runs:
@@ -660,7 +563,8 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
     info = {"cost": float(fit.cost), "n_bearings": int(pr.bearing.size),
             "n_poses": int(pr.n_poses), "starts": len(fits), "costs": [f.cost for f in fits],
             "robot_median_residual": med, "outliers_dropped": n_out, "time_s": _time.perf_counter() - t0,
-            "reference_robot": ref, "marginals": marg}
+            "reference_robot": ref, "marginals": marg, "robot_maps": robot_maps,
+            "kinematic_starts": starts_info}
     return JointPosterior(ids, tuple(out_modes), constrained, tuple(lflags), robot_flags,
                           tuple(dict.fromkeys(flags)), "joint", poses, info, pr, fit, offs, weak)
 
@@ -1090,8 +994,9 @@ class MRCLAMJoint:
         triplets: :class:`~qfg.inference.results.Marginals` keyed by subject-number triplets.
         cameras: list of (n_views, m) arrays, one per requested history (or None when none
             were requested).
-        method: which method answered (``"joint"``, or ``"none"``: no robot has odometry, the
-            solver-based pipeline must answer).
+        method: which method answered (``"joint"``, or ``"none"``: nothing could be solved,
+            e.g. a lone robot without odometry (``posterior.flags`` say why); the solver-based
+            pipeline must answer).
         posterior: the :class:`JointPosterior`; time_s: wall time.
     """
 
@@ -1113,8 +1018,9 @@ def mrclam_marginals(dataset, triplets=None, histories=None, *, robots=None, pri
 
     ``prior_states`` / ``camera_prior_states``: the state distributions of the prior alone (for
     the floor and for what cannot be solved); ``run_options`` go to :func:`mrclam_runs`, the
-    rest to :func:`solve`. When no robot has odometry, ``method`` is ``"none"`` and every row is
-    the prior: answer with the solver pipeline instead (``qfg mrclam --method full``).
+    rest to :func:`solve`. When nothing can be solved (e.g. one robot without odometry: its fit
+    cannot be checked against another's), ``method`` is ``"none"`` and every row is the prior:
+    answer with the solver pipeline instead (``qfg mrclam --method full``).
     """
     t0 = _time.perf_counter()
     keep = None

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from qfg import joint
+from qfg import joint, joint_start
 from qfg import nonlinear as nl
 from qfg.inference.results import Marginals
 from qfg.partitions import get as get_partition
@@ -207,17 +207,22 @@ def test_unconstrained_landmark_gets_the_prior():
     assert res[(0, 1, 2)].max() > 0.5
 
 
-def test_no_odometry_falls_back_with_a_flag():
+def test_a_lone_run_without_odometry_is_unverified_and_skip_leaves_it_out():
     run = _run(9)
+    # a fit without odometry can pass every residual check in a wrong minimum: alone, with no
+    # other robot's map to check it against, it is not used
     post = joint.solve(joint.simulated_measurements(run, odometry=False))
-    assert post.method == "none" and "no_odometry" in post.flags
-    assert post.robot_flags[0] == "no_odometry"
+    assert post.method == "none" and "unverified" in post.flags
+    assert post.robot_flags[0] == "unverified"
     res = joint.triplet_marginals(post, samples=100)
     assert res.method == "joint:none" and np.allclose(res.probabilities, 1 / 20)
-    # with another robot that has odometry, the one without is left out and flagged
+    post = joint.solve(joint.simulated_measurements(run, odometry=False),
+                       without_odometry="skip")
+    assert post.method == "none" and post.robot_flags[0] == "no_odometry"
+    # with another robot that has odometry, skip leaves the one without out, flagged
     m1 = joint.simulated_measurements(run, odometry=False, robot=1).runs[0]
     m0 = joint.simulated_measurements(run).runs[0]
-    post = joint.solve(joint.JointMeasurements((m0, m1)))
+    post = joint.solve(joint.JointMeasurements((m0, m1)), without_odometry="skip")
     assert post.method == "joint" and post.robot_flags == {0: "ok", 1: "no_odometry"}
 
 
@@ -307,7 +312,7 @@ def test_mrclam_runs_keep_requested_views_and_odometry_matches_dead_reckoning():
     assert set(want.tolist()) <= set(run.times.tolist())
     P, _ = mrclam.view_poses(rd)
     idx = np.searchsorted(rd.view_times, run.times)
-    chain = joint._chain(P[idx[0]], run.odometry)
+    chain = joint_start.chain(P[idx[0]], run.odometry)
     assert np.allclose(chain[:, :2], P[idx, :2], atol=1e-9)
     assert meas.landmark_ids == tuple(int(x) for x in ds.landmark_ids)
     with pytest.raises(KeyError, match="robot"):
@@ -316,12 +321,13 @@ def test_mrclam_runs_keep_requested_views_and_odometry_matches_dead_reckoning():
 
 @pytest.mark.skipif(_mrclam_dir() is None or not (_mrclam_dir().parent / "MRCLAM_Dataset5").is_dir(),
                     reason="MRCLAM dataset 5 not present")
-def test_mrclam_dataset_without_odometry_says_the_pipeline_must_answer():
+def test_mrclam_dataset_without_odometry_skipped_says_the_pipeline_must_answer():
     from qfg.datasets import mrclam
 
     ds = mrclam.load(_mrclam_dir().parent / "MRCLAM_Dataset5")
     q = np.full(20, 0.05)
-    res = joint.mrclam_marginals(ds, [(6, 7, 8)], prior_states=q, samples=50)
+    res = joint.mrclam_marginals(ds, [(6, 7, 8)], prior_states=q, samples=50,
+                                 without_odometry="skip")
     assert res.method == "none" and "no_odometry" in res.posterior.flags
     assert set(res.posterior.robot_flags.values()) == {"no_odometry"}
     assert res.triplets.method == "joint:none" and np.allclose(res.triplets[(6, 7, 8)], q)

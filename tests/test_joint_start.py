@@ -1,0 +1,182 @@
+"""qfg.joint_start: the starts of the joint solve, and runs without odometry solved with the
+kinematic prior and checked against each other (against loops, closed forms and the truth of
+simulated worlds)."""
+
+import dataclasses
+import itertools
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from qfg import joint, joint_start
+from qfg.geometry import to_frame, wrap_angle
+from qfg.metrics import log_score
+from qfg.partitions import get as get_partition
+from qfg.simulation import random_trajectory_run
+
+EDC = get_partition("edc")
+#: the simulator's motion (0.3 m per pose, 1 s apart, turns of 20 degrees sd) as a prior
+SIM = joint_start.KinematicPrior(speed=0.3, sigma_speed=0.05, sigma_lateral=0.02,
+                                 sigma_turn=0.4)
+
+
+def _loop_visual_steps(r, prior):
+    """The definition, one image pair at a time (a landmark's last bearing in an image)."""
+    by_pose = {}
+    for p, lm, b in zip(r.bearing_pose.tolist(), r.bearing_landmark.tolist(),
+                        r.bearing.tolist(), strict=True):
+        by_pose.setdefault(p, {})[lm] = b
+    dth = np.zeros(r.n_poses - 1)
+    for i in range(r.n_poses - 1):
+        a, b = by_pose.get(i, {}), by_pose.get(i + 1, {})
+        common = set(a) & set(b)
+        if common:
+            dth[i] = -np.median([wrap_angle(b[k] - a[k]) for k in common])
+    z = prior.steps(np.diff(r.times))[0]
+    z[:, 2] = dth
+    return z
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_visual_steps_equal_the_loop_over_image_pairs(seed):
+    rng = np.random.default_rng(seed)
+    n = 60
+    pose = np.sort(rng.integers(0, n, 400))
+    lm = rng.choice([3, 7, 11, 40, 41], 400)      # repeats within an image, gaps between
+    r = joint.RobotRun(robot=1, times=np.cumsum(rng.uniform(0.1, 2, n)), bearing_pose=pose,
+                       bearing_landmark=lm, bearing=rng.uniform(-np.pi, np.pi, 400),
+                       sigma_bearing=0.01)
+    np.testing.assert_allclose(joint_start.visual_steps(r), _loop_visual_steps(r, joint_start.KINEMATIC),
+                               atol=1e-12)
+
+
+def test_visual_steps_recover_a_pure_rotation():
+    # a camera turning on the spot: every bearing turns by minus the turn
+    L = np.array([[3.0, 0], [0, 4], [-2, -1]])
+    th = np.cumsum(np.r_[0, np.deg2rad([5, -3, 10])])
+    b = wrap_angle(np.arctan2(L[:, 1], L[:, 0])[None, :] - th[:, None])
+    r = joint.RobotRun(robot=0, times=np.arange(4.0), bearing_pose=np.repeat(np.arange(4), 3),
+                       bearing_landmark=np.tile([0, 1, 2], 4), bearing=b.ravel(),
+                       sigma_bearing=0.01)
+    np.testing.assert_allclose(joint_start.visual_steps(r)[:, 2], np.diff(th), atol=1e-12)
+
+
+@given(st.floats(0.1, 10), st.floats(-np.pi, np.pi), st.floats(-5, 5), st.floats(-5, 5),
+       st.integers(0, 2 ** 32 - 1))
+def test_similarity_recovers_the_transform_and_misfit_is_invariant(s, a, tx, ty, seed):
+    A = np.random.default_rng(seed).normal(size=(6, 2))
+    R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    B = s * A @ R.T + [tx, ty]
+    s2, R2, t2 = joint_start.similarity(A, B)
+    assert s2 == pytest.approx(s, rel=1e-9)
+    np.testing.assert_allclose(R2, R, atol=1e-9)
+    np.testing.assert_allclose(t2, [tx, ty], atol=1e-8 * max(1, s))
+    assert joint_start.shape_misfit(A, B) < 1e-9 and joint_start.shape_misfit(B, A) < 1e-9
+    # rigid: no scale
+    assert joint_start.similarity(A, B, scale=False)[0] == 1.0
+
+
+def test_a_mirror_image_or_a_moved_landmark_does_not_fit():
+    A = np.random.default_rng(0).normal(size=(8, 2))
+    assert joint_start.shape_misfit(A * [1, -1], A) > 0.1      # no reflections
+    B = A.copy()
+    B[:5] += np.random.default_rng(1).normal(0, 0.5, (5, 2))    # most landmarks moved
+    assert joint_start.shape_misfit(B, A) > joint_start.AGREE
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_agreeing_group_is_the_largest_pairwise_agreeing_set(seed):
+    rng = np.random.default_rng(seed)
+    base = rng.normal(size=(7, 2))
+    maps = {}
+    for k in range(6):
+        a, s = rng.uniform(-np.pi, np.pi), rng.uniform(0.5, 2)
+        R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+        m = s * base @ R.T + rng.normal(size=2) + rng.normal(0, rng.choice([0.001, 0.3]), (7, 2))
+        m[rng.random(7) < 0.15] = np.nan          # landmarks a robot did not place
+        maps[k + 1] = m
+
+    def agree(i, j):
+        m = np.isfinite(maps[i]).all(1) & np.isfinite(maps[j]).all(1)
+        return m.sum() >= 4 and max(joint_start.shape_misfit(maps[i][m], maps[j][m]),
+                                    joint_start.shape_misfit(maps[j][m], maps[i][m])) <= 0.05
+    brute = ()
+    for k in range(len(maps), 1, -1):
+        for g in itertools.combinations(sorted(maps), k):
+            if all(agree(i, j) for i, j in itertools.combinations(g, 2)):
+                brute = g
+                break
+        if brute:
+            break
+    assert joint_start.agreeing_group(maps, 0.05) == brute
+
+
+def _world(seed, n_robots, n_poses=150):
+    rng = np.random.default_rng(seed)
+    first = random_trajectory_run(rng, n_landmarks=6, n_poses=n_poses, fov_deg=360,
+                                  sigma_bearing=np.deg2rad(1))
+    runs = [first] + [random_trajectory_run(rng, n_poses=n_poses, fov_deg=360,
+                                            sigma_bearing=np.deg2rad(1),
+                                            landmarks=first.landmarks)
+                      for _ in range(n_robots - 1)]
+    meas = [joint.simulated_measurements(r, odometry=False, robot=k).runs[0]
+            for k, r in enumerate(runs)]
+    return meas, first.landmarks
+
+
+def _truth_score(post, L):
+    res = joint.triplet_marginals(post, samples=500, seed=0)
+    tri = np.array(res.triplets)
+    s = EDC.state_of(to_frame(L[tri[:, 2]], L[tri[:, 0]], L[tri[:, 1]]))
+    return log_score(np.asarray(res.probabilities), s)
+
+
+def test_robots_without_odometry_make_a_map_with_the_kinematic_prior():
+    meas, L = _world(0, 2)
+    post = joint.solve(joint.JointMeasurements(tuple(meas), tuple(range(6))), kinematic=SIM,
+                       kinematic_chunks=(10, 20, 40))
+    assert post.method == "joint" and "kinematic_prior" in post.flags
+    assert post.robot_flags == {0: "kinematic", 1: "kinematic"}
+    assert set(post.info["kinematic_starts"]) == {0, 1}
+    ls = _truth_score(post, L)
+    # every triplet far sharper than the prior (-3.0 uniform) and none confidently wrong
+    assert ls.mean() > -0.2 and np.mean(ls < np.log(0.01)) == 0
+
+
+def test_a_robot_whose_map_disagrees_is_left_out_unverified():
+    meas, L = _world(1, 3)
+    # robot 2 misreads two landmarks' ids for the whole run: its map has another shape
+    r = meas[2]
+    lm = r.bearing_landmark.copy()
+    lm[r.bearing_landmark == 0], lm[r.bearing_landmark == 3] = 3, 0
+    lm[r.bearing_landmark == 1], lm[r.bearing_landmark == 4] = 4, 1
+    meas[2] = dataclasses.replace(r, bearing_landmark=lm)
+    post = joint.solve(joint.JointMeasurements(tuple(meas), tuple(range(6))), kinematic=SIM,
+                       kinematic_chunks=(10, 20, 40))
+    assert post.robot_flags == {0: "kinematic", 1: "kinematic", 2: "unverified"}
+    assert "unverified" in post.flags and post.method == "joint"
+    assert _truth_score(post, L).mean() > -0.2
+    # without the check the robot enters the joint solve, whose residual check drops it here
+    # (a wrong minimum of the whole run does not always show in the residuals: docs/joint.md)
+    loose = joint.solve(joint.JointMeasurements(tuple(meas), tuple(range(6))), kinematic=SIM,
+                        kinematic_chunks=(10, 20, 40), agree=None)
+    assert loose.robot_flags[2] == "local_minimum"
+
+
+def test_bad_options_are_refused_by_name():
+    meas, _ = _world(2, 1, n_poses=10)
+    m = joint.JointMeasurements(tuple(meas), tuple(range(6)))
+    with pytest.raises(ValueError, match="without_odometry"):
+        joint.solve(m, without_odometry="ignore")
+    with pytest.raises(ValueError, match="kinematic"):
+        joint.solve(m, kinematic={"speed": 1})
+    with pytest.raises(ValueError, match="kinematic_chunks"):
+        joint.solve(m, kinematic_chunks=(1,))
+    with pytest.raises(ValueError, match="sigma_turn"):
+        joint_start.KinematicPrior(sigma_turn=-1)
+    with pytest.raises(ValueError, match="c_xy"):
+        joint_start.KinematicPrior(c_xy=0)
+    with pytest.raises(ValueError, match="kinematic prior"):
+        joint_start.kinematic_start(meas[0], {i: i for i in range(6)})
