@@ -72,7 +72,8 @@ def _write(path: Path, rows, fmt, gz=False):
         path.write_text(text)
 
 
-def write_dataset(d: Path, *, gz=False, robot2_odometry=True, truth_swap=None):
+def write_dataset(d: Path, *, gz=False, robot2_odometry=True, truth_swap=None,
+                  robot1_odometry=True):
     """Write the synthetic dataset into directory ``d``; ``truth_swap``: a landmark pair whose
     ground-truth lines exchange positions."""
     d.mkdir(parents=True, exist_ok=True)
@@ -112,7 +113,7 @@ def write_dataset(d: Path, *, gz=False, robot2_odometry=True, truth_swap=None):
     # odometry: constant commands at irregular record times covering the measurements
     rng = np.random.default_rng(7)
     for n, w, span in ((1, W, (-2.0, 55.0)), (2, 0.0, (-1.0, 22.0))):
-        if n == 2 and not robot2_odometry:
+        if (n == 2 and not robot2_odometry) or (n == 1 and not robot1_odometry):
             continue
         t = np.sort(np.concatenate([span, rng.uniform(*span, size=400)]))
         _write(d / f"Robot{n}_Odometry.dat", [(T0 + x, V, w) for x in t], "%.6f \t %.3f \t %.3f", gz)

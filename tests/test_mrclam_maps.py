@@ -27,6 +27,7 @@ def root(tmp_path_factory):
     r = tmp_path_factory.mktemp("mrclam_maps")
     write_dataset(r / "MRCLAM_Dataset1")
     write_dataset(r / "MRCLAM_Dataset2", robot2_odometry=False)
+    write_dataset(r / "MRCLAM_Dataset3", robot2_odometry=False, robot1_odometry=False)
     return r
 
 
@@ -74,21 +75,35 @@ def test_joint_map_needs_no_solver_and_beats_the_prior(root, tmp_path, monkeypat
     assert json.loads((out / "run.json").read_text())["params"]["method"] == "none"
 
 
+def test_joint_map_uses_every_robot_and_a_robot_without_odometry_must_agree(root, tmp_path):
+    # robot 2 has no odometry: the joint map still answers from robot 1's run (it fits every
+    # robot of the dataset); robot 2 drives 2 m straight past 3 landmarks, too little parallax
+    # for its start to place them, so it is left out, flagged
+    out = tmp_path / "o"
+    assert main(["mrclam", str(root / "MRCLAM_Dataset2"), "--robots", "2", "--map", "joint",
+                 "--method", "none", "--output", str(out), *FAST]) == 0
+    info = _map_info(out, "joint")
+    assert info["answered_by"] == "joint"
+    assert info["robot_flags"] == {"1": "ok", "2": "unconstrained"}
+
+
 def test_joint_map_without_odometry_falls_back_and_says_which_map_answered(root, tmp_path,
                                                                           capsys):
-    d = root / "MRCLAM_Dataset2"
-    # asked for no solver where none can be skipped: refused up front, one line
-    assert _exit_code(["mrclam", str(d), "--robots", "2", "--map", "joint", "--method", "none",
+    d = root / "MRCLAM_Dataset3"        # no robot has odometry; neither start places 3 landmarks
+    # asked for no solver: the joint map tries (two robots might agree), and when it cannot
+    # answer it says why, in one line, naming the way out
+    assert _exit_code(["mrclam", str(d), "--map", "joint", "--method", "none",
                        "--output", str(tmp_path / "refused"), *FAST]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "--method none" in err[0] and "odometry" in err[0]
-    assert not (tmp_path / "refused" / "records.jsonl").exists()
-    # by default the solvers answer and the map falls back to JOINT_FALLBACK, which it records
+    assert len(err) == 1 and "--method full" in err[0] and "could not answer" in err[0]
+    # by default the solvers answer too and the map falls back to JOINT_FALLBACK, which it
+    # records with the reason
     out = tmp_path / "o"
     assert main(["mrclam", str(d), "--robots", "2", "--map", "joint", "--output", str(out),
                  *FAST]) == 0
     info = _map_info(out, "joint")
-    assert info["answered_by"] == mrclam_maps.JOINT_FALLBACK and "odometry" in info["why"]
+    assert info["answered_by"] == mrclam_maps.JOINT_FALLBACK
+    assert "could not answer" in info["why"] and "2 unconstrained" in info["why"]
     assert json.loads((out / "run.json").read_text())["params"]["method"] == "full"
 
 

@@ -66,7 +66,9 @@ def register(sub):
                                    "--resume, continues).")
     p.error = _one_line_error(p)
     p.add_argument("path", help="an MRCLAM_DatasetN directory")
-    p.add_argument("--robots", default="", help="comma-separated robot numbers (default: all)")
+    p.add_argument("--robots", default="", help="comma-separated robot numbers whose histories "
+                   "are solved and scored (default: all; the joint map fits every robot's "
+                   "measurements)")
     p.add_argument("--method", default=None, choices=("fast", "full", "baseline", "none"),
                    help="single-triplet solver (robots without odometry: baseline); none: no "
                         "solver (for a map from the raw measurements). Default: none for such a "
@@ -426,17 +428,23 @@ def _main(args):
                                            for r in (opts["robots"] or ds.robots)):
         raise ValueError(f"--mode paper: needs motion capture (RobotN_Groundtruth); "
                          f"{_no_camera_reason(ds, opts['robots'])}")
-    rs_run = opts["robots"] or sorted(ds.robots)
-    if opts["method"] == "none" and not any(ds.robot(r).has_odometry for r in rs_run):
-        # the joint map needs odometry: without it the solvers answer, and the map falls back
-        if after["method_given"]:
-            raise ValueError(f"--method none: no robot of {ds.name} has odometry, so the map "
+    if opts["method"] == "none" and not any(rd.has_odometry for rd in ds.robots.values()):
+        # the joint map (every robot of the dataset) solves robots without odometry with the
+        # kinematic prior but trusts them only when two or more agree: it may fall back to the
+        # solvers' estimates, so by default they are made; given --method none, it needs at
+        # least two robots to have a chance
+        seeing = [r for r, rd in sorted(ds.robots.items()) if rd.visible.any()]
+        if after["method_given"] and len(seeing) < 2:
+            raise ValueError(f"--method none: {ds.name} has no odometry and only "
+                             f"{len(seeing)} robot with landmark views, so the map "
                              f"{after['map']!r} falls back to the solvers' estimates; give "
                              "--method full (or fast, baseline)")
-        opts["method"] = params["method"] = "full"
-        check_output(out, params, args.seed, args.resume, args.overwrite)
-        say(f"no robot of {ds.name} has odometry: solving with full; the {after['map']} map "
-            f"falls back to {mrclam_maps.JOINT_FALLBACK}")
+        if not after["method_given"]:
+            opts["method"] = params["method"] = "full"
+            check_output(out, params, args.seed, args.resume, args.overwrite)
+            say(f"no robot of {ds.name} has odometry: solving with full too; the "
+                f"{after['map']} map answers if robots without odometry agree, else falls back "
+                f"to {mrclam_maps.JOINT_FALLBACK}")
     T = None
     if after["tensor"]:
         try:

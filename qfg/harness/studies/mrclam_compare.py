@@ -4,7 +4,9 @@
 Each (dataset, map) is one ``qfg mrclam`` run in ``<output>/<dataset>-<solver>``: the maps made
 from the single-triplet solvers' estimates share one solved run per dataset (``--resume`` with
 another ``--map`` reuses the solved pieces), the joint map runs without a solver
-(``--method none``; a dataset without odometry falls back, and its rows say which map answered).
+(``--method none``) and fits every robot of the dataset; on a dataset without odometry it runs
+beside the first solver's estimates, to fall back on when robots without odometry cannot be
+checked against each other (its rows say which map answered).
 The table has one row per (dataset, map, kind): the mean log p(truth) (clip 1e-4), Brier, truth
 under 1%, beside uniform and the prior alone. Each run's wall time is printed as it finishes (a
 resumed run reuses the solved pieces and any recorded map, so only a fresh run's time is the
@@ -76,9 +78,10 @@ def _has_odometry(path: Path, robots: str) -> bool:
 def compare(root, *, output, datasets=(1, 2, 3, 4, 5, 6), maps=MAPS, seed: int = 0,
             robots=None, say=print) -> list[dict]:
     """Run every map of ``maps`` on every dataset under ``root`` (``robots``: {dataset: "1,2"}
-    where not every robot is run, default :data:`ROBOTS`); return the table's rows. A map made
-    without a solver on a dataset without odometry falls back (``qfg mrclam`` says which map
-    answered): it then runs on the first solver's estimates of the list."""
+    where not every robot's histories are solved, default :data:`ROBOTS`); return the table's
+    rows. A map made without a solver on a dataset without odometry may fall back (``qfg
+    mrclam`` says which map answered): it then runs beside the first solver's estimates of the
+    list."""
     robots = ROBOTS if robots is None else robots
     first_solver = next(s for _, s in maps if s != "none")
     rows = []

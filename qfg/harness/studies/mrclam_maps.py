@@ -350,31 +350,34 @@ JOINT_FALLBACK = "seen-prior"
 
 def map_joint(seen: SeenEstimates) -> MapResult:
     """Every ordered triplet and every history's cameras from one joint posterior over the
-    landmark positions and robot poses, fitted on GTSAM to every bearing and the odometry of all
-    robots (:func:`qfg.joint.mrclam_marginals`); the seen estimates are not used. Without
-    odometry in any robot the joint method cannot answer: the map is then
-    :data:`JOINT_FALLBACK` over the solvers' estimates, and ``info["answered_by"]`` says so."""
+    landmark positions and robot poses, fitted on GTSAM to every bearing and the odometry of
+    every robot of the dataset (:func:`qfg.joint.mrclam_marginals`; robots without odometry by
+    the kinematic prior, :mod:`qfg.joint_start`); the seen estimates are not used, and the
+    histories chosen (``--robots``) only set which triplets count as seen and which cameras are
+    scored. When the joint solve cannot answer (e.g. a lone robot without odometry, or robots
+    without odometry whose maps disagree) the map is :data:`JOINT_FALLBACK` over the solvers'
+    estimates, and ``info["answered_by"]`` and ``info["why"]`` say so."""
     from qfg.joint import mrclam_marginals
 
     ds = seen.dataset
     ids = np.asarray(ds.landmark_ids)
     wanted = _all_ordered_triplets(ids.size)
     hs = [h for _, h in seen.histories()]
-    robots = sorted({int(r) for r, _ in seen.histories()})
     subjects = [tuple(int(x) for x in ids[t]) for t in wanted.tolist()]
     j = mrclam_marginals(ds, triplets=subjects,
-                         histories=hs, robots=robots, prior_states=seen.prior_states,
+                         histories=hs, prior_states=seen.prior_states,
                          camera_prior_states=seen.prior_camera_states,
                          partition=seen.partition.name, seed=seen.seed)
     if j.method == "none":
+        why = (f"the joint solve could not answer ({', '.join(j.posterior.flags) or 'no map'}; "
+               f"robots: {', '.join(f'{r} {f}' for r, f in sorted(j.posterior.robot_flags.items()))})")
         if seen.solver == "none":
-            raise ValueError(f"--map joint: no robot of {ds.name} has odometry, so the joint map "
-                             f"falls back to {JOINT_FALLBACK} over the solvers' estimates: run "
-                             "with --method full (or fast, baseline)")
+            raise ValueError(f"--map joint on {ds.name}: {why}, so the map falls back to "
+                             f"{JOINT_FALLBACK} over the solvers' estimates: run with --method "
+                             "full (or fast, baseline)")
         res = MAP_METHODS[JOINT_FALLBACK].fn(seen)
         return MapResult(res.triplets, res.probabilities, res.seen, res.reached,
-                         {**dict(res.info), "answered_by": JOINT_FALLBACK,
-                          "why": "no robot has odometry"})
+                         {**dict(res.info), "answered_by": JOINT_FALLBACK, "why": why})
     is_seen = np.zeros(len(wanted), bool)
     rows = {tuple(t): v for v, t in enumerate(wanted.tolist())}
     is_seen[[rows[tuple(t)] for t in seen.triplets.tolist()]] = True
