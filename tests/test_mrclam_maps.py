@@ -146,6 +146,23 @@ def test_best_map_weights_by_triplets_and_needs_every_dataset():
         mrclam_compare.best_map(rows, datasets=(3,))
 
 
+def test_merged_rows_replace_each_rerun_dataset_and_map_in_place():
+    recorded = [_row(1, "a", "seen", 10, -1.0), _row(1, "a", "propagated", 90, -3.0),
+                _row(5, "a", "seen", 10, -2.0), _row(5, "a", "propagated", 90, -2.9),
+                _row(5, "b", "seen", 10, -1.5)]
+    new = [_row(5, "a", "seen", 30, -0.2), _row(5, "a", "propagated", 70, -0.3),
+           _row(6, "a", "seen", 1, -0.1)]
+    out = mrclam_compare.merge_rows(recorded, new)
+    assert out == recorded[:2] + new[:2] + [recorded[4], new[2]]
+    assert mrclam_compare.merge_rows(recorded, []) == recorded
+
+
+def test_an_unknown_map_name_is_refused_by_name(capsys):
+    with pytest.raises(SystemExit):
+        mrclam_compare.main(["--from-csv", str(TABLE), "--maps", "joint,jiont"])
+    assert "jiont" in capsys.readouterr().err
+
+
 def test_the_default_map_is_the_rule_applied_to_the_recorded_comparison():
     rows = mrclam_compare.read_table(TABLE)
     assert {int(r["dataset"]) for r in rows} == {1, 2, 3, 4, 5, 6}

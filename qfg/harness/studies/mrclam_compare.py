@@ -4,9 +4,9 @@
 Each (dataset, map) is one ``qfg mrclam`` run in ``<output>/<dataset>-<solver>``: the maps made
 from the single-triplet solvers' estimates share one solved run per dataset (``--resume`` with
 another ``--map`` reuses the solved pieces), the joint map runs without a solver
-(``--method none``) and fits every robot of the dataset; on a dataset without odometry it runs
-beside the first solver's estimates, to fall back on when robots without odometry cannot be
-checked against each other (its rows say which map answered).
+(``--method none``) and fits every robot of the dataset; when it cannot answer (robots without
+odometry that cannot be checked against each other) it runs again beside the first solver's
+estimates, to fall back on (its rows say which map answered).
 The table has one row per (dataset, map, kind): the mean log p(truth) (clip 1e-4), Brier, truth
 under 1%, beside uniform and the prior alone. Each run's wall time is printed as it finishes (a
 resumed run reuses the solved pieces and any recorded map, so only a fresh run's time is the
@@ -67,14 +67,6 @@ def _run(path: Path, out: Path, map_name: str, solver: str, resume: bool, seed: 
     return time.perf_counter() - t0
 
 
-def _has_odometry(path: Path, robots: str) -> bool:
-    from qfg.datasets import mrclam
-
-    ds = mrclam.load(path)
-    rs = [int(r) for r in robots.split(",")] if robots else sorted(ds.robots)
-    return any(ds.robot(r).has_odometry for r in rs)
-
-
 def compare(root, *, output, datasets=(1, 2, 3, 4, 5, 6), maps=MAPS, seed: int = 0,
             robots=None, say=print) -> list[dict]:
     """Run every map of ``maps`` on every dataset under ``root`` (``robots``: {dataset: "1,2"}
@@ -88,14 +80,22 @@ def compare(root, *, output, datasets=(1, 2, 3, 4, 5, 6), maps=MAPS, seed: int =
     for d in datasets:
         path = Path(root) / f"MRCLAM_Dataset{d}"
         rs = robots.get(d, "")
-        odometry = _has_odometry(path, rs)
         started = set()
         for name, solver in maps:
-            if solver == "none" and not odometry:
-                solver = first_solver
             out = Path(output) / f"d{d}-{solver}"
-            wall = _run(path, out, name, solver, resume=out in started or
-                        (out / "records.jsonl").exists(), seed=seed, robots=rs)
+            try:
+                wall = _run(path, out, name, solver, resume=out in started or
+                            (out / "records.jsonl").exists(), seed=seed, robots=rs)
+            except RuntimeError as exc:
+                # without odometry the joint map may not answer; then it needs the solvers'
+                # estimates to fall back on
+                if solver != "none" or "could not answer" not in str(exc):
+                    raise
+                say(f"dataset {d}, {name}: {exc}; again beside {first_solver}'s estimates")
+                solver = first_solver
+                out = Path(output) / f"d{d}-{solver}"
+                wall = _run(path, out, name, solver, resume=out in started or
+                            (out / "records.jsonl").exists(), seed=seed, robots=rs)
             started.add(out)
             summ = json.loads((out / "summary.json").read_text())
             answered = name
@@ -178,6 +178,26 @@ def markdown(rows) -> list[str]:
     return out
 
 
+def merge_rows(recorded, new) -> list[dict]:
+    """``recorded`` rows with those of every (dataset, map) in ``new`` replaced by ``new``'s
+    (in place, recorded order kept; pairs not recorded appended)."""
+    def key(r):
+        return int(r["dataset"]), r["map"]
+    fresh: dict = {}
+    for r in new:
+        fresh.setdefault(key(r), []).append(r)
+    out, done = [], set()
+    for r in recorded:
+        k = key(r)
+        if k not in fresh:
+            out.append(r)
+        elif k not in done:
+            out.extend(fresh[k])
+            done.add(k)
+    out.extend(r for k, rs in fresh.items() if k not in done for r in rs)
+    return out
+
+
 def read_table(path) -> list[dict]:
     with open(path, newline="") as fh:
         return list(csv.DictReader(fh))
@@ -218,16 +238,25 @@ def main(argv=None) -> int:
                    "its figure instead of running the maps")
     p.add_argument("--output", default="out/mrclam-maps")
     p.add_argument("--datasets", default="1,2,3,4,5,6")
+    p.add_argument("--maps", default=",".join(m for m, _ in MAPS),
+                   help="comma-separated map names of the table to run (with --update-docs, "
+                        "their rows of the datasets run replace the recorded ones)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--update-docs", action="store_true",
                    help="write docs/results/mrclam_maps.csv (a tracked file)")
     a = p.parse_args(argv)
     ds = [int(x) for x in a.datasets.split(",")]
+    names = [m.strip() for m in a.maps.split(",") if m.strip()]
+    unknown = sorted(set(names) - {m for m, _ in MAPS})
+    if unknown:
+        p.error(f"--maps: {', '.join(unknown)} not in the table (maps: "
+                f"{', '.join(m for m, _ in MAPS)})")
+    maps = tuple(m for m in MAPS if m[0] in names)
     if a.from_csv:
         rows = read_table(a.from_csv)
         ds = [d for d in ds if any(int(r["dataset"]) == d for r in rows)]
     elif a.root:
-        rows = compare(a.root, output=a.output, datasets=ds, seed=a.seed,
+        rows = compare(a.root, output=a.output, datasets=ds, maps=maps, seed=a.seed,
                        say=lambda m: print(m, file=sys.stderr, flush=True))
         write_table(Path(a.output) / "mrclam_maps.csv", rows)
     else:
@@ -235,7 +264,11 @@ def main(argv=None) -> int:
     figures = [Path(a.output) / "mrclam_maps.png"]
     if a.update_docs:
         if not a.from_csv:
-            write_table(Path("docs/results/mrclam_maps.csv"), rows)
+            recorded = Path("docs/results/mrclam_maps.csv")
+            if recorded.is_file():
+                rows = merge_rows(read_table(recorded), rows)
+                ds = sorted({int(r["dataset"]) for r in rows})
+            write_table(recorded, rows)
         figures.append(Path("docs/figures/mrclam/maps.png"))
     _figure(rows, figures)
     print("\n".join(markdown(rows)))
