@@ -588,46 +588,31 @@ def _same_mode(a, b, cov) -> bool:
 
 
 class _Indeterminate(ValueError):
-    """GTSAM found the linear system indeterminate near variable ``key`` (None if unnamed)."""
+    """The Laplace covariance is undefined near variable ``key`` (None if unnamed)."""
 
     def __init__(self, message, key):
         super().__init__(message)
         self.key = key
 
 
-def _marginals(pr, fit):
-    import gtsam
+def _marginals(pr, fit) -> _nl.Laplace:
+    """The Laplace approximation at ``fit``. Where GTSAM's Cholesky fails near a landmark (its
+    rays nearly parallel) the landmark is left out by the caller; near a pose (ill-conditioned:
+    a pose fitted onto a landmark it sees) :class:`qfg.nonlinear.Laplace`'s sparse solve
+    answers, and only a singular system is indeterminate."""
+    lap = _nl.Laplace(pr, fit)
+    if lap.error is not None:
+        key = _nl._gtsam_key(lap.error)
+        if key is not None and key >= pr.n_poses:
+            raise _Indeterminate(lap.error[:200], key)
+    return lap
 
+
+def _points_cov(marg: _nl.Laplace, pr, cols, poses=()):
     try:
-        return gtsam.Marginals(_nl._graph(pr), _nl._values(pr, fit.poses, fit.points))
-    except RuntimeError as exc:
-        raise _indeterminate(exc) from None
-
-
-def _indeterminate(exc) -> _Indeterminate:
-    import re
-
-    m = re.search(r"near variable\s+(\d+)", str(exc))
-    return _Indeterminate(" ".join(str(exc).split())[:200], int(m.group(1)) if m else None)
-
-
-def _points_cov(marg, pr, cols, poses=()):
-    import gtsam
-
-    keys = [pr.n_poses + int(c) for c in cols] + [int(p) for p in poses]
-    try:
-        jm = marg.jointMarginalCovariance(gtsam.KeyVector(keys))
-    except RuntimeError as exc:
-        raise _indeterminate(exc) from None
-    dims = [2] * len(cols) + [3] * len(poses)
-    off = np.concatenate([[0], np.cumsum(dims)]).astype(int)
-    C = np.zeros((off[-1], off[-1]))
-    for a, ka in enumerate(keys):
-        for b in range(a, len(keys)):
-            blk = np.asarray(jm.at(ka, keys[b]))
-            C[off[a]:off[a + 1], off[b]:off[b + 1]] = blk
-            C[off[b]:off[b + 1], off[a]:off[a + 1]] = blk.T
-    return C
+        return marg.joint([int(c) for c in cols], [int(p) for p in poses])
+    except _nl.SingularInformation as exc:
+        raise _Indeterminate(str(exc)[:200], exc.key) from None
 
 
 def _weak_info(pr, fit, marg, ok, lflags, inflate):

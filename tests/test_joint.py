@@ -67,6 +67,66 @@ def test_covariance_without_a_gauge_is_a_clear_error():
         nl.covariance(pr, f, points=[0])
 
 
+def _pose_on_a_landmark():
+    """Five poses, four landmarks seen from every pose, the last 20 micrometres from pose 3:
+    that bearing's information is ~1e13 and GTSAM's Cholesky gives up."""
+    P = np.array([[0, 0, 0], [0.5, 0, 0.1], [1.0, 0.1, 0.2], [1.5, 0.2, 0.3], [2.0, 0.3, 0.3]])
+    L = np.array([[1, 2], [2, -1], [3, 1.5], [1.5 + 2e-5, 0.2]])
+    bp, bl = np.repeat(np.arange(5), 4), np.tile(np.arange(4), 5)
+    d = L[bl] - P[bp, :2]
+    kw = dict(n_poses=5, n_points=4, bearing_pose=bp, bearing_point=bl,
+              bearing=np.arctan2(d[:, 1], d[:, 0]) - P[bp, 2], sigma_bearing=0.01,
+              between_from=range(4), between_to=range(1, 5), between=nl._relative(P[:-1], P[1:]),
+              between_sigma=[0.05, 0.05, 0.1])
+    return kw, P, L
+
+
+def _qr_covariance(pr, f, keys):
+    """The reference: GTSAM's multifrontal QR and the joint of ``keys`` by QR, inverted."""
+    import gtsam
+    import scipy.linalg as sl
+
+    gfg = nl._graph(pr).linearize(nl._values(pr, f.poses, f.points))
+    bt = gfg.eliminateMultifrontal(gtsam.Ordering.ColamdGaussianFactorGraph(gfg),
+                                   gtsam.EliminateQR)
+    A, _ = bt.joint(keys, gtsam.EliminateQR).jacobian(gtsam.Ordering(keys))
+    Ri = sl.solve_triangular(np.linalg.qr(np.asarray(A), mode="r"), np.eye(len(A[0])))
+    return Ri @ Ri.T
+
+
+def test_laplace_sparse_solve_equals_gtsam_where_gtsam_answers():
+    run = _run(3, n_poses=30)
+    post = joint.solve(joint.simulated_measurements(run))
+    a = nl.Laplace(post._problem, post._fit)
+    s = nl.Laplace(post._problem, post._fit, solver="sparse")
+    assert (a.method, s.method) == ("gtsam", "sparse")
+    Ca, Cs = a.joint(range(6), [0, 7, 29]), s.joint(range(6), [0, 7, 29])
+    assert np.abs(Ca - Cs).max() <= 1e-9 * np.abs(Ca).max()
+
+
+def test_laplace_answers_an_ill_conditioned_fit_gtsam_cannot():
+    kw, P, L = _pose_on_a_landmark()
+    pr = nl.BearingProblem(**kw, pose_prior_index=[0], pose_prior=[[0, 0, 0]],
+                           pose_prior_sigma=1e-6)
+    f = nl.fit(pr, P, L)
+    lap = nl.Laplace(pr, f)
+    assert lap.method == "sparse" and "near variable" in lap.error
+    C = lap.joint(range(4), [1, 3])
+    ref = _qr_covariance(pr, f, [5, 6, 7, 8, 1, 3])
+    assert np.abs(C - ref).max() <= 1e-8 * np.abs(ref).max()
+    assert np.linalg.eigvalsh(C)[0] > 0
+
+
+def test_laplace_reports_a_singular_system_instead_of_filling_it():
+    kw, P, L = _pose_on_a_landmark()
+    pr = nl.BearingProblem(**kw)                   # no anchor: a free gauge
+    f = nl.fit(pr, P, L)
+    with pytest.raises(nl.SingularInformation, match="singular"):
+        nl.Laplace(pr, f).joint([0, 1])
+    with pytest.raises(ValueError, match="solver"):
+        nl.Laplace(pr, f, solver="qr")
+
+
 @pytest.mark.parametrize("kw, name", [
     (dict(bearing_pose=[0, 5], bearing_point=[0, 0], bearing=[0, 0]), "bearing_pose"),
     (dict(bearing_pose=[0], bearing_point=[0], bearing=[np.nan]), "bearing"),
