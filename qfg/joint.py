@@ -404,6 +404,11 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
         return JointPosterior(ids, (), np.zeros(L, bool), ("unconstrained",) * L, robot_flags,
                               tuple(dict.fromkeys(flags)), "none", nan_poses,
                               {"time_s": _time.perf_counter() - t0, **extra})
+    if agree is not None and len(runs) == 1 and kinematic_robots:
+        # one run without odometry and nothing to check its fit against: not worth solving
+        robot_flags[runs[0].robot] = "unverified"
+        flags.append("unverified")
+        return nothing()
     if not runs:
         return nothing()
     opts = dict(chunk=chunk, min_rays=min_rays, min_par=min_par, robust=robust,

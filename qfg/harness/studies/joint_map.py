@@ -10,8 +10,9 @@ Each scenario is one robot driving a trajectory among landmarks
 ``few_landmarks``   4 landmarks
 ``few_views``       ``few_poses`` poses
 ``noisy_odometry``  odometry noise x ``noisy_factor`` (direction, length and turn)
-``no_odometry``     no odometry: the joint method falls back (flag ``no_odometry``), the
-                    pipeline solves without motion model (``baseline``)
+``no_odometry``     no odometry: one robot, whose fit the joint method cannot check against
+                    another's, so it falls back (flag ``unverified``); the pipeline solves
+                    without motion model (``baseline``)
 ==================  =================================================================
 
 Methods, each giving every ordered triplet a state distribution, scored against the truth on
