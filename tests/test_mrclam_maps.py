@@ -105,6 +105,9 @@ def test_joint_map_without_odometry_falls_back_and_says_which_map_answered(root,
     assert info["answered_by"] == mrclam_maps.JOINT_FALLBACK
     assert "could not answer" in info["why"] and "2 unconstrained" in info["why"]
     assert json.loads((out / "run.json").read_text())["params"]["method"] == "full"
+    # and it resumes as recorded, the solver not given again
+    assert main(["mrclam", str(d), "--robots", "2", "--map", "joint", "--output", str(out),
+                 "--resume", *FAST]) == 0
 
 
 def test_configuration_map_answers_every_ordered_triplet(root, tmp_path):

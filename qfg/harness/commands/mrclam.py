@@ -366,6 +366,14 @@ def check_output(out: Path, params: dict, seed: int, resume: bool, overwrite: bo
                               "ones, or pass --overwrite")
 
 
+def _recorded(out: Path) -> dict:
+    """The recorded run's params, or {} (check_output names what is wrong with a bad record)."""
+    try:
+        return json.loads((out / "run.json").read_text()).get("params") or {}
+    except (OSError, ValueError, AttributeError):
+        return {}
+
+
 def _keep_recorded_defaults(out: Path, params: dict) -> None:
     """Runs recorded while the later options were always written (at their defaults too) keep
     them in their identity: a later option the recorded run holds at its default, and this run
@@ -408,6 +416,10 @@ def _main(args):
     out = Path(args.output or f"out/mrclam-{path.resolve().name}")
     if args.resume:
         _keep_recorded_defaults(out, params)
+        if not after["method_given"]:
+            # a run without a given solver resumes with the one it was recorded with (a dataset
+            # without odometry is solved with full by default, decided once its data is read)
+            opts["method"] = params["method"] = _recorded(out).get("method", params["method"])
     check_output(out, params, args.seed, args.resume, args.overwrite)
     quiet = args.no_progress
 

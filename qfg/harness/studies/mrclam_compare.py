@@ -56,8 +56,7 @@ def _run(path: Path, out: Path, map_name: str, solver: str, resume: bool, seed: 
            "--no-progress", "--output", str(out), "--seed", str(seed)]
     if robots:
         cmd += ["--robots", robots]
-    if solver != "none":
-        cmd += ["--method", solver]
+    cmd += ["--method", solver]      # given, so that none is not replaced by a solver
     cmd += ["--resume"] if resume else ["--overwrite"]
     t0 = time.perf_counter()
     done = subprocess.run(cmd, capture_output=True, text=True)
@@ -75,7 +74,8 @@ def compare(root, *, output, datasets=(1, 2, 3, 4, 5, 6), maps=MAPS, seed: int =
     mrclam`` says which map answered): it then runs beside the first solver's estimates of the
     list."""
     robots = ROBOTS if robots is None else robots
-    first_solver = next(s for _, s in maps if s != "none")
+    # the solver a map without one falls back on: the first of the list, or of the table's
+    first_solver = next(s for _, s in (*maps, *MAPS) if s != "none")
     rows = []
     for d in datasets:
         path = Path(root) / f"MRCLAM_Dataset{d}"
