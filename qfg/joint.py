@@ -606,10 +606,8 @@ def _marginals(pr, fit) -> _nl.Laplace:
     a pose fitted onto a landmark it sees) :class:`qfg.nonlinear.Laplace`'s sparse solve
     answers, and only a singular system is indeterminate."""
     lap = _nl.Laplace(pr, fit)
-    if lap.error is not None:
-        key = _nl._gtsam_key(lap.error)
-        if key is not None and key >= pr.n_poses:
-            raise _Indeterminate(lap.error[:200], key)
+    if lap.error_key is not None and lap.error_key >= pr.n_poses:
+        raise _Indeterminate(lap.error[:200], lap.error_key)
     return lap
 
 

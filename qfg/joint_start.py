@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import nonlinear as _nl
-from ._validate import non_negative
+from ._validate import non_negative, positive_int
 from .geometry import wrap_angle
 
 __all__ = ["KinematicPrior", "KINEMATIC", "AGREE", "kinematic_run", "visual_steps",
@@ -352,6 +352,9 @@ def kinematic_start(r, lm_index, *, chunk: int = 50, min_rays: int = 5,
     if r.odometry is None:
         raise ValueError(f"robot {r.robot}: expected the kinematic prior as its odometry "
                          "(qfg.joint_start.kinematic_run)")
+    chunk = positive_int("chunk", chunk, minimum=2)
+    min_rays = positive_int("min_rays", min_rays, minimum=2)
+    min_parallax_deg = non_negative("min_parallax_deg", min_parallax_deg)
     steps = visual_steps(r, prior)
     L = len(lm_index)
     min_par = np.deg2rad(min_parallax_deg)

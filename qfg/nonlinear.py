@@ -409,6 +409,11 @@ class Laplace:
     def method(self) -> str:
         return "gtsam" if self._marginals is not None else "sparse"
 
+    @property
+    def error_key(self):
+        """The variable GTSAM's failure named (None: no failure, or none named)."""
+        return _gtsam_key(self.error or "")
+
     def _keys(self, points, poses):
         P = self.problem.n_poses
         return [P + int(j) for j in points] + [int(i) for i in poses]
@@ -419,6 +424,7 @@ class Laplace:
         pose's own axes, theta). Raises :class:`SingularInformation`."""
         import gtsam
 
+        points, poses = [int(j) for j in points], [int(i) for i in poses]
         keys = self._keys(points, poses)
         if not keys:
             return np.zeros((0, 0))
@@ -430,7 +436,7 @@ class Laplace:
             except RuntimeError as exc:
                 raise SingularInformation(" ".join(str(exc).split())[:300],
                                           _gtsam_key(str(exc))) from None
-            dims = [2] * len(list(points)) + [3] * len(list(poses))
+            dims = [2] * len(points) + [3] * len(poses)
             off = np.concatenate([[0], np.cumsum(dims)]).astype(int)
             C = np.zeros((off[-1], off[-1]))
             for a, ka in enumerate(keys):
@@ -485,7 +491,7 @@ class Laplace:
                 lu = spla.splu(K, permc_spec="MMD_AT_PLUS_A")
             except RuntimeError as exc:              # "Factor is exactly singular"
                 raise SingularInformation(f"information singular ({exc})",
-                                          _gtsam_key(self.error or "")) from None
+                                          self.error_key) from None
             upto = sel.size if a == 1.0 else n_check
             C = np.empty((sel.size, upto))
             for b in range(0, upto, block):
@@ -503,7 +509,7 @@ class Laplace:
             raise SingularInformation(
                 f"information singular or too ill-conditioned: two factorisations differ by "
                 f"{agree:.2g} relative (residual {worst:.2g}); GTSAM: {self.error}",
-                _gtsam_key(self.error or ""))
+                self.error_key)
         Cs = 0.5 * (Cs + Cs.T)
         w, V = np.linalg.eigh(Cs)
         if not (w[0] > 0 and 1.0 / w[-1] > self.rcond):

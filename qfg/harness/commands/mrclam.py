@@ -380,10 +380,7 @@ def _keep_recorded_defaults(out: Path, params: dict) -> None:
     leaves out because it is at its default, is put back, so that such a run resumes."""
     from qfg.harness.studies import mrclam as study
 
-    try:
-        old = json.loads((out / "run.json").read_text()).get("params") or {}
-    except (OSError, ValueError, AttributeError):
-        return  # check_output and the runner name what is wrong with it
+    old = _recorded(out)
     for k in study.LATER_KEYS:
         if k in old and k not in params and old[k] == study.DEFAULTS[k]:
             params[k] = old[k]
