@@ -226,6 +226,19 @@ def propagate_pooled(g) -> Marginals:
                       "seen": g.seen, "isc": information_score(values)})
 
 
+#: Decimals of the information scores Algorithm 2 ranks proposals by: the same composition
+#: computed by the two engines (batched products here, :func:`qfg.composition.marginal` in the
+#: reference) differs in its last bits, and with BLAS kernels that differ between machines an
+#: exact tie (then broken by the smaller triplet, then factor) became a 1e-17 preference for
+#: either one; scores are ranked on a 1e-12 grid, far below any difference that means something.
+RANK_DECIMALS = 12
+
+
+def _rank(score):
+    """Information scores as Algorithm 2 ranks them (:data:`RANK_DECIMALS`)."""
+    return np.round(score, RANK_DECIMALS)
+
+
 def _isc(p: np.ndarray, log_m: float) -> np.ndarray:
     """:func:`qfg.metrics.information_score` of rows that are already distributions (composed
     here: finite, non-negative, normalized), without its input checks, which cost more than the
@@ -330,7 +343,7 @@ def _best_first_loop(g, close_used: bool):
         if not tv:
             return None
         tf, tr = np.concatenate(tf), np.concatenate(tr)
-        sc = _isc(np.concatenate(ps), log_m)
+        sc = _rank(_isc(np.concatenate(ps), log_m))
         S[tf, tr] = sc
         return np.concatenate(tv), tf, sc
 
@@ -465,7 +478,7 @@ def propagate(g, close_used: bool = False, rule: str = "best", *, _reference: bo
             p = np.atleast_2d(p)
             rows_f.append(fs[sel])
             rows_r.append(np.full(len(sel), role))
-            rows_s.append(information_score(p))
+            rows_s.append(_rank(information_score(p)))
             pay.extend(p)
         return (np.concatenate(rows_f), np.concatenate(rows_r), np.concatenate(rows_s), pay)
 
