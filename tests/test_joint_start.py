@@ -165,6 +165,70 @@ def test_a_robot_whose_map_disagrees_is_left_out_unverified():
     assert loose.robot_flags[2] == "local_minimum"
 
 
+def test_the_kinematic_covariance_factor_scales_only_maps_with_a_run_without_odometry():
+    meas, _ = _world(0, 2)
+    m = joint.JointMeasurements(tuple(meas), tuple(range(6)))
+    kw = dict(kinematic=SIM, kinematic_chunks=(20,))
+    one = joint.solve(m, inflate_kinematic=1.0, **kw)
+    four = joint.solve(m, inflate_kinematic=4.0, **kw)
+    # the same fit (deterministic), its covariance times the factor
+    np.testing.assert_array_equal(one.points, four.points)
+    np.testing.assert_allclose(four.modes[0].covariance, 4.0 * one.modes[0].covariance,
+                               rtol=1e-12)
+    assert (one.info["covariance_scale"], four.info["covariance_scale"]) == (1.0, 4.0)
+    # a map from runs with odometry is left as it is
+    rng = np.random.default_rng(3)
+    run = random_trajectory_run(rng, n_landmarks=5, n_poses=30, fov_deg=360)
+    odo = joint.simulated_measurements(run)
+    a, b = joint.solve(odo, seed=0), joint.solve(odo, seed=0, inflate_kinematic=4.0)
+    np.testing.assert_array_equal(a.modes[0].covariance, b.modes[0].covariance)
+    assert b.info["covariance_scale"] == 1.0
+
+
+def _posterior_with_robot_maps(seed, c, K=3, L=7, sigma=0.01):
+    """A Gaussian joint map (iid landmark covariance sigma^2) and K robots' own maps drawn
+    about it with covariance (K - 1) (c sigma)^2: the scatter a calibrated map of K equal robots
+    would show, times c^2 in variance."""
+    rng = np.random.default_rng(seed)
+    P = rng.uniform(0.0, 5.0, (L, 2))
+    maps = {r: P + rng.normal(0.0, c * sigma * np.sqrt(K - 1), (L, 2)) for r in range(K)}
+    mode = joint.Mode(1.0, P, sigma ** 2 * np.eye(2 * L), 0.0)
+    return joint.JointPosterior(tuple(range(L)), (mode,), np.ones(L, bool), ("ok",) * L,
+                                dict.fromkeys(range(K), "kinematic"), (), "joint", {},
+                                {"robot_maps": maps})
+
+
+@pytest.mark.parametrize("c", [1.0, 3.0])
+def test_overdispersion_measures_the_scatter_the_covariance_leaves_out(c):
+    # with the scatter injected by hand, kappa is c^2 (the AB frame linear at this sigma);
+    # the median over 3 x 210 triplets of correlated draws: within 35 %
+    ks = [joint.overdispersion(_posterior_with_robot_maps(s, c), samples=2000, seed=s)
+          for s in range(4)]
+    assert 0.65 * c * c < np.median(ks) < 1.35 * c * c
+    # one robot, or robots with no landmark placed: nothing to compare
+    post = _posterior_with_robot_maps(0, c)
+    assert np.isnan(joint.overdispersion(post, robots=[0]))
+    empty = dataclasses.replace(post, info={"robot_maps": {
+        r: np.full((7, 2), np.nan) for r in range(3)}})
+    assert np.isnan(joint.overdispersion(empty))
+
+
+def test_auto_inflation_widens_by_the_measured_overdispersion():
+    meas, _ = _world(0, 2)
+    m = joint.JointMeasurements(tuple(meas), tuple(range(6)))
+    kw = dict(kinematic=SIM, kinematic_chunks=(20,))
+    one = joint.solve(m, inflate_kinematic=1.0, **kw)
+    auto = joint.solve(m, inflate_kinematic="auto", **kw)
+    kappa = auto.info["overdispersion"]
+    assert kappa == joint.overdispersion(one, [0, 1], seed=0)
+    assert auto.info["covariance_scale"] == max(1.0, kappa)
+    np.testing.assert_allclose(auto.modes[0].covariance,
+                               max(1.0, kappa) * one.modes[0].covariance, rtol=1e-12)
+    assert ("overdispersed" in auto.flags) == (kappa > joint.OVERDISPERSED)
+    with pytest.raises(ValueError, match="inflate_kinematic"):
+        joint.solve(m, inflate_kinematic="twice", **kw)
+
+
 def test_bad_options_are_refused_by_name():
     meas, _ = _world(2, 1, n_poses=10)
     m = joint.JointMeasurements(tuple(meas), tuple(range(6)))
@@ -172,6 +236,8 @@ def test_bad_options_are_refused_by_name():
         joint.solve(m, without_odometry="ignore")
     with pytest.raises(ValueError, match="kinematic"):
         joint.solve(m, kinematic={"speed": 1})
+    with pytest.raises(ValueError, match="inflate_kinematic"):
+        joint.solve(m, inflate_kinematic=-1.0)
     with pytest.raises(ValueError, match="kinematic_chunks"):
         joint.solve(m, kinematic_chunks=(1,))
     with pytest.raises(ValueError, match="sigma_turn"):
