@@ -79,8 +79,8 @@ if TYPE_CHECKING:
 __all__ = ["RobotRun", "JointMeasurements", "Mode", "JointPosterior", "solve",
            "sample_landmarks", "triplet_marginals", "camera_marginals", "odometry_steps",
            "mrclam_runs", "mrclam_marginals", "MRCLAMJoint", "simulated_measurements",
-           "reference_samples", "overdispersion", "ODOMETRY_NOISE", "FLOOR", "OUTLIER",
-           "KINEMATIC_INFLATE", "OVERDISPERSED"]
+           "reference_samples", "overdispersion", "scale_covariance", "ODOMETRY_NOISE",
+           "FLOOR", "OUTLIER", "KINEMATIC_INFLATE", "OVERDISPERSED"]
 
 #: Per-step odometry noise model ``sigma = c0 + c_turn |dtheta| + c_dist d`` for (x, y, theta)
 #: of the relative pose (m, m, rad); fitted against motion capture on MRCLAM dataset 6 (robust
@@ -602,7 +602,7 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
         kappa = overdispersion(post, [r.robot for r in use], seed=seed)
         info["overdispersion"] = kappa
         if kappa > 1.0:
-            post = _scaled(post, kappa)
+            post = scale_covariance(post, kappa)
             info["covariance_scale"] = scale * kappa
         if kappa > OVERDISPERSED:
             post = dataclasses.replace(post, flags=post.flags + ("overdispersed",))
@@ -874,9 +874,14 @@ def overdispersion(posterior: JointPosterior, robots=None, *, triplets: int = 20
     return float(np.median(np.concatenate(z2)) / ((len(z2) - 1) * 2.0 * np.log(2.0)))
 
 
-def _scaled(posterior: JointPosterior, factor: float) -> JointPosterior:
+def scale_covariance(posterior: JointPosterior, factor: float) -> JointPosterior:
     """The posterior with every covariance (modes and the weak landmarks' block) times
-    ``factor``; mode weights are unchanged by a common factor."""
+    ``factor`` (> 0); mode weights are unchanged by a common factor. ``solve``'s ``inflate``
+    and ``inflate_kinematic`` do this at the solve; this does it afterwards (e.g. to compare
+    factors on one solve)."""
+    factor = non_negative("factor", factor)
+    if factor <= 0:
+        raise ValueError("factor: expected a factor > 0")
     wk = posterior._weak
     return dataclasses.replace(
         posterior, modes=tuple(dataclasses.replace(m, covariance=m.covariance * factor)
