@@ -211,6 +211,12 @@ def test_overdispersion_measures_the_scatter_the_covariance_leaves_out(c):
     empty = dataclasses.replace(post, info={"robot_maps": {
         r: np.full((7, 2), np.nan) for r in range(3)}})
     assert np.isnan(joint.overdispersion(empty))
+    # scale_covariance: every covariance times the factor, nothing else
+    big = joint.scale_covariance(post, 9.0)
+    np.testing.assert_array_equal(big.modes[0].covariance, 9.0 * post.modes[0].covariance)
+    np.testing.assert_array_equal(big.points, post.points)
+    with pytest.raises(ValueError, match="factor"):
+        joint.scale_covariance(post, 0.0)
 
 
 def test_auto_inflation_widens_by_the_measured_overdispersion():
