@@ -127,7 +127,8 @@ def joint_map(d: int, samples: int = 2000, save=None, factors=(1.0, 2.0, 4.0, 8.
     rules["auto"] = max(1.0, kappa) if np.isfinite(kappa) else 1.0
     default = J.KINEMATIC_INFLATE
     name = "auto" if default == "auto" else f"{float(default):g}"
-    rules.setdefault(name, float(default))
+    if name not in rules:
+        rules[name] = float(default)
     by_rule, kept_P = {}, None
     for rule, f in rules.items():
         p = J.scale_covariance(post, f) if post.method != "none" else post
