@@ -76,19 +76,16 @@ def _landmark_z(post, truth) -> np.ndarray:
     return np.sqrt(np.einsum("ni,nij,nj->n", e, np.linalg.inv(C), e))
 
 
-def _ab_z2(post, truth, samples: int = 2000) -> np.ndarray:
+def _ab_z2(post, truth, ids, samples: int = 2000) -> np.ndarray:
     """Per ordered triplet of constrained landmarks: the squared Mahalanobis distance of the
-    truth's C in the AB frame under the posterior's samples of it (mean and covariance): free
-    of the map's gauge and scale (a calibrated posterior: chi-square with 2 dof, median 1.39)."""
+    truth's C in the AB frame under the posterior's mean and covariance of it
+    (:func:`qfg.joint.ab_frame_moments`; a calibrated posterior: chi-square with 2 dof, median
+    1.39)."""
     ok = np.flatnonzero(post.constrained)
     tri = np.array(list(itertools.permutations(ok.tolist(), 3)), dtype=np.intp).reshape(-1, 3)
     if not len(tri) or post.method == "none":
         return np.zeros(0)
-    S = J.sample_landmarks(post, samples, 0)
-    F = to_frame(S[:, tri[:, 2]], S[:, tri[:, 0]], S[:, tri[:, 1]])
-    mu = F.mean(0)
-    D = F - mu
-    cov = np.einsum("nti,ntj->tij", D, D) / (samples - 1)
+    mu, cov = J.ab_frame_moments(post, np.asarray(ids)[tri].tolist(), samples, 0)
     e = to_frame(truth[tri[:, 2]], truth[tri[:, 0]], truth[tri[:, 1]]) - mu
     return np.einsum("ti,tij,tj->t", e, np.linalg.inv(cov), e)
 
@@ -139,7 +136,7 @@ def joint_map(d: int, samples: int = 2000, save=None, factors=(1.0, 2.0, 4.0, 8.
     Q = np.broadcast_to(q, kept_P.shape)
     maps = post.info.get("robot_maps", {})
     starts = post.info.get("kinematic_starts", {})
-    z2 = _ab_z2(kept_post, truth)
+    z2 = _ab_z2(kept_post, truth, ids)
     out = {"dataset": d, "method": post.method, "flags": list(post.flags),
            "robots": {str(k): {"flag": v, "chunk": starts.get(k, {}).get("chunk"),
                                "error_m": _error_m(maps[k], truth) if k in maps else None}

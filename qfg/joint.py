@@ -79,8 +79,8 @@ if TYPE_CHECKING:
 __all__ = ["RobotRun", "JointMeasurements", "Mode", "JointPosterior", "solve",
            "sample_landmarks", "triplet_marginals", "camera_marginals", "odometry_steps",
            "mrclam_runs", "mrclam_marginals", "MRCLAMJoint", "simulated_measurements",
-           "reference_samples", "overdispersion", "scale_covariance", "ODOMETRY_NOISE",
-           "FLOOR", "OUTLIER", "KINEMATIC_INFLATE", "OVERDISPERSED"]
+           "reference_samples", "ab_frame_moments", "overdispersion", "scale_covariance",
+           "ODOMETRY_NOISE", "FLOOR", "OUTLIER", "KINEMATIC_INFLATE", "OVERDISPERSED"]
 
 #: Per-step odometry noise model ``sigma = c0 + c_turn |dtheta| + c_dist d`` for (x, y, theta)
 #: of the relative pose (m, m, rad); fitted against motion capture on MRCLAM dataset 6 (robust
@@ -100,8 +100,9 @@ FLOOR = 1e-3
 #: odometry), or ``"auto"``: the robots' own maps' scatter about the joint map
 #: (:func:`overdispersion`) when above 1. Such maps' relative landmark positions are more
 #: certain than their errors (the truth's C in the AB frame a median squared Mahalanobis
-#: distance of 3.4-21 from the posterior's, against chi-square's 1.39); chosen on MRCLAM
-#: datasets 1-3 with their odometry withheld, reported on 5 and 6 (docs/joint.md).
+#: distance of 1.5-5.1 from the posterior's even after the widening, against chi-square's
+#: 1.39); chosen on MRCLAM datasets 1-3 with their odometry withheld, reported on 5 and 6
+#: (docs/joint.md, "Without odometry").
 KINEMATIC_INFLATE = "auto"
 
 
@@ -808,6 +809,40 @@ def _all_triplets(L):
 OVERDISPERSED = 2.0
 
 
+def ab_frame_moments(posterior: JointPosterior, triplets, samples: int = 2000, seed=0):
+    """Mean (T, 2) and covariance (T, 2, 2) of C's position in the AB frame (A = (0, 0),
+    B = (0, 1), in units of |AB|) of each landmark-id triplet ``(A, B, C)`` under the posterior,
+    from ``samples`` joint samples (:func:`sample_landmarks` with ``seed``): what a triplet's
+    state depends on, free of the map's gauge and scale. Triplets with an unconstrained
+    landmark get NaN.
+
+    >>> import numpy as np
+    >>> from qfg.simulation import random_trajectory_run
+    >>> run = random_trajectory_run(np.random.default_rng(0), n_landmarks=5, n_poses=30,
+    ...                             fov_deg=360)
+    >>> mu, cov = ab_frame_moments(solve(simulated_measurements(run)), [(0, 1, 2)], 500)
+    >>> mu.shape, cov.shape, bool(np.all(np.linalg.eigvalsh(cov) > 0))
+    ((1, 2), (1, 2, 2), True)
+    """
+    samples = positive_int("samples", samples, minimum=3)
+    tl = [tuple(t) for t in triplets]
+    if any(len(t) != 3 or len(set(t)) != 3 for t in tl):
+        raise ValueError("triplets: expected (A, B, C) triplets of three distinct ids")
+    tri = posterior.index([x for t in tl for x in t]).reshape(-1, 3)
+    S = sample_landmarks(posterior, samples, seed)
+    T = len(tri)
+    mu, cov = np.full((T, 2), np.nan), np.full((T, 2, 2), np.nan)
+    ok = np.asarray(posterior.constrained, bool)[tri].all(axis=1)
+    if posterior.method == "none" or not ok.any():
+        return mu, cov
+    t = tri[ok]
+    F = to_frame(S[:, t[:, 2]], S[:, t[:, 0]], S[:, t[:, 1]])         # (n, T', 2)
+    mu[ok] = F.mean(axis=0)
+    D = F - mu[ok]
+    cov[ok] = np.einsum("nti,ntj->tij", D, D) / (samples - 1)
+    return mu, cov
+
+
 def overdispersion(posterior: JointPosterior, robots=None, *, triplets: int = 2000,
                    samples: int = 500, seed=0) -> float:
     """How far the robots' own maps scatter about the joint map, against what its covariance
@@ -854,11 +889,8 @@ def overdispersion(posterior: JointPosterior, robots=None, *, triplets: int = 20
         tri = tri[np.sort(rng.choice(len(tri), triplets, replace=False))]
     if not len(tri):
         return float("nan")
-    S = sample_landmarks(posterior, samples, rng)
-    F = to_frame(S[:, tri[:, 2]], S[:, tri[:, 0]], S[:, tri[:, 1]])     # (n, T, 2)
-    mu = F.mean(axis=0)
-    D = F - mu
-    cov = np.einsum("nti,ntj->tij", D, D) / (samples - 1)
+    ids = np.asarray(posterior.landmark_ids)
+    mu, cov = ab_frame_moments(posterior, ids[tri].tolist(), samples, rng)
     det = cov[:, 0, 0] * cov[:, 1, 1] - cov[:, 0, 1] * cov[:, 1, 0]
     z2 = []
     for r in use:

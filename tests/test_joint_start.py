@@ -219,6 +219,32 @@ def test_overdispersion_measures_the_scatter_the_covariance_leaves_out(c):
         joint.scale_covariance(post, 0.0)
 
 
+def test_ab_frame_moments_are_the_linearised_gaussian_at_small_covariance():
+    post = _posterior_with_robot_maps(0, 1.0, sigma=1e-3)
+    P = post.points
+    tri = [(0, 1, 2), (3, 5, 6), (6, 2, 0)]
+    mu, cov = joint.ab_frame_moments(post, tri, samples=4000, seed=1)
+    for t, m, c in zip(tri, mu, cov, strict=True):
+        # the Jacobian of C's AB-frame position in the three points, by central differences
+        x0 = P[list(t)].ravel()
+        f = lambda x: to_frame(x[4:6], x[0:2], x[2:4])  # noqa: E731
+        Jac = np.column_stack([(f(x0 + h) - f(x0 - h)) / 2e-7
+                               for h in 1e-7 * np.eye(6)])
+        lin = Jac @ (1e-6 * np.eye(6)) @ Jac.T
+        np.testing.assert_allclose(m, f(x0), atol=5 * np.sqrt(np.trace(lin) / 4000))
+        np.testing.assert_allclose(c, lin, rtol=0.15, atol=0.15 * np.abs(lin).max())
+    # an unconstrained landmark: NaN, not a guess
+    keep = np.arange(7) != 2
+    m = post.modes[0]
+    cols = np.repeat(keep, 2)
+    loose = dataclasses.replace(post, constrained=keep, modes=(dataclasses.replace(
+        m, covariance=m.covariance[np.ix_(cols, cols)]),))
+    mu2, _ = joint.ab_frame_moments(loose, tri, samples=50, seed=1)
+    assert np.isnan(mu2[[0, 2]]).all() and np.isfinite(mu2[1]).all()
+    with pytest.raises(ValueError, match="triplets"):
+        joint.ab_frame_moments(post, [(0, 0, 1)])
+
+
 def test_auto_inflation_widens_by_the_measured_overdispersion():
     meas, _ = _world(0, 2)
     m = joint.JointMeasurements(tuple(meas), tuple(range(6)))
