@@ -110,6 +110,20 @@ def test_joint_map_without_odometry_falls_back_and_says_which_map_answered(root,
                  "--resume", *FAST]) == 0
 
 
+def test_the_user_is_told_which_map_answered_and_what_it_flagged():
+    from qfg.harness.studies.mrclam import say_map_info
+
+    said = []
+    say_map_info("joint", {"answered_by": "seen-prior", "why": "robots disagree"}, said.append)
+    say_map_info("joint", {"answered_by": "joint", "flags": ["kinematic_prior", "overdispersed"],
+                           "overdispersion": 4.08, "covariance_scale": 4.08}, said.append)
+    say_map_info("joint", {"answered_by": "joint", "flags": []}, said.append)
+    say_map_info("pooled", {}, said.append)
+    assert said == ["map joint: answered by seen-prior: robots disagree",
+                    "map joint: flags kinematic_prior, overdispersed; the robots' own maps "
+                    "scatter 4.08x what its covariance allows (covariance x4.08)"]
+
+
 def test_configuration_map_answers_every_ordered_triplet(root, tmp_path):
     out = tmp_path / "o"
     assert main(["mrclam", str(root / "MRCLAM_Dataset1"), "--map", "config-state", "--method",

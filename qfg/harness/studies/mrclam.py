@@ -763,6 +763,24 @@ def seen_estimates(prep: Prepared, ests: list[_Light], *, combine: str = "geomet
     return seen, ests, combined
 
 
+def say_map_info(name: str, info, say) -> None:
+    """Tell the user which map answered and what it flagged: a fallback and why, the joint
+    map's flags and, when it widened its covariance, by how much."""
+    info = dict(info or {})
+    by = info.get("answered_by", name)
+    if by != name:
+        say(f"map {name}: answered by {by}: {info.get('why', '')}")
+        return
+    flags = info.get("flags") or []
+    if not flags:
+        return
+    extra = ""
+    if "overdispersion" in info:
+        extra = (f"; the robots' own maps scatter {info['overdispersion']:.2f}x what its "
+                 f"covariance allows (covariance x{info.get('covariance_scale', 1.0):.2f})")
+    say(f"map {name}: flags {', '.join(flags)}{extra}")
+
+
 def score_map(prep: Prepared, seen, result, ests: list[_Light], common: dict) -> list[dict]:
     """Rows of a map (module docstring, step 7): every row of ``result`` scored against the
     landmark ground truth, beside the uniform and prior-alone baselines."""
@@ -862,6 +880,7 @@ def finish(prep: Prepared, ests: list[_Light], *, combine: str = "geometric",
             f"{int(np.count_nonzero(result.reached))} reached) in "
             f"{time.perf_counter() - t0:.1f} s")
     t_map = time.perf_counter() - t0
+    say_map_info(method.name, result.info, say)
     rows = score_map(prep, seen, result, ests, common)
     if result.cameras is not None:  # the map answered the cameras too (e.g. the joint map)
         answered = str(result.info.get("camera_method", method.name))

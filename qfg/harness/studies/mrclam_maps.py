@@ -387,6 +387,10 @@ def map_joint(seen: SeenEstimates) -> MapResult:
             "robot_flags": {str(r): str(f) for r, f in post.robot_flags.items()},
             "landmark_flags": dict(zip(map(str, post.landmark_ids), post.landmark_flags,
                                           strict=True))}
+    for key in ("overdispersion", "covariance_scale"):
+        v = post.info.get(key)
+        if v is not None and np.isfinite(v):
+            info[key] = float(v)
     P = np.array([j.triplets[t] for t in subjects], dtype=float).reshape(len(wanted), -1)
     return MapResult(triplets=wanted, probabilities=P,
                      seen=is_seen, reached=~is_seen, info=info,
