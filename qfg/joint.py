@@ -548,7 +548,7 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
             marg = _marginals(pr, fit)
             cov0 = _points_cov(marg, pr, np.arange(ok.size)) * scale
             weak = _weak_info(pr, fit, marg, ok, lflags, scale)
-        except _Indeterminate as exc:
+        except _nl.SingularInformation as exc:
             if exc.key is None or exc.key < pr.n_poses:
                 # no covariance at all: an honest "cannot say", flagged
                 flags.append("indeterminate")
@@ -575,7 +575,7 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
             continue
         try:
             modes.append((f, _points_cov(_marginals(pr, f), pr, np.arange(ok.size)) * scale))
-        except _Indeterminate:  # a degenerate second minimum is no mode
+        except _nl.SingularInformation:  # a degenerate second minimum is no mode
             continue
     if len(modes) > 1:
         flags.append("second_mode")
@@ -630,14 +630,6 @@ def _same_mode(a, b, cov) -> bool:
     return bool(np.all(np.hypot(*(a - b).T) <= 3 * sd + 1e-9))
 
 
-class _Indeterminate(ValueError):
-    """The Laplace covariance is undefined near variable ``key`` (None if unnamed)."""
-
-    def __init__(self, message, key):
-        super().__init__(message)
-        self.key = key
-
-
 def _marginals(pr, fit) -> _nl.Laplace:
     """The Laplace approximation at ``fit``. Where GTSAM's Cholesky fails near a landmark (its
     rays nearly parallel) the landmark is left out by the caller; near a pose (ill-conditioned:
@@ -645,15 +637,14 @@ def _marginals(pr, fit) -> _nl.Laplace:
     answers, and only a singular system is indeterminate."""
     lap = _nl.Laplace(pr, fit)
     if lap.error_key is not None and lap.error_key >= pr.n_poses:
-        raise _Indeterminate(lap.error[:200], lap.error_key)
+        raise _nl.SingularInformation(lap.error[:200], lap.error_key)
     return lap
 
 
 def _points_cov(marg: _nl.Laplace, pr, cols, poses=()):
-    try:
-        return marg.joint([int(c) for c in cols], [int(p) for p in poses])
-    except _nl.SingularInformation as exc:
-        raise _Indeterminate(str(exc)[:200], exc.key) from None
+    """Joint covariance of points ``cols`` then ``poses`` (raises
+    :class:`qfg.nonlinear.SingularInformation`, whose ``key`` names the variable)."""
+    return marg.joint([int(c) for c in cols], [int(p) for p in poses])
 
 
 def _weak_info(pr, fit, marg, ok, lflags, inflate):
@@ -883,8 +874,8 @@ def overdispersion(posterior: JointPosterior, robots=None, *, triplets: int = 20
     L = len(posterior.landmark_ids)
     ok = np.asarray(posterior.constrained, bool)
     rng = as_rng(seed)
-    tri = np.array([t for t in itertools.permutations(np.flatnonzero(ok).tolist(), 3)],
-                   dtype=np.intp).reshape(-1, 3)
+    tri = np.flatnonzero(ok)[np.array(_all_triplets(int(ok.sum())), dtype=np.intp)
+                             .reshape(-1, 3)]
     if len(tri) > triplets:
         tri = tri[np.sort(rng.choice(len(tri), triplets, replace=False))]
     if not len(tri):
@@ -1042,7 +1033,7 @@ def camera_marginals(posterior: JointPosterior, robot, pose_index, triplets, *,
             continue
         try:
             C = _points_cov(marg, pr, need, [off + p])
-        except _Indeterminate:  # this pose cannot be placed: its rows stay the prior
+        except _nl.SingularInformation:  # this pose cannot be placed: its rows stay the prior
             continue
         mu = np.concatenate([fit.points[need].ravel(), fit.poses[off + p]])
         z = _nl.sample_gaussian(mu, C, samples, rng)
