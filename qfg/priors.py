@@ -293,6 +293,10 @@ class WorldBoxPrior(Prior):
         configurations up to rounding (the density is symmetric in the points). With
         ``with_base`` also returns ``log_density(base)`` (U,) from the same extents (k >= 1).
 
+        ``extra`` (U, r, 2) without ``rows`` gives r points per base row, (U, r): the same as
+        ``rows = repeat(arange(U), r)`` on ``extra.reshape(-1, 2)``, without gathering the
+        base's extents per point.
+
         >>> p = WorldBoxPrior()
         >>> base = np.array([[[1.0, 0.5], [0.2, -1.0]]])
         >>> extra = np.array([[0.4, 0.5], [3.0, 2.0]])
@@ -300,107 +304,117 @@ class WorldBoxPrior(Prior):
         >>> b = p.log_density(np.concatenate([np.repeat(base, 2, axis=0), extra[:, None]], 1))
         >>> bool(np.allclose(a, b, rtol=0, atol=1e-12))
         True
+        >>> bool(np.allclose(p.log_density_extended(base, extra[None]), a, rtol=0, atol=1e-12))
+        True
         """
         b = as_float_array("base", base, min_ndim=3, last_dim=2)
         if b.ndim != 3:
             raise ValueError(f"base: expected shape (U, k, 2), got {b.shape}")
-        e = as_float_array("extra", extra, min_ndim=2, last_dim=2)
-        if e.ndim != 2:
-            raise ValueError(f"extra: expected shape (K, 2), got {e.shape}")
         U, k = b.shape[:2]
-        r = np.arange(e.shape[0]) if rows is None else np.asarray(rows)
-        if r.shape != (e.shape[0],) or not np.issubdtype(r.dtype, np.integer) or (
-                r.size and (r.min() < 0 or r.max() >= U)):
-            raise ValueError(f"rows: expected {e.shape[0]} integers in [0, {U}) (one base row "
-                             f"per extra point), got shape {r.shape}")
-        out = np.empty(e.shape[0])
+        e = as_float_array("extra", extra, min_ndim=2, last_dim=2)
+        grouped = rows is None and e.ndim == 3
+        if grouped and e.shape[0] != U:
+            raise ValueError(f"extra: expected shape ({U}, r, 2) (r points per base row) or "
+                             f"(K, 2), got {e.shape}")
+        if not grouped and e.ndim != 2:
+            raise ValueError(f"extra: expected shape (K, 2), or (U, r, 2) without rows, got "
+                             f"{e.shape}")
+        if not grouped:
+            r = np.arange(e.shape[0]) if rows is None else np.asarray(rows)
+            if r.shape != (e.shape[0],) or not np.issubdtype(r.dtype, np.integer) or (
+                    r.size and (r.min() < 0 or r.max() >= U)):
+                raise ValueError(f"rows: expected {e.shape[0]} integers in [0, {U}) (one base "
+                                 f"row per extra point), got shape {r.shape}")
         if with_base and not k:
             raise ValueError("base: with_base needs at least one base point (k >= 1)")
         cb = np.maximum(1.0, np.max(np.abs(b), axis=(1, 2))) if k else np.ones(U)
         hb, lb, db = self._extents(b, cb)                              # (M, U), (U,)
         own = self._from_extents(hb - lb, db, cb, k) if with_base else None
-        cs, sn = self._cos[:, None], self._sin[:, None]
-        step = max(1, _CHUNK_ELEMENTS // self.n_rho)
-        for i in range(0, e.shape[0], step):
-            rr, ee = r[i:i + step], e[i:i + step]
-            # the configuration's scale covers the new point too; the base's extents rescale
-            c = np.maximum(cb[rr], np.max(np.abs(ee), axis=1))
-            f = cb[rr] / c
-            ex, ey = ee[:, 0] / c, ee[:, 1] / c
-            pe = ex * cs - ey * sn                                    # (M, n)
-            hi = np.maximum(hb[:, rr] * f, pe)
-            lo = np.minimum(lb[:, rr] * f, pe)
-            # the new point's least squared distance to A, B and the base points
-            d2 = np.minimum(db[rr] * (f * f), ex * ex + ey * ey)
-            np.minimum(d2, ex * ex + (ey - 1.0 / c) ** 2, out=d2)
-            if k:
-                dd = ee[:, None, :] - b[rr]                           # (n, k, 2), unscaled
-                dd /= c[:, None, None]
-                np.minimum(d2, np.min(np.sum(dd * dd, axis=2), axis=1), out=d2)
-            out[i:i + step] = self._from_extents(np.subtract(hi, lo, out=hi), d2, c, k + 1)
+        out = np.empty(e.shape[:-1])
+        if grouped:
+            step = max(1, _CHUNK_ELEMENTS // (self.n_rho * max(1, e.shape[1])))
+            for i in range(0, U, step):
+                s = slice(i, i + step)
+                out[s] = self._add_point(hb[:, s, None], lb[:, s, None], db[s, None],
+                                         cb[s, None], b[s, None], e[s])
+        else:
+            step = max(1, _CHUNK_ELEMENTS // self.n_rho)
+            for i in range(0, e.shape[0], step):
+                rr = r[i:i + step]
+                out[i:i + step] = self._add_point(hb[:, rr], lb[:, rr], db[rr], cb[rr], b[rr],
+                                                  e[i:i + step])
         return (out, own) if with_base else out
+
+    def _add_point(self, hb, lb, db, cb, b, e):
+        """The log density of base configurations plus one point ``e`` (*S, 2) from the bases'
+        scaled extents ``hb``, ``lb`` (M, *S), least squared distances ``db`` (*S), scales
+        ``cb`` (*S) and points ``b`` (*S, k, 2) (any of them broadcast along S)."""
+        k = b.shape[-2]
+        # the configuration's scale covers the new point too; the base's extents rescale
+        c = np.maximum(cb, np.max(np.abs(e), axis=-1))
+        f = cb / c
+        ex, ey = e[..., 0] / c, e[..., 1] / c
+        rot = (-1,) + (1,) * c.ndim
+        pe = ex * self._cos.reshape(rot) - ey * self._sin.reshape(rot)      # (M, *S)
+        hi = np.maximum(hb * f, pe)
+        lo = np.minimum(lb * f, pe)
+        # the new point's least squared distance to A, B and the base points
+        d2 = np.minimum(db * (f * f), ex * ex + ey * ey)
+        np.minimum(d2, ex * ex + (ey - 1.0 / c) ** 2, out=d2)
+        for j in range(k):
+            dx = (e[..., 0] - b[..., j, 0]) / c
+            dy = (e[..., 1] - b[..., j, 1]) / c
+            np.minimum(d2, dx * dx + dy * dy, out=d2)
+        xr = np.subtract(hi, lo, out=hi).reshape(self.n_rho, -1)
+        return self._from_extents(xr, d2.ravel(), c.ravel(), k + 1).reshape(c.shape)
 
     def _from_extents(self, xr, d2, c, k):
         """The log density from the scaled configurations' x extents ``xr`` (M, N) over the
-        rotations rho, their least squared pairwise distance ``d2`` (N,) and scale ``c`` (N,),
-        for k points besides A and B."""
+        rotations rho (overwritten), their least squared pairwise distance ``d2`` (N,) and scale
+        ``c`` (N,), for k points besides A and B."""
         W, H, M = self.width, self.height, self.n_rho
         yr = np.roll(xr, -M // 2, axis=0)                             # xr(rho + pi/2) = yr(rho)
-        if xr.size and np.min(xr) > 0:
-            s1 = np.divide(W, xr)
-            np.minimum(s1, np.divide(H, yr), out=s1)
-        else:
-            with np.errstate(divide="ignore"):
-                s1 = np.minimum(np.where(xr > 0, W / np.where(xr > 0, xr, 1.0), np.inf),
-                                np.where(yr > 0, H / np.where(yr > 0, yr, 1.0), np.inf))
+        # s1 = min(W / xr, H / yr) = H / mx with mx = max(κ xr, yr), κ = H / W (mx > 0: A and B
+        # are 1 / c apart, so xr and yr never vanish together); then α = s1 xr / W = κ xr / mx
+        # and β = s1 yr / H = yr / mx: one of them is 1, the other q = min(κ xr, yr) / mx
+        u = np.multiply(xr, H / W, out=xr)
+        mx = np.maximum(u, yr)
+        q = np.minimum(u, yr, out=u)
+        q /= mx
+        # ∫_{s0}^{s1} s^a (W - s xr)(H - s yr) ds = s1^(a+1) W H ∫_{u0}^1 u^a (1 - αu)(1 - βu) du
+        # (u = s / s1, u0 = s0 / s1) = s1^(a+1) W H (G(1) - u0^(a+1) G(u0)) with
+        # G(u) = 1 / (a + 1) - (α + β) u / (a + 2) + α β u^2 / (a + 3), and with α + β = 1 + q,
+        # α β = q: G(1) = A0 - A1 q, A0 = 1/(a+1) - 1/(a+2) > A1 = 1/(a+2) - 1/(a+3) > 0
+        a = 2 * k + 1 + self.scale_power
+        inner = np.multiply(q, -(1.0 / (a + 2) - 1.0 / (a + 3)), out=yr)
+        inner += 1.0 / (a + 1) - 1.0 / (a + 2)                        # G(1) > 0
         delta = np.sqrt(d2)                                           # (N,)
         with np.errstate(divide="ignore"):
             s0 = np.where(delta > 0, self.d_min / np.where(delta > 0, delta, 1.0),
                           0.0 if self.d_min == 0 else np.inf)
-        # ∫_{s0}^{s1} s^a (W - s xr)(H - s yr) ds = s1^(a+1) W H ∫_{u0}^1 u^a (1 - αu)(1 - βu) du
-        # with u = s / s1, α = s1 xr / W <= 1, β = s1 yr / H <= 1, u0 = s0 / s1
-        a = 2 * k + 1 + self.scale_power
-        # (written with in-place operations: the same arithmetic as the formulas in the
-        # comments, without a fresh (M, N) array per step)
-        al = np.multiply(s1, xr)
-        al /= W                                                       # α = s1 xr / W
-        be = np.multiply(s1, yr, out=yr)
-        be /= H                                                       # β = s1 yr / H
-        ab = np.add(al, be)
-        aab = np.multiply(al, be, out=al)
-        c1 = 1.0 / (a + 1)
-        # G(u) = 1 / (a + 1) - (α + β) u / (a + 2) + α β u^2 / (a + 3)
-        inner = np.divide(ab, a + 2)
-        np.subtract(c1, inner, out=inner)
-        inner += np.divide(aab, a + 3, out=be)                        # G(1)
         # u0^(a+1) by repeated squaring (it underflows to 0 for the usual tiny u0: d_min much
         # smaller than the scale, and then the G(u0) term is skipped: first checked at each
         # configuration's largest u0, which bounds the others, on (N,) instead of (M, N))
-        with np.errstate(under="ignore", divide="ignore", invalid="ignore"):
-            top = np.minimum(np.divide(s0, np.min(s1, axis=0)), 1.0)
+        with np.errstate(under="ignore", divide="ignore", invalid="ignore", over="ignore"):
+            top = np.minimum(s0 * np.max(mx, axis=0) / H, 1.0)
             need = bool(np.any(_int_power(top, a + 1) > 0))
-        with np.errstate(under="ignore"):
-            if need:
-                u0 = np.divide(s0, s1)
+        if need:
+            with np.errstate(under="ignore", invalid="ignore", over="ignore"):
+                u0 = np.multiply(mx, (s0 / H)[None, :])
                 np.minimum(u0, 1.0, out=u0)                           # u0 = min(s0 / s1, 1)
-                u0p = _int_power(u0, a + 1)
-                g = np.multiply(ab, u0, out=ab)
-                g /= a + 2
-                np.subtract(c1, g, out=g)
-                h = np.multiply(aab, u0, out=aab)
-                h *= u0
-                h /= a + 3
-                g += h                                                # G(u0)
-                g *= u0p
+                g = (1.0 / (a + 1)) - (1.0 + q) * u0 / (a + 2) + q * u0 * u0 / (a + 3)
+                g *= _int_power(u0, a + 1)                            # u0^(a+1) G(u0)
                 inner -= g
-        np.maximum(inner, 0.0, out=inner)
+            np.maximum(inner, 0.0, out=inner)
+            inner[u0 >= 1.0] = 0.0        # an empty interval (G(1) - G(1) may round above 0)
         # the sum over rho of s1^(a+1) inner, with s1 relative to its largest value per
-        # configuration: max s1 / min s1 over rho is at most sqrt(2) max(W, H) / min(W, H) (every
-        # rotation has an extent >= diameter / sqrt(2)), so the powers cannot underflow for a
-        # sane box
-        s1max = np.max(s1, axis=0)
-        okm = np.isfinite(s1max) & (s1max > 0)
-        rel = np.divide(s1, np.where(okm, s1max, 1.0), out=s1)
+        # configuration, s1 / s1max = mxmin / mx: max s1 / min s1 over rho is at most
+        # sqrt(2) max(W, H) / min(W, H) (every rotation has an extent >= diameter / sqrt(2)),
+        # so the powers cannot underflow for a sane box
+        mxmin = np.min(mx, axis=0)
+        okm = np.isfinite(mxmin) & (mxmin > 0)
+        mxmin = np.where(okm, mxmin, 1.0)
+        rel = np.divide(mxmin, mx, out=mx)
         with np.errstate(under="ignore"):
             relp = _int_power(rel, a + 1)
             relp *= inner
@@ -410,7 +424,7 @@ class WorldBoxPrior(Prior):
         # and rho in [0, 2 pi) covers [0, pi) twice: normalized up to P(all pairs >= d_min)
         const = np.log(2.0 * np.pi / M) + np.log(W * H) - (k + 2) * np.log(W * H)
         with np.errstate(divide="ignore"):
-            return np.where(ok, (a + 1) * (np.log(np.where(okm, s1max, 1.0)) - np.log(c))
+            return np.where(ok, (a + 1) * (np.log(H / mxmin) - np.log(c))
                             + np.log(np.where(ok, ssum, 1.0)) + const, -np.inf)
 
     def sample_world(self, seed, n_points: int, size: int) -> np.ndarray:

@@ -316,6 +316,10 @@ def test_extended_density_equals_the_stacked_configurations(kw):
         fin = np.isfinite(want)
         np.testing.assert_array_equal(np.isfinite(got), fin)
         np.testing.assert_allclose(got[fin], want[fin], rtol=1e-10, atol=1e-9)
+        # r points per base row, grouped: the same numbers
+        grouped = p.log_density_extended(base, extra.reshape(U, r, 2)).ravel()
+        np.testing.assert_array_equal(np.isfinite(grouped), fin)
+        np.testing.assert_allclose(grouped[fin], want[fin], rtol=1e-10, atol=1e-9)
         if kw.get("d_min", 0.01) > 0:
             assert not fin[1] and (k == 0 or not fin[0])
         assert fin.sum() >= 4                                   # something to compare
@@ -328,4 +332,6 @@ def test_extended_density_bad_input():
     with pytest.raises(ValueError, match="base"):
         p.log_density_extended(np.zeros((1, 2)), np.ones((1, 2)))
     with pytest.raises(ValueError, match="extra"):
-        p.log_density_extended(np.zeros((1, 1, 2)), np.ones((1, 1, 2)))
+        p.log_density_extended(np.zeros((1, 1, 2)), np.ones((2, 1, 2)))   # 2 groups, 1 base row
+    with pytest.raises(ValueError, match="extra"):
+        p.log_density_extended(np.zeros((1, 1, 2)), np.ones((1, 1, 2)), [0])

@@ -82,8 +82,7 @@ def log_joint_prior_draws(prior, landmarks, cameras) -> np.ndarray:
     X = np.asarray(cameras, dtype=float)
     J, r = L.shape[:2]
     if isinstance(prior, _priors.WorldBoxPrior) and L.size:
-        return prior.log_density_extended(X, L.reshape(-1, 2),
-                                          np.repeat(np.arange(J), r)).reshape(J, r)
+        return prior.log_density_extended(X, L)
     return log_joint_prior(prior, L, np.broadcast_to(X[:, None], (J, r) + X.shape[1:]))
 
 
