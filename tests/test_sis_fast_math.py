@@ -129,3 +129,27 @@ def test_logsumexp_over_a_few_columns_equals_the_reduction():
                                                   keepdims=True)), -np.inf)[:, 0]
         got = logsumexp(a, axis=1)
         assert np.array_equal(got, ref) if k < 8 else np.allclose(got, ref, rtol=1e-15)
+
+
+def test_weighted_state_errors_equal_the_delta_method_per_sample():
+    """The batched Monte Carlo error of the finish step against the delta-method sum written
+    out per group and state: sqrt(sum_i w_i^2 (1[s_i = s] - p_s)^2), the largest over s."""
+    from qfg.solvers._histograms import weighted_state_errors
+    rng = np.random.default_rng(3)
+    G, m = 6, 5
+    g = np.sort(rng.integers(0, G - 1, 400))                    # group G - 1 stays empty
+    s = rng.integers(0, m, g.size)
+    w = rng.random(g.size) ** 3
+    w[g == 2] = 0.0                                              # a group of zero weights
+    tot = np.bincount(g, weights=w, minlength=G)
+    w = np.where(tot[g] > 0, w / np.where(tot > 0, tot, 1.0)[g], 0.0)
+    got = weighted_state_errors(s, w, g, G, m)
+    for k in range(G):
+        wk, sk = w[g == k], s[g == k]
+        if not np.any(wk > 0):
+            assert np.isnan(got[k])
+            continue
+        p = [wk[sk == j].sum() for j in range(m)]
+        want = max(np.sqrt(sum(wi * wi * ((si == j) - p[j]) ** 2
+                               for wi, si in zip(wk, sk, strict=True))) for j in range(m))
+        assert abs(got[k] - want) < 1e-12

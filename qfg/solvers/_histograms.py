@@ -15,13 +15,30 @@ def weighted_state_error(part, points, weights) -> float:
     if w.size == 0 or not np.any(w > 0):
         return float("nan")
     s = part.state_of(points)
-    m = part.n_states
-    p = np.bincount(s, weights=w, minlength=m)
+    return float(weighted_state_errors(s, w, np.zeros(s.size, dtype=np.intp), 1,
+                                       part.n_states)[0])
+
+
+def weighted_state_errors(states, weights, groups, n_groups: int, m: int) -> np.ndarray:
+    """:func:`weighted_state_error` of several weighted samples at once: ``states`` (K,) ints in
+    [0, m), ``weights`` (K,) summing to 1 within each group, ``groups`` (K,) ints in
+    [0, n_groups) -> (n_groups,), NaN for a group without positive weight.
+
+    >>> s, w = np.array([0, 1, 1, 0]), np.array([0.5, 0.5, 0.25, 0.75])
+    >>> weighted_state_errors(s, w, np.array([0, 0, 1, 1]), 2, 2).round(4).tolist()
+    [0.3536, 0.2652]
+    """
+    w = np.asarray(weights, dtype=float)
+    g = np.asarray(groups, dtype=np.intp)
+    cell = g * m + np.asarray(states, dtype=np.intp)
+    p = np.bincount(cell, weights=w, minlength=n_groups * m).reshape(n_groups, m)
     w2 = w * w
-    a = np.bincount(s, weights=w2, minlength=m)           # sum over i in s of w_i^2
-    tot = w2.sum()
+    # sum over i in s of w_i^2, and over all i
+    a = np.bincount(cell, weights=w2, minlength=n_groups * m).reshape(n_groups, m)
+    tot = np.bincount(g, weights=w2, minlength=n_groups)[:, None]
     var = a * (1 - p) ** 2 + (tot - a) * p**2
-    return float(np.sqrt(var.max()))
+    has = np.bincount(g, weights=w > 0, minlength=n_groups) > 0
+    return np.where(has, np.sqrt(var.max(axis=1, initial=0.0)), np.nan)
 
 
 def state_histogram(part, points, weights) -> tuple[np.ndarray, bool]:

@@ -1482,6 +1482,7 @@ def finish(state: SISState, hypotheses: bool = False):
     Lf = L.reshape(-1, 2)
     ls = part.state_of(Lf) if Lf.size else np.zeros(0, dtype=int)
     lm = np.bincount(flat_tid * m + ls, weights=w, minlength=T * m).reshape(T, m)
+    mc_errors = _histograms.weighted_state_errors(ls, w, flat_tid, T, m)
     cw = w.reshape(-1, k).sum(axis=1) if w.size else np.zeros(0)
     cs = part.state_of(poses[..., :2]) if poses.size else np.zeros((0, n), dtype=int)
     cidx = (tid[:, None] * n + np.arange(n)) * m + cs
@@ -1540,7 +1541,7 @@ def finish(state: SISState, hypotheses: bool = False):
                            f"the prior's states by {lam:.2f}")
         est, hyp = _estimate.make_estimate(
             state.method, part, n, p_land, p_cams, hypotheses=hyp, reasons=reasons, opts=shown,
-            mc_error=_histograms.weighted_state_error(part, Lt, wt), model_check=pval,
+            mc_error=mc_errors[t], model_check=pval,
             widen=widen, depth_unresolved=float(unresolved[t]) if n >= 2 else float("nan"))
         out.append((est, hyp if hypotheses else None))
     return out
