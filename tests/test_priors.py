@@ -335,3 +335,51 @@ def test_extended_density_bad_input():
         p.log_density_extended(np.zeros((1, 1, 2)), np.ones((2, 1, 2)))   # 2 groups, 1 base row
     with pytest.raises(ValueError, match="extra"):
         p.log_density_extended(np.zeros((1, 1, 2)), np.ones((1, 1, 2)), [0])
+
+
+@pytest.mark.parametrize("kw", [{}, {"width": 3.0, "height": 8.0, "d_min": 0.5},
+                                {"d_min": 2.0, "scale_power": -1}])
+def test_density_equals_its_double_integral(kw):
+    """The closed-form inner integral against the docstring's double integral done by scipy's
+    quad over the scale s and the rotation rho, from the rotated points' extents: prior =
+    2 / (W H)^(k+2) ∫_0^π dρ ∫_{s0}^{s1} s^(2k+1+p) (W - s xr)(H - s yr) ds, including
+    configurations where d_min's lower limit s0 cuts the interval (large d_min)."""
+    from scipy import integrate
+
+    p = priors.WorldBoxPrior(n_rho=4096, **kw)
+    W, H, dmin = p.width, p.height, p.d_min
+    rng = np.random.default_rng(8)
+    finite = 0
+    for k in (1, 2):
+        for _ in range(3):
+            q = rng.normal(size=(k, 2)) * rng.choice([0.3, 1.0, 3.0])
+            pts = np.vstack([[0.0, 0.0], [0.0, 1.0], q])
+            dist = [np.hypot(*(pts[i] - pts[j])) for i in range(k + 2) for j in range(i)]
+            s0 = dmin / min(dist)
+            a = 2 * k + 1 + p.scale_power
+
+            def over_s(rho, pts=pts, s0=s0, a=a):
+                c, s = np.cos(rho), np.sin(rho)
+                x = pts[:, 0] * c - pts[:, 1] * s
+                y = pts[:, 0] * s + pts[:, 1] * c
+                xr, yr = np.ptp(x), np.ptp(y)
+                s1 = min(W / xr if xr > 0 else np.inf, H / yr if yr > 0 else np.inf)
+                if s1 <= s0:
+                    return 0.0
+                return integrate.quad(lambda t: t ** a * (W - t * xr) * (H - t * yr), s0, s1,
+                                      epsabs=0, epsrel=1e-11)[0]
+
+            # the extents have kinks where two points' projections cross (in x or in y)
+            d = pts[:, None] - pts[None]
+            kinks = np.mod(np.concatenate([np.arctan2(d[..., 0], d[..., 1]).ravel(),
+                                           np.arctan2(-d[..., 1], d[..., 0]).ravel()]), np.pi)
+            val = integrate.quad(over_s, 0.0, np.pi, points=np.unique(kinks)[1:-1], limit=400,
+                                 epsabs=0, epsrel=1e-9)[0]
+            got = p.log_density(q[None])[0]
+            if val == 0.0:                      # no admissible scale at any rotation
+                assert got == -np.inf
+                continue
+            finite += 1
+            want = np.log(2.0 * val) - (k + 2) * np.log(W * H)
+            assert abs(got - want) < 2e-5, (k, q, got, want)
+    assert finite >= 4
