@@ -110,6 +110,72 @@ def test_joint_map_without_odometry_falls_back_and_says_which_map_answered(root,
                  "--resume", *FAST]) == 0
 
 
+def test_without_odometry_the_joint_map_is_solved_first_and_once(root, tmp_path, monkeypatch,
+                                                                  capsys):
+    """On a dataset without odometry the default solver is decided by the joint solve, done
+    before any piece: the solvers run only when it cannot answer, and the map step uses that
+    same answer (one joint solve per run)."""
+    import dataclasses
+
+    import qfg.joint
+
+    d = root / "MRCLAM_Dataset3"        # no robot has odometry; the joint solve cannot answer
+    real = qfg.joint.mrclam_marginals
+    calls = []
+
+    def counted(*a, **k):
+        calls.append(1)
+        return real(*a, **k)
+
+    monkeypatch.setattr(qfg.joint, "mrclam_marginals", counted)
+    out = tmp_path / "fallback"
+    assert main(["mrclam", str(d), "--robots", "2", "--output", str(out),
+                 "--no-progress", *FAST[:1], *FAST[2:]]) == 0
+    assert len(calls) == 1
+    assert json.loads((out / "run.json").read_text())["params"]["method"] == "full"
+    assert _map_info(out, "joint")["answered_by"] == mrclam_maps.JOINT_FALLBACK
+    assert {r["method"] for r in _rows(out) if r["kind"] == "seen"} == {"baseline"}
+
+    # when it answers, no solver runs: the recorded method is none, the map the joint one
+    def answering(*a, **k):
+        calls.append(1)
+        return dataclasses.replace(real(*a, **k), method="joint")
+
+    monkeypatch.setattr(qfg.joint, "mrclam_marginals", answering)
+    calls.clear()
+    out = tmp_path / "answers"
+    assert main(["mrclam", str(d), "--robots", "2", "--output", str(out), *FAST]) == 0
+    assert len(calls) == 1
+    assert json.loads((out / "run.json").read_text())["params"]["method"] == "none"
+    assert _map_info(out, "joint")["answered_by"] == "joint"
+    assert {r["method"] for r in _rows(out) if r["kind"] == "seen"} == {"none"}
+    # resumed as recorded: neither decided nor solved again (the map is recorded)
+    calls.clear()
+    assert main(["mrclam", str(d), "--robots", "2", "--output", str(out), "--resume",
+                 *FAST]) == 0
+    assert not calls
+
+
+def test_the_joint_answer_is_remembered_for_the_same_inputs(root):
+    from qfg.datasets import mrclam as data
+    from qfg.harness.studies import mrclam as study
+
+    prep = study.prepare_run(root / "MRCLAM_Dataset1")
+    hs = [h for _, h in prep.histories]
+    kw = dict(prior_states=prep.prior_states, camera_prior_states=prep.prior_camera_states,
+              partition="edc")
+    a = mrclam_maps.joint_answer(prep.dataset, hs, seed=0, **kw)
+    assert mrclam_maps.joint_answer(prep.dataset, hs, seed=0, **kw) is a
+    assert a.method == "joint"
+    # another seed, other histories or another dataset object: solved again
+    b = mrclam_maps.joint_answer(prep.dataset, hs, seed=1, **kw)
+    assert b is not a
+    assert mrclam_maps.joint_answer(prep.dataset, hs[:-1], seed=1, **kw) is not b
+    other = data.load(root / "MRCLAM_Dataset1")
+    c = mrclam_maps.joint_answer(other, hs[:-1], seed=1, **kw)
+    assert c is not b and mrclam_maps.joint_answer(other, hs[:-1], seed=1, **kw) is c
+
+
 def test_the_user_is_told_which_map_answered_and_what_it_flagged():
     from qfg.harness.studies.mrclam import say_map_info
 

@@ -72,7 +72,8 @@ def register(sub):
     p.add_argument("--method", default=None, choices=("fast", "full", "baseline", "none"),
                    help="single-triplet solver (robots without odometry: baseline); none: no "
                         "solver (for a map from the raw measurements). Default: none for such a "
-                        "map (--map joint) when a robot has odometry, else full")
+                        "map (--map joint; on a dataset without odometry, full when the joint "
+                        "solve, done first, cannot answer), else full")
     from qfg.harness.studies.mrclam_maps import DEFAULT_MAP
 
     p.add_argument("--map", default=None, choices=tuple(MAP_METHODS),
@@ -414,9 +415,10 @@ def _main(args):
     if args.resume:
         _keep_recorded_defaults(out, params)
         if not after["method_given"]:
-            # a run without a given solver resumes with the one it was recorded with (a dataset
-            # without odometry is solved with full by default, decided once its data is read)
+            # a run without a given solver resumes with the one it was recorded with (on a
+            # dataset without odometry the default is decided once its data is read)
             opts["method"] = params["method"] = _recorded(out).get("method", params["method"])
+            after["method_recorded"] = "method" in _recorded(out)
     check_output(out, params, args.seed, args.resume, args.overwrite)
     quiet = args.no_progress
 
@@ -437,23 +439,18 @@ def _main(args):
                                            for r in (opts["robots"] or ds.robots)):
         raise ValueError(f"--mode paper: needs motion capture (RobotN_Groundtruth); "
                          f"{_no_camera_reason(ds, opts['robots'])}")
-    if opts["method"] == "none" and not any(rd.has_odometry for rd in ds.robots.values()):
+    no_odometry = opts["method"] == "none" and not any(rd.has_odometry
+                                                        for rd in ds.robots.values())
+    if no_odometry and after["method_given"]:
         # the joint map (every robot of the dataset) solves robots without odometry with the
-        # kinematic prior but trusts them only when two or more agree: it may fall back to the
-        # solvers' estimates, so by default they are made; given --method none, it needs at
-        # least two robots to have a chance
+        # kinematic prior but trusts them only when two or more agree: given --method none,
+        # it needs at least two robots to have a chance
         seeing = [r for r, rd in sorted(ds.robots.items()) if rd.visible.any()]
-        if after["method_given"] and len(seeing) < 2:
+        if len(seeing) < 2:
             raise ValueError(f"--method none: {ds.name} has no odometry and only "
                              f"{len(seeing)} robot with landmark views, so the map "
                              f"{after['map']!r} falls back to the solvers' estimates; give "
                              "--method full (or fast, baseline)")
-        if not after["method_given"]:
-            opts["method"] = params["method"] = "full"
-            check_output(out, params, args.seed, args.resume, args.overwrite)
-            say(f"no robot of {ds.name} has odometry: solving with full too; the "
-                f"{after['map']} map answers if robots without odometry agree, else falls back "
-                f"to {mrclam_maps.JOINT_FALLBACK}")
     T = None
     if after["tensor"]:
         try:
@@ -468,6 +465,26 @@ def _main(args):
     if not prep.histories:
         raise ValueError(f"--robots: no triplet history to solve in {ds.name}"
                          + (f" for robots {args.robots}" if opts["robots"] else ""))
+    if no_odometry and not after["method_given"] and not after.get("method_recorded"):
+        # without odometry the joint map may fall back to the solvers' estimates (robots
+        # without odometry are trusted only when two or more agree): solve it first, and run
+        # the solvers (full) only when it cannot answer; the map step then uses this answer
+        say(f"no robot of {ds.name} has odometry: the {after['map']} map first (robots by a "
+            "kinematic motion prior, kept when two or more agree) ...")
+        t1 = time.perf_counter()
+        j = mrclam_maps.joint_answer(ds, [h for _, h in prep.histories],
+                                     prior_states=prep.prior_states,
+                                     camera_prior_states=prep.prior_camera_states,
+                                     partition=prep.partition.name, seed=opts["seed"])
+        if j.method == "none":
+            opts["method"] = params["method"] = "full"
+            check_output(out, params, args.seed, args.resume, args.overwrite)
+            say(f"the {after['map']} map cannot answer ({mrclam_maps.joint_why(j)}; "
+                f"{time.perf_counter() - t1:.0f} s): solving with full, the map falls back to "
+                f"{mrclam_maps.JOINT_FALLBACK}")
+        else:
+            say(f"the {after['map']} map answers ({time.perf_counter() - t1:.0f} s): no "
+                "single-triplet solver needed")
     study.remember(params, prep)
     n_views = sum(rd.n_views for rd in ds.robots.values())
     say(f"loaded {ds.name}: {len(ds.robots)} robots, {n_views} views, every file checked "

@@ -44,7 +44,7 @@ __all__ = ["SeenEstimates", "MapResult", "MapMethod", "MAP_METHODS", "register",
            "inputs_digest", "save_map", "load_map", "save_seen", "map_pooled", "map_best",
            "map_seen", "map_configurations", "map_configurations_metric", "state_evidence",
            "metric_evidence",
-           "map_seen_configurations", "map_seen_prior", "map_joint",
+           "map_seen_configurations", "map_seen_prior", "map_joint", "joint_answer", "joint_why",
            "JOINT_FALLBACK", "DEFAULT_MAP"]
 
 
@@ -348,6 +348,46 @@ def map_seen_prior(seen: SeenEstimates) -> MapResult:
 JOINT_FALLBACK = "seen-prior"
 
 
+#: The last :func:`joint_answer` (its inputs' digest, the dataset object and the answer).
+_JOINT_MEMO: dict = {}
+
+
+def joint_answer(dataset, histories, *, prior_states, camera_prior_states, partition: str,
+                 seed: int):
+    """:func:`qfg.joint.mrclam_marginals` of every ordered triplet of ``dataset``'s landmarks and
+    the cameras of ``histories``, remembered for the last inputs: ``qfg mrclam`` solves the
+    joint map first on a dataset without odometry (to know whether the solvers must run for
+    its fallback), and the map step then uses the same answer instead of solving again."""
+    from qfg.joint import mrclam_marginals
+
+    h = hashlib.sha256()
+    for x in histories:
+        h.update(np.int64(int(x.robot)).tobytes())
+        h.update(np.ascontiguousarray(x.views, dtype=np.float64).tobytes())
+        h.update(np.ascontiguousarray(x.landmarks, dtype=np.int64).tobytes())
+    for a in (prior_states, camera_prior_states):
+        h.update(b"-" if a is None else np.ascontiguousarray(a, dtype=np.float64).tobytes())
+    h.update(repr((str(partition), int(seed))).encode())
+    key = h.hexdigest()
+    if _JOINT_MEMO.get("key") == key and _JOINT_MEMO.get("dataset") is dataset:
+        return _JOINT_MEMO["answer"]
+    ids = np.asarray(dataset.landmark_ids)
+    subjects = [tuple(int(x) for x in ids[t]) for t in _all_ordered_triplets(ids.size).tolist()]
+    j = mrclam_marginals(dataset, triplets=subjects, histories=list(histories),
+                         prior_states=prior_states, camera_prior_states=camera_prior_states,
+                         partition=partition, seed=seed)
+    _JOINT_MEMO.clear()
+    _JOINT_MEMO.update(key=key, dataset=dataset, answer=j)
+    return j
+
+
+def joint_why(j) -> str:
+    """Why a joint answer (:func:`joint_answer`) could not answer: its flags and robots."""
+    post = j.posterior
+    return (f"{', '.join(post.flags) or 'no map'}; robots: "
+            f"{', '.join(f'{r} {f}' for r, f in sorted(post.robot_flags.items()))}")
+
+
 def map_joint(seen: SeenEstimates) -> MapResult:
     """Every ordered triplet and every history's cameras from one joint posterior over the
     landmark positions and robot poses, fitted on GTSAM to every bearing and the odometry of
@@ -357,20 +397,15 @@ def map_joint(seen: SeenEstimates) -> MapResult:
     scored. When the joint solve cannot answer (e.g. a lone robot without odometry, or robots
     without odometry whose maps disagree) the map is :data:`JOINT_FALLBACK` over the solvers'
     estimates, and ``info["answered_by"]`` and ``info["why"]`` say so."""
-    from qfg.joint import mrclam_marginals
-
     ds = seen.dataset
     ids = np.asarray(ds.landmark_ids)
     wanted = _all_ordered_triplets(ids.size)
-    hs = [h for _, h in seen.histories()]
     subjects = [tuple(int(x) for x in ids[t]) for t in wanted.tolist()]
-    j = mrclam_marginals(ds, triplets=subjects,
-                         histories=hs, prior_states=seen.prior_states,
-                         camera_prior_states=seen.prior_camera_states,
-                         partition=seen.partition.name, seed=seen.seed)
+    j = joint_answer(ds, [h for _, h in seen.histories()], prior_states=seen.prior_states,
+                     camera_prior_states=seen.prior_camera_states,
+                     partition=seen.partition.name, seed=seen.seed)
     if j.method == "none":
-        why = (f"the joint solve could not answer ({', '.join(j.posterior.flags) or 'no map'}; "
-               f"robots: {', '.join(f'{r} {f}' for r, f in sorted(j.posterior.robot_flags.items()))})")
+        why = f"the joint solve could not answer ({joint_why(j)})"
         if seen.solver == "none":
             raise ValueError(f"--map joint on {ds.name}: {why}, so the map falls back to "
                              f"{JOINT_FALLBACK} over the solvers' estimates: run with --method "
