@@ -341,7 +341,7 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
           inflate_kinematic: float | str = KINEMATIC_INFLATE,
           kinematic: _start.KinematicPrior = _start.KINEMATIC,
           kinematic_chunks=(25, 50, 100), agree: float | None = _start.AGREE,
-          seed=0) -> JointPosterior:
+          too_close: float = _start.TOO_CLOSE, seed=0) -> JointPosterior:
     """The joint posterior of :class:`JointMeasurements` (module docstring, steps 1-4).
 
     Args:
@@ -376,6 +376,10 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
             tolerance); a fit without odometry can pass every residual check in a wrong
             minimum, so a lone run without odometry is left out (flag ``unverified``). None:
             no check (every such run kept, at the user's risk).
+        too_close: a pose fitted closer to a landmark it sees than this share of the median
+            range of all bearings is moved off it (:func:`qfg.joint_start.escape_close`; 0:
+            not checked); ``info["too_close"]`` counts such bearings, ``info["too_close_dropped"]``
+            those left out because the fit returned to them.
         seed: for the starts' order of tie-breaking (the solve is otherwise deterministic).
     """
     if not isinstance(measurements, JointMeasurements):
@@ -405,6 +409,10 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
                              for c in np.atleast_1d(kinematic_chunks).tolist())
     if agree is not None:
         agree = non_negative("agree", agree)
+    too_close = non_negative("too_close", too_close)
+    if too_close >= 1:
+        raise ValueError(f"too_close: expected a share of the median range in [0, 1), got "
+                         f"{too_close!r}")
     as_rng(seed)
     t0 = _time.perf_counter()
     ids = measurements.landmark_ids
@@ -522,6 +530,7 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
             continue
         pr_all = pr
         pr, fit, n_out = _start.drop_outliers(pr, fit, outlier, max_iterations)
+        pr, fit, n_close_out, n_close = _start.escape_close(pr, fit, too_close, max_iterations)
         chk = _robot_checks(pr_all, fit, offs, use, outlier)
         med = {r: c[0] for r, c in chk.items()}
         bad = [r for r, c in chk.items() if _failed(c, residual_limit, outlier)]
@@ -594,7 +603,9 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
     constrained[ok] = True
     info = {"cost": float(fit.cost), "n_bearings": int(pr.bearing.size),
             "n_poses": int(pr.n_poses), "starts": len(fits), "costs": [f.cost for f in fits],
-            "robot_median_residual": med, "outliers_dropped": n_out, "time_s": _time.perf_counter() - t0,
+            "robot_median_residual": med, "outliers_dropped": n_out,
+            "too_close": n_close, "too_close_dropped": n_close_out,
+            "time_s": _time.perf_counter() - t0,
             "reference_robot": ref, "marginals": marg, "robot_maps": robot_maps,
             "covariance_scale": scale,
             "kinematic_starts": starts_info}

@@ -234,6 +234,41 @@ def drop_outliers(pr, fit, limit, max_iterations):
     return pr2, _nl.fit(pr2, fit.poses, fit.points, max_iterations=max_iterations), int(drop.sum())
 
 
+#: A bearing whose range in the fit is under this share of the median range of all bearings
+#: marks a pose fitted onto the landmark it sees (:func:`escape_close`).
+TOO_CLOSE = 1e-3
+
+
+def _ranges(pr, fit) -> np.ndarray:
+    return np.hypot(*(fit.points[pr.bearing_point] - fit.poses[pr.bearing_pose, :2]).T)
+
+
+def escape_close(pr, fit, share: float, max_iterations: int):
+    """Poses fitted onto a landmark they see, moved off it. A bearing taken from a pose that
+    stands on its landmark fits at any angle, so the least-squares fit can park a pose a few
+    micrometres from a landmark (seen on MRCLAM without odometry: its information then makes
+    the covariance ill-conditioned, and the fit's cost is higher than a nearby minimum's); a
+    robot cannot stand on a landmark. The bearings under ``share`` x the median range are
+    left out and the fit redone from it, then put back and the fit redone once more: kept back
+    when that fit stays clear of them, else left out (a point keeps at least 3 rays). Returns
+    (problem, fit, bearings left out, bearings that were too close)."""
+    if not share or not pr.bearing.size:
+        return pr, fit, 0, 0
+    d = _ranges(pr, fit)
+    close = d < share * np.median(d)
+    left = np.bincount(pr.bearing_point[~close], minlength=pr.n_points)
+    close &= left[pr.bearing_point] >= 3
+    if not close.any():
+        return pr, fit, 0, 0
+    pr2 = _nl.without_bearings(pr, close)
+    f2 = _nl.fit(pr2, fit.poses, fit.points, max_iterations=max_iterations)
+    f3 = _nl.fit(pr, f2.poses, f2.points, max_iterations=max_iterations)
+    d3 = _ranges(pr, f3)
+    if not np.any(d3 < share * np.median(d3)):
+        return pr, f3, 0, int(close.sum())
+    return pr2, f2, int(close.sum()), int(close.sum())
+
+
 #: A landmark farther from the poses that see it than this many times the median such distance
 #: has diverged along its rays (:func:`diverged`).
 DIVERGED = 10.0
@@ -246,7 +281,7 @@ def diverged(pr, fit, factor: float = DIVERGED) -> np.ndarray:
     n = pr.n_points
     if n == 0:
         return np.zeros(0, bool)
-    d = np.hypot(*(fit.points[pr.bearing_point] - fit.poses[pr.bearing_pose, :2]).T)
+    d = _ranges(pr, fit)
     med = np.array([np.median(d[pr.bearing_point == c]) if np.any(pr.bearing_point == c)
                     else 0.0 for c in range(n)])
     return med > factor * max(float(np.median(med)), 1e-12)

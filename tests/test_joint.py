@@ -117,6 +117,49 @@ def test_laplace_answers_an_ill_conditioned_fit_gtsam_cannot():
     assert np.linalg.eigvalsh(C)[0] > 0
 
 
+def test_a_pose_fitted_onto_a_landmark_it_sees_is_moved_off():
+    """The trap of MRCLAM without odometry: started 20 micrometres from a landmark it sees (on
+    its line of sight), Levenberg-Marquardt keeps the pose there (that bearing fits at any
+    angle) at a cost far above the true minimum's; escape_close leaves the bearing out, refits,
+    puts it back and lands on the true minimum with every bearing kept."""
+    P = np.array([[0, 0, 0], [0.5, 0, 0.1], [1.0, 0.1, 0.2], [1.5, 0.2, 0.3], [2.0, 0.3, 0.3]])
+    L = np.array([[1, 2], [2, -1], [3, 1.5], [2.5, 0.9]])
+    bp, bl = np.repeat(np.arange(5), 4), np.tile(np.arange(4), 5)
+    d = L[bl] - P[bp, :2]
+    pr = nl.BearingProblem(n_poses=5, n_points=4, bearing_pose=bp, bearing_point=bl,
+                           bearing=np.arctan2(d[:, 1], d[:, 0]) - P[bp, 2], sigma_bearing=0.01,
+                           between_from=range(4), between_to=range(1, 5),
+                           between=nl._relative(P[:-1], P[1:]), between_sigma=[0.05, 0.05, 0.1],
+                           pose_prior_index=[0], pose_prior=[[0, 0, 0]], pose_prior_sigma=1e-6)
+    Q = P.astype(float).copy()
+    u = (L[3] - P[3, :2]) / np.linalg.norm(L[3] - P[3, :2])
+    Q[3, :2] = L[3] - 2e-5 * u
+    trapped = nl.fit(pr, Q, L)
+    assert trapped.cost > 100 and np.linalg.norm(trapped.poses[3, :2] - L[3]) < 1e-4
+    pr2, f, dropped, close = joint_start.escape_close(pr, trapped, joint_start.TOO_CLOSE, 100)
+    assert (dropped, close) == (0, 1) and pr2 is pr
+    assert f.cost < 1e-9 and np.allclose(f.poses, P, atol=1e-6)
+    # a fit clear of every landmark is returned as it is
+    assert joint_start.escape_close(pr, f, joint_start.TOO_CLOSE, 100)[1:] == (f, 0, 0)
+
+
+def test_a_landmark_the_data_put_on_a_pose_loses_that_bearing():
+    """Bearings that place a landmark 20 micrometres from a pose (no robot stands on a
+    landmark): the one bearing from that pose is left out, the others kept, and the
+    covariance no longer needs the sparse fallback."""
+    kw, P, L = _pose_on_a_landmark()
+    pr = nl.BearingProblem(**kw, pose_prior_index=[0], pose_prior=[[0, 0, 0]],
+                           pose_prior_sigma=1e-6)
+    f = nl.fit(pr, P, L)
+    pr2, f2, dropped, close = joint_start.escape_close(pr, f, joint_start.TOO_CLOSE, 100)
+    assert (dropped, close) == (1, 1) and pr2.bearing.size == pr.bearing.size - 1
+    gone = ~np.isin(np.arange(pr.bearing.size), [15])          # pose 3's bearing to point 3
+    assert np.array_equal(pr2.bearing, pr.bearing[gone])
+    assert nl.Laplace(pr2, f2).method == "gtsam"
+    with pytest.raises(ValueError, match="too_close"):
+        joint.solve(joint.simulated_measurements(_run(1)), too_close=1.5)
+
+
 def test_laplace_reports_a_singular_system_instead_of_filling_it():
     kw, P, L = _pose_on_a_landmark()
     pr = nl.BearingProblem(**kw)                   # no anchor: a free gauge
