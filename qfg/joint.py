@@ -341,7 +341,7 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
           inflate_kinematic: float | str = KINEMATIC_INFLATE,
           kinematic: _start.KinematicPrior = _start.KINEMATIC,
           kinematic_chunks=(25, 50, 100), agree: float | None = _start.AGREE,
-          too_close: float = _start.TOO_CLOSE, seed=0) -> JointPosterior:
+          too_close: float = _start.TOO_CLOSE, seed=0, progress=None) -> JointPosterior:
     """The joint posterior of :class:`JointMeasurements` (module docstring, steps 1-4).
 
     Args:
@@ -381,6 +381,8 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
             not checked); ``info["too_close"]`` counts such bearings, ``info["too_close_dropped"]``
             those left out because the fit returned to them.
         seed: for the starts' order of tie-breaking (the solve is otherwise deterministic).
+        progress: a callable told each phase in one line (each robot's start, the joint
+            solve, the covariance), for a user watching a long solve; None: silent.
     """
     if not isinstance(measurements, JointMeasurements):
         raise ValueError(f"measurements: expected JointMeasurements, got "
@@ -414,7 +416,13 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
         raise ValueError(f"too_close: expected a share of the median range in [0, 1), got "
                          f"{too_close!r}")
     as_rng(seed)
+    if progress is not None and not callable(progress):
+        raise ValueError(f"progress: expected a callable or None, got {type(progress).__name__}")
     t0 = _time.perf_counter()
+
+    def tell(msg):
+        if progress is not None:
+            progress(f"joint: {msg} ({_time.perf_counter() - t0:.0f} s)")
     ids = measurements.landmark_ids
     L = len(ids)
     lm_index = {l: i for i, l in enumerate(ids)}
@@ -448,7 +456,10 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
                 max_iterations=max_iterations, outlier=outlier)
     # 1. each run alone, in its own frame
     per, starts_info = {}, {}
-    for r in runs:
+    for k_run, r in enumerate(runs):
+        tell(f"robot {r.robot} ({k_run + 1} of {len(runs)}): its own map, "
+             + ("a kinematic motion prior for its odometry" if r.robot in kinematic_robots
+                else "from its odometry"))
         if r.robot in kinematic_robots:
             # the minimum reached depends on the batch size; the least cost is kept
             tries = [_start.kinematic_start(r, lm_index, chunk=ch, robust=robust,
@@ -516,6 +527,9 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
         pr, offs, ok = _start.problem_of(use, lm_index, have, ref, robust=robust,
                                          anchor=init[ref][0])
         X0 = np.concatenate([init[r.robot] for r in use])
+        tell(f"the joint solve of robot{'s' if len(use) > 1 else ''} "
+             f"{', '.join(str(r.robot) for r in use)}: {pr.bearing.size} bearings, "
+             f"{pr.n_poses} poses, {pr.n_points} landmarks, {starts} start(s)")
         starts_list = [(X0, pts[ok])]
         for f in (0.5, 2.0)[:starts - 1]:
             starts_list.append((X0, _scale_depths(pr, X0, pts[ok], f)))
@@ -553,6 +567,7 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
                          else "weak" if n_rays[c] < sir_rays else "ok")
         kin = any(r.robot in kinematic_robots for r in use)
         scale = inflate * (inflate_kinematic if kin and not auto else 1.0)
+        tell("the covariance (Laplace)")
         try:
             marg = _marginals(pr, fit)
             cov0 = _points_cov(marg, pr, np.arange(ok.size)) * scale
@@ -613,6 +628,7 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
                           tuple(dict.fromkeys(flags)), "joint", poses, info, pr, fit, offs, weak)
     if auto and kin:
         # errors the model leaves out show as the robots' maps scattering about the joint one
+        tell("the robots' own maps against the joint one (overdispersion)")
         kappa = overdispersion(post, [r.robot for r in use], seed=seed)
         info["overdispersion"] = kappa
         if kappa > 1.0:
@@ -1157,7 +1173,7 @@ class MRCLAMJoint:
 def mrclam_marginals(dataset, triplets=None, histories=None, *, robots=None, prior_states=None,
                      camera_prior_states=None, samples: int = 2000, camera_samples: int = 300,
                      seed=0, partition="edc", floor: float = FLOOR, widen: float = 0.5,
-                     run_options=None, **solve_options) -> MRCLAMJoint:
+                     run_options=None, progress=None, **solve_options) -> MRCLAMJoint:
     """The joint method on one MRCLAM dataset: triplet state distributions (every ordered
     triplet of the dataset's landmarks, or ``triplets`` of subject numbers) and, for each
     history in ``histories`` (objects with ``robot``, ``views`` (time stamps) and ``landmarks``,
@@ -1165,7 +1181,8 @@ def mrclam_marginals(dataset, triplets=None, histories=None, *, robots=None, pri
 
     ``prior_states`` / ``camera_prior_states``: the state distributions of the prior alone (for
     the floor and for what cannot be solved); ``run_options`` go to :func:`mrclam_runs`, the
-    rest to :func:`solve`. When nothing can be solved (e.g. one robot without odometry: its fit
+    rest to :func:`solve` (``progress``: a callable told each phase, as in :func:`solve`).
+    When nothing can be solved (e.g. one robot without odometry: its fit
     cannot be checked against another's), ``method`` is ``"none"`` and every row is the prior:
     answer with the solver pipeline instead (``qfg mrclam --method full``).
     """
@@ -1176,7 +1193,11 @@ def mrclam_marginals(dataset, triplets=None, histories=None, *, robots=None, pri
         for h in histories:
             keep.setdefault(int(h.robot), set()).update(float(t) for t in np.asarray(h.views))
     meas = mrclam_runs(dataset, robots, keep_times=keep, **(run_options or {}))
-    post = solve(meas, seed=seed, **solve_options)
+    post = solve(meas, seed=seed, progress=progress, **solve_options)
+    if progress is not None:
+        progress(f"joint: the states of {'every' if triplets is None else len(triplets)} "
+                 f"ordered triplet{'s' if triplets is None or len(triplets) != 1 else ''}"
+                 + (f" and the cameras of {len(histories)} histories" if histories else ""))
     res = triplet_marginals(post, triplets, partition=partition, samples=samples, seed=seed,
                             prior_states=prior_states, floor=floor, widen=widen)
     cams = None

@@ -160,6 +160,16 @@ def test_a_landmark_the_data_put_on_a_pose_loses_that_bearing():
         joint.solve(joint.simulated_measurements(_run(1)), too_close=1.5)
 
 
+def test_a_long_solve_tells_its_phases():
+    said = []
+    post = joint.solve(joint.simulated_measurements(_run(1)), starts=1, progress=said.append)
+    assert post.method == "joint" and said[0].startswith("joint: robot 0 (1 of 1)")
+    assert any("the joint solve of robot 0" in m for m in said)
+    assert any("covariance" in m for m in said)
+    with pytest.raises(ValueError, match="progress"):
+        joint.solve(joint.simulated_measurements(_run(1)), progress="loud")
+
+
 def test_laplace_reports_a_singular_system_instead_of_filling_it():
     kw, P, L = _pose_on_a_landmark()
     pr = nl.BearingProblem(**kw)                   # no anchor: a free gauge

@@ -130,8 +130,11 @@ def test_without_odometry_the_joint_map_is_solved_first_and_once(root, tmp_path,
     monkeypatch.setattr(qfg.joint, "mrclam_marginals", counted)
     out = tmp_path / "fallback"
     assert main(["mrclam", str(d), "--robots", "2", "--output", str(out),
-                 "--no-progress", *FAST[:1], *FAST[2:]]) == 0
+                 *FAST[:1], *FAST[2:]]) == 0
     assert len(calls) == 1
+    err = capsys.readouterr().err     # the joint solve's phases are told as it goes
+    assert "joint: robot 1 (1 of 2): its own map, a kinematic motion prior" in err
+    assert err.index("joint: robot") < err.index("cannot answer") < err.index("solving")
     assert json.loads((out / "run.json").read_text())["params"]["method"] == "full"
     assert _map_info(out, "joint")["answered_by"] == mrclam_maps.JOINT_FALLBACK
     assert {r["method"] for r in _rows(out) if r["kind"] == "seen"} == {"baseline"}

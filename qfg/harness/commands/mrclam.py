@@ -465,6 +465,9 @@ def _main(args):
     if not prep.histories:
         raise ValueError(f"--robots: no triplet history to solve in {ds.name}"
                          + (f" for robots {args.robots}" if opts["robots"] else ""))
+    n_views = sum(rd.n_views for rd in ds.robots.values())
+    say(f"loaded {ds.name}: {len(ds.robots)} robots, {n_views} views, every file checked "
+        f"({time.perf_counter() - t0:.1f} s)")
     if no_odometry and not after["method_given"] and not after.get("method_recorded"):
         # without odometry the joint map may fall back to the solvers' estimates (robots
         # without odometry are trusted only when two or more agree): solve it first, and run
@@ -475,7 +478,8 @@ def _main(args):
         j = mrclam_maps.joint_answer(ds, [h for _, h in prep.histories],
                                      prior_states=prep.prior_states,
                                      camera_prior_states=prep.prior_camera_states,
-                                     partition=prep.partition.name, seed=opts["seed"])
+                                     partition=prep.partition.name, seed=opts["seed"],
+                                     progress=say)
         if j.method == "none":
             opts["method"] = params["method"] = "full"
             check_output(out, params, args.seed, args.resume, args.overwrite)
@@ -486,9 +490,6 @@ def _main(args):
             say(f"the {after['map']} map answers ({time.perf_counter() - t1:.0f} s): no "
                 "single-triplet solver needed")
     study.remember(params, prep)
-    n_views = sum(rd.n_views for rd in ds.robots.values())
-    say(f"loaded {ds.name}: {len(ds.robots)} robots, {n_views} views, every file checked "
-        f"({time.perf_counter() - t0:.1f} s)")
     if prep.swaps:
         say(f"landmark ground truth corrected: swapped "
             f"{';'.join(f'{a}-{b}' for a, b in prep.swaps)} (check_landmarks)")

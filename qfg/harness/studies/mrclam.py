@@ -872,6 +872,9 @@ def finish(prep: Prepared, ests: list[_Light], *, combine: str = "geometric",
             say(f"map {method.name}: {len(result.triplets)} triplets, as recorded in {rec}")
     if result is None:
         say(f"map {method.name}: {method.description} ...")
+        if method.name == "joint":
+            # solved here to tell its phases; the map finds the answer remembered
+            mrclam_maps.joint_of(seen, progress=say)
         result = method.fn(seen)
         if rec is not None:
             mrclam_maps.save_map(rec, result, digest)

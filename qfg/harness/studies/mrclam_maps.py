@@ -44,7 +44,8 @@ __all__ = ["SeenEstimates", "MapResult", "MapMethod", "MAP_METHODS", "register",
            "inputs_digest", "save_map", "load_map", "save_seen", "map_pooled", "map_best",
            "map_seen", "map_configurations", "map_configurations_metric", "state_evidence",
            "metric_evidence",
-           "map_seen_configurations", "map_seen_prior", "map_joint", "joint_answer", "joint_why",
+           "map_seen_configurations", "map_seen_prior", "map_joint", "joint_answer", "joint_of",
+           "joint_why",
            "JOINT_FALLBACK", "DEFAULT_MAP"]
 
 
@@ -353,11 +354,12 @@ _JOINT_MEMO: dict = {}
 
 
 def joint_answer(dataset, histories, *, prior_states, camera_prior_states, partition: str,
-                 seed: int):
+                 seed: int, progress=None):
     """:func:`qfg.joint.mrclam_marginals` of every ordered triplet of ``dataset``'s landmarks and
     the cameras of ``histories``, remembered for the last inputs: ``qfg mrclam`` solves the
     joint map first on a dataset without odometry (to know whether the solvers must run for
-    its fallback), and the map step then uses the same answer instead of solving again."""
+    its fallback), and the map step then uses the same answer instead of solving again.
+    ``progress``: told each phase of the solve (not part of the inputs remembered)."""
     from qfg.joint import mrclam_marginals
 
     h = hashlib.sha256()
@@ -375,10 +377,19 @@ def joint_answer(dataset, histories, *, prior_states, camera_prior_states, parti
     subjects = [tuple(int(x) for x in ids[t]) for t in _all_ordered_triplets(ids.size).tolist()]
     j = mrclam_marginals(dataset, triplets=subjects, histories=list(histories),
                          prior_states=prior_states, camera_prior_states=camera_prior_states,
-                         partition=partition, seed=seed)
+                         partition=partition, seed=seed, progress=progress)
     _JOINT_MEMO.clear()
     _JOINT_MEMO.update(key=key, dataset=dataset, answer=j)
     return j
+
+
+def joint_of(seen: SeenEstimates, progress=None):
+    """:func:`joint_answer` for the histories and prior states of ``seen`` (what
+    :func:`map_joint` answers from)."""
+    return joint_answer(seen.dataset, [h for _, h in seen.histories()],
+                        prior_states=seen.prior_states,
+                        camera_prior_states=seen.prior_camera_states,
+                        partition=seen.partition.name, seed=seen.seed, progress=progress)
 
 
 def joint_why(j) -> str:
@@ -401,9 +412,7 @@ def map_joint(seen: SeenEstimates) -> MapResult:
     ids = np.asarray(ds.landmark_ids)
     wanted = _all_ordered_triplets(ids.size)
     subjects = [tuple(int(x) for x in ids[t]) for t in wanted.tolist()]
-    j = joint_answer(ds, [h for _, h in seen.histories()], prior_states=seen.prior_states,
-                     camera_prior_states=seen.prior_camera_states,
-                     partition=seen.partition.name, seed=seen.seed)
+    j = joint_of(seen)
     if j.method == "none":
         why = f"the joint solve could not answer ({joint_why(j)})"
         if seen.solver == "none":
