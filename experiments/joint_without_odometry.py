@@ -144,7 +144,9 @@ def joint_map(d: int, samples: int = 2000, save=None, factors=(1.0, 2.0, 4.0, 8.
            "rule": name, "overdispersion": kappa, **by_rule[name], "rules": by_rule,
            "prior_log_score": float(log_score(Q, s_true).mean()),
            "prior_brier": float(brier(Q, s_true).mean()), "n": int(len(s_true)), "time_s": wall,
-           "ab_z2_median": float(np.median(z2)) if len(z2) else None}
+           "ab_z2_median": float(np.median(z2)) if len(z2) else None,
+           "cost": post.info.get("cost"), "too_close": post.info.get("too_close"),
+           "too_close_dropped": post.info.get("too_close_dropped")}
     z = _landmark_z(kept_post, truth)
     out["landmark_z"] = z.tolist()
     if save:

@@ -243,30 +243,38 @@ def _ranges(pr, fit) -> np.ndarray:
     return np.hypot(*(fit.points[pr.bearing_point] - fit.poses[pr.bearing_pose, :2]).T)
 
 
-def escape_close(pr, fit, share: float, max_iterations: int):
+def escape_close(pr, fit, share: float, max_iterations: int, rounds: int = 5):
     """Poses fitted onto a landmark they see, moved off it. A bearing taken from a pose that
     stands on its landmark fits at any angle, so the least-squares fit can park a pose a few
     micrometres from a landmark (seen on MRCLAM without odometry: its information then makes
     the covariance ill-conditioned, and the fit's cost is higher than a nearby minimum's); a
     robot cannot stand on a landmark. The bearings under ``share`` x the median range are
-    left out and the fit redone from it, then put back and the fit redone once more: kept back
+    left out and the fit redone from it, again while the new fit parks a pose on a landmark
+    (at most ``rounds`` times); then they are put back and the fit redone once more: kept back
     when that fit stays clear of them, else left out (a point keeps at least 3 rays). Returns
-    (problem, fit, bearings left out, bearings that were too close)."""
+    (problem, fit, bearings left out, bearings found too close)."""
     if not share or not pr.bearing.size:
         return pr, fit, 0, 0
-    d = _ranges(pr, fit)
-    close = d < share * np.median(d)
-    left = np.bincount(pr.bearing_point[~close], minlength=pr.n_points)
-    close &= left[pr.bearing_point] >= 3
-    if not close.any():
+    keep = np.ones(pr.bearing.size, bool)
+    cur, f = pr, fit
+    for _ in range(rounds):
+        d = _ranges(cur, f)
+        close = d < share * np.median(d)
+        left = np.bincount(cur.bearing_point[~close], minlength=cur.n_points)
+        close &= left[cur.bearing_point] >= 3
+        if not close.any():
+            break
+        keep[np.flatnonzero(keep)[close]] = False
+        cur = _nl.without_bearings(pr, ~keep)
+        f = _nl.fit(cur, f.poses, f.points, max_iterations=max_iterations)
+    found = int(np.count_nonzero(~keep))
+    if not found:
         return pr, fit, 0, 0
-    pr2 = _nl.without_bearings(pr, close)
-    f2 = _nl.fit(pr2, fit.poses, fit.points, max_iterations=max_iterations)
-    f3 = _nl.fit(pr, f2.poses, f2.points, max_iterations=max_iterations)
-    d3 = _ranges(pr, f3)
-    if not np.any(d3 < share * np.median(d3)):
-        return pr, f3, 0, int(close.sum())
-    return pr2, f2, int(close.sum()), int(close.sum())
+    back = _nl.fit(pr, f.poses, f.points, max_iterations=max_iterations)
+    d = _ranges(pr, back)
+    if not np.any(d < share * np.median(d)):
+        return pr, back, 0, found
+    return cur, f, found, found
 
 
 #: A landmark farther from the poses that see it than this many times the median such distance
