@@ -1195,8 +1195,9 @@ def mrclam_marginals(dataset, triplets=None, histories=None, *, robots=None, pri
     meas = mrclam_runs(dataset, robots, keep_times=keep, **(run_options or {}))
     post = solve(meas, seed=seed, progress=progress, **solve_options)
     if progress is not None:
-        progress(f"joint: the states of {'every' if triplets is None else len(triplets)} "
-                 f"ordered triplet{'s' if triplets is None or len(triplets) != 1 else ''}"
+        progress("joint: the states of " + ("every ordered triplet" if triplets is None else
+                                             f"{len(triplets)} ordered triplet"
+                                             + ("s" if len(triplets) != 1 else ""))
                  + (f" and the cameras of {len(histories)} histories" if histories else ""))
     res = triplet_marginals(post, triplets, partition=partition, samples=samples, seed=seed,
                             prior_states=prior_states, floor=floor, widen=widen)

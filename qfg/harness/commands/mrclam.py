@@ -475,7 +475,7 @@ def _main(args):
         say(f"no robot of {ds.name} has odometry: the {after['map']} map first (robots by a "
             "kinematic motion prior, kept when two or more agree) ...")
         t1 = time.perf_counter()
-        j = mrclam_maps.joint_answer(ds, [h for _, h in prep.histories],
+        j = mrclam_maps.joint_answer(prep.dataset, [h for _, h in prep.histories],
                                      prior_states=prep.prior_states,
                                      camera_prior_states=prep.prior_camera_states,
                                      partition=prep.partition.name, seed=opts["seed"],
