@@ -157,6 +157,16 @@ def test_without_odometry_the_joint_map_is_solved_first_and_once(root, tmp_path,
     assert main(["mrclam", str(d), "--robots", "2", "--output", str(out), "--resume",
                  *FAST]) == 0
     assert not calls
+    # ground truth corrected first (a new dataset object): still one solve
+    from qfg.datasets import mrclam as data
+
+    check = data.check_landmarks
+    monkeypatch.setattr(data, "check_landmarks", lambda ds, **k: check(ds, min_landmarks=2))
+    sw = write_dataset(tmp_path / "MRCLAM_Dataset3", robot2_odometry=False,
+                       robot1_odometry=False, truth_swap=(6, 8))
+    assert main(["mrclam", str(sw), "--robots", "2", "--output", str(tmp_path / "sw"),
+                 *FAST]) == 0
+    assert len(calls) == 1 and _rows(tmp_path / "sw")[0]["gt_swaps"] == "6-8"
 
 
 def test_the_joint_answer_is_remembered_for_the_same_inputs(root):
