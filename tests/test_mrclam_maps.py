@@ -197,10 +197,14 @@ def test_the_user_is_told_which_map_answered_and_what_it_flagged():
     say_map_info("joint", {"answered_by": "joint", "flags": ["kinematic_prior", "overdispersed"],
                            "overdispersion": 4.08, "covariance_scale": 4.08}, said.append)
     say_map_info("joint", {"answered_by": "joint", "flags": []}, said.append)
+    say_map_info("joint", {"answered_by": "joint", "flags": [], "too_close": 5.0,
+                           "too_close_dropped": 5.0}, said.append)
     say_map_info("pooled", {}, said.append)
     assert said == ["map joint: answered by seen-prior: robots disagree",
                     "map joint: flags kinematic_prior, overdispersed; the robots' own maps "
-                    "scatter 4.08x what its covariance allows (covariance x4.08)"]
+                    "scatter 4.08x what its covariance allows (covariance x4.08)",
+                    "map joint: 5 bearings from poses the fit had put on the landmark seen (5 "
+                    "left out, the others kept once the poses moved off)"]
 
 
 def test_configuration_map_answers_every_ordered_triplet(root, tmp_path):

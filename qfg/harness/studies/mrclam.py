@@ -764,13 +764,18 @@ def seen_estimates(prep: Prepared, ests: list[_Light], *, combine: str = "geomet
 
 
 def say_map_info(name: str, info, say) -> None:
-    """Tell the user which map answered and what it flagged: a fallback and why, the joint
-    map's flags and, when it widened its covariance, by how much."""
+    """Tell the user which map answered and what it flagged: a fallback and why, bearings the
+    joint fit found taken from on their landmark, the joint map's flags and, when it widened
+    its covariance, by how much."""
     info = dict(info or {})
     by = info.get("answered_by", name)
     if by != name:
         say(f"map {name}: answered by {by}: {info.get('why', '')}")
         return
+    close, out = int(info.get("too_close", 0)), int(info.get("too_close_dropped", 0))
+    if close:
+        say(f"map {name}: {close} bearing{'s' if close > 1 else ''} from poses the fit had put "
+            f"on the landmark seen ({out} left out, the others kept once the poses moved off)")
     flags = info.get("flags") or []
     if not flags:
         return

@@ -431,7 +431,8 @@ def map_joint(seen: SeenEstimates) -> MapResult:
             "robot_flags": {str(r): str(f) for r, f in post.robot_flags.items()},
             "landmark_flags": dict(zip(map(str, post.landmark_ids), post.landmark_flags,
                                           strict=True))}
-    for key in ("overdispersion", "covariance_scale"):
+    for key in ("overdispersion", "covariance_scale", "too_close", "too_close_dropped",
+                "outliers_dropped"):
         v = post.info.get(key)
         if v is not None and np.isfinite(v):
             info[key] = float(v)
