@@ -79,15 +79,13 @@ def _landmark_z(post, truth) -> np.ndarray:
 def _ab_z2(post, truth, ids, samples: int = 2000) -> np.ndarray:
     """Per ordered triplet of constrained landmarks: the squared Mahalanobis distance of the
     truth's C in the AB frame under the posterior's mean and covariance of it
-    (:func:`qfg.joint.ab_frame_moments`; a calibrated posterior: chi-square with 2 dof, median
+    (:func:`qfg.joint.ab_frame_z2`; a calibrated posterior: chi-square with 2 dof, median
     1.39)."""
     ok = np.flatnonzero(post.constrained)
     tri = np.array(list(itertools.permutations(ok.tolist(), 3)), dtype=np.intp).reshape(-1, 3)
     if not len(tri) or post.method == "none":
         return np.zeros(0)
-    mu, cov = J.ab_frame_moments(post, np.asarray(ids)[tri].tolist(), samples, 0)
-    e = to_frame(truth[tri[:, 2]], truth[tri[:, 0]], truth[tri[:, 1]]) - mu
-    return np.einsum("ti,tij,tj->t", e, np.linalg.inv(cov), e)
+    return J.ab_frame_z2(post, truth, np.asarray(ids)[tri].tolist(), samples, 0)
 
 
 def _scores(post, q, truth, ids, samples):

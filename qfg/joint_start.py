@@ -219,15 +219,19 @@ def init_landmarks(poses, r, lm_index, points, have, *, upto, min_rays, min_par)
             have[j] = True
 
 
+def _spare(pr, drop) -> np.ndarray:
+    """``drop`` (B,) bool without the bearings of points that would keep fewer than 3 rays."""
+    left = np.bincount(pr.bearing_point[~drop], minlength=pr.n_points)
+    return drop & (left[pr.bearing_point] >= 3)
+
+
 def drop_outliers(pr, fit, limit, max_iterations):
     """Bearings whose whitened residual exceeds ``limit`` left out and the fit redone from it
     (misread barcodes and the like; a point keeps at least 3 rays). Returns (problem, fit,
     number dropped)."""
     if not limit:
         return pr, fit, 0
-    drop = np.abs(fit.bearing_residuals) > limit
-    left = np.bincount(pr.bearing_point[~drop], minlength=pr.n_points)
-    drop &= left[pr.bearing_point] >= 3
+    drop = _spare(pr, np.abs(fit.bearing_residuals) > limit)
     if not drop.any():
         return pr, fit, 0
     pr2 = _nl.without_bearings(pr, drop)
@@ -259,9 +263,7 @@ def escape_close(pr, fit, share: float, max_iterations: int, rounds: int = 5):
     cur, f = pr, fit
     for _ in range(rounds):
         d = _ranges(cur, f)
-        close = d < share * np.median(d)
-        left = np.bincount(cur.bearing_point[~close], minlength=cur.n_points)
-        close &= left[cur.bearing_point] >= 3
+        close = _spare(cur, d < share * np.median(d))
         if not close.any():
             break
         keep[np.flatnonzero(keep)[close]] = False

@@ -278,3 +278,32 @@ def test_bad_options_are_refused_by_name():
         joint_start.KinematicPrior(c_xy=0)
     with pytest.raises(ValueError, match="kinematic prior"):
         joint_start.kinematic_start(meas[0], {i: i for i in range(6)})
+
+
+def test_ab_frame_z2_is_chi_square_for_a_draw_from_the_posterior():
+    # positions drawn from the (linear, at this sigma) posterior itself: z^2 ~ chi-square(2),
+    # median 1.39; the same z^2 as e' C^-1 e with numpy's inverse; another frame changes nothing
+    post = _posterior_with_robot_maps(0, 1.0, sigma=1e-3)
+    tri = [tuple(int(x) for x in t) for t in
+           np.random.default_rng(1).permutation(np.array(list(itertools.permutations(range(7), 3)))
+                                                )[:60]]
+    z = np.concatenate([joint.ab_frame_z2(
+        post, post.points + np.random.default_rng(s).normal(0, 1e-3, (7, 2)), tri, 4000, 0)
+        for s in range(6)])
+    assert 1.0 < np.median(z) < 1.9
+    X = post.points + np.random.default_rng(9).normal(0, 1e-3, (7, 2))
+    mu, cov = joint.ab_frame_moments(post, tri, 4000, 0)
+    t = np.array(tri)
+    e = to_frame(X[t[:, 2]], X[t[:, 0]], X[t[:, 1]]) - mu
+    want = np.einsum("ti,tij,tj->t", e, np.linalg.inv(cov), e)
+    np.testing.assert_allclose(joint.ab_frame_z2(post, X, tri, 4000, 0), want, rtol=1e-9)
+    R = np.array([[0.6, -0.8], [0.8, 0.6]])
+    np.testing.assert_allclose(joint.ab_frame_z2(post, 3.0 * X @ R.T + 1.0, tri, 4000, 0), want,
+                               rtol=1e-6)
+    with np.errstate(invalid="ignore"):
+        missing = X.copy()
+        missing[4] = np.nan
+        zm = joint.ab_frame_z2(post, missing, [(0, 1, 4), (0, 1, 2)], 500, 0)
+    assert np.isnan(zm[0]) and np.isfinite(zm[1])
+    with pytest.raises(ValueError, match="positions"):
+        joint.ab_frame_z2(post, X[:5], tri)
