@@ -6,6 +6,15 @@ prior), against uniform and the prior alone.
 
 Prints one markdown row per dataset and kind (seen, unseen, camera); ``--json FILE`` writes the
 rows. Dataset 6 is development (options chosen on it), 1-5 are evaluation.
+
+``--per-pass K [K ...]`` draws the curve over how many images the map uses instead: each run
+thinned to at most K images per 120-s pass (``mrclam_runs(min_interval=120 / K)``; 0 = every
+image the default keyframing keeps), the same seen and unseen triplets scored at every K (the
+study's, from all the views), no camera states (their views would be kept as keyframes);
+``--figure FILE`` draws it.
+
+    .venv/bin/python -m benchmarks.joint_mrclam 1 2 3 4 6 5 --per-pass 2 3 5 10 30 0 \
+        --json out/joint_per_pass.json --figure out/joint_per_pass.png
 """
 
 from __future__ import annotations
@@ -110,6 +119,62 @@ def run(path, *, seed=0, samples=2000, cameras=True, **options):
     return out
 
 
+PASS_S = 120.0  # the study's pass (``histories(max_gap=120)``): K per pass = one per 120 / K s
+
+
+def curve(path, per_pass, *, seed=0, samples=2000, progress=print):
+    """Rows of :func:`run` (seen and unseen, no cameras) at each images-per-pass count of
+    ``per_pass`` (0: every keyframe), each row with ``per_pass`` and ``images`` (the poses the
+    map was given, all robots)."""
+    from qfg import joint
+
+    ds, _ = study.prepare(path)
+    rows = []
+    for k in per_pass:
+        k = int(k)
+        if k < 0:
+            raise ValueError(f"per_pass: expected counts >= 0, got {k}")
+        ro = {"min_interval": PASS_S / k} if k else {}
+        n_img = sum(r.n_poses for r in joint.mrclam_runs(ds, **ro).runs)
+        got = run(path, seed=seed, samples=samples, cameras=False, run_options=ro)
+        for r in got:
+            r["per_pass"] = k
+            r["images"] = int(n_img)
+        rows += got
+        if progress:
+            s, u = got[0], got[1]
+            progress(f"  {ds.name} K={k or 'all'}: {n_img} images, seen {s['log_score']:.3f}, "
+                     f"unseen {u['log_score']:.3f} ({s['time_s']:.0f} s)")
+    return rows
+
+
+def plot_curve(rows, path):
+    """Mean log p(truth) against images per pass, one line per dataset and kind."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
+    for ax, kind in zip(axes, ("seen", "unseen"), strict=True):
+        for name in sorted({r["dataset"] for r in rows}):
+            rs = sorted((r for r in rows if r["dataset"] == name and r["kind"] == kind
+                         and r["method"] == "joint"), key=lambda r: r["images"])
+            if not rs:
+                continue
+            line, = ax.plot([r["images"] for r in rs], [r["log_score"] for r in rs], "o-",
+                            label=f"dataset {name[14:]}")
+            ax.axhline(rs[0]["prior_log_score"], color=line.get_color(), lw=0.8, ls=":")
+        ax.set_xscale("log")
+        ax.set_xlabel("images the joint map uses (all robots; K per 120-s pass)")
+        ax.set_title(f"{kind} triplets")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("mean log p(truth)  (dotted: the prior alone)")
+    axes[0].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def sweep(path, *, seed=0, samples=2000, inflates=(1, 2, 4, 9), floors=(0.0, 1e-4, 1e-3, 1e-2)):
     """Development table: one solve of a dataset, its seen and unseen triplets scored with the
     covariances scaled by each of ``inflates`` (floor 1e-3) and each of ``floors`` (inflate 1)."""
@@ -163,8 +228,36 @@ def main(argv=None):
                     help="bearings beyond this many sigmas dropped (qfg.joint.solve; 0: none)")
     ap.add_argument("--sweep", action="store_true",
                     help="development table instead: covariance scale and floor from one solve")
+    ap.add_argument("--per-pass", type=int, nargs="+", default=None,
+                    help="the curve over images per 120-s pass instead (0: every keyframe)")
+    ap.add_argument("--figure", default="", help="with --per-pass: draw the curve here")
+    ap.add_argument("--from-json", default="", help="with --figure: draw a recorded curve")
     ap.add_argument("--json", default="")
     a = ap.parse_args(argv)
+    if a.from_json:
+        plot_curve(json.loads(open(a.from_json).read()), a.figure or "joint_per_pass.png")
+        return
+    if a.per_pass:
+        rows = []
+        print("| dataset | K per pass | images | seen log p | seen < 1% | unseen log p | "
+              "unseen < 1% | prior alone (seen / unseen) | wall (s) |")
+        print("|---|---|---|---|---|---|---|---|---|")
+        for d in study.dataset_dirs(a.data, a.datasets):
+            got = curve(d, a.per_pass, seed=a.seed, samples=a.samples)
+            rows += got
+            for k in a.per_pass:
+                s, u = [r for r in got if r["per_pass"] == k]
+                print(f"| {s['dataset'][14:]} | {k or 'all'} | {s['images']} | "
+                      f"{s['log_score']:.3f} | {100 * s['truth_under_1pct']:.1f}% | "
+                      f"{u['log_score']:.3f} | {100 * u['truth_under_1pct']:.1f}% | "
+                      f"{s['prior_log_score']:.2f} / {u['prior_log_score']:.2f} | "
+                      f"{s['time_s']:.0f} |", flush=True)
+            if a.json:
+                with open(a.json, "w") as f:
+                    json.dump(rows, f, indent=1)
+        if a.figure:
+            plot_curve(rows, a.figure)
+        return
     opts = {}
     if a.inflate is not None:
         opts["inflate"] = a.inflate

@@ -1122,14 +1122,17 @@ def simulated_measurements(run, *, odometry: bool = True, robot: int = 0) -> Joi
 
 # ----------------------------------------------------------------------------- MRCLAM
 def mrclam_runs(dataset, robots=None, *, min_move: float = 0.02, min_turn_deg: float = 1.0,
-                sigma_bearing: float | None = None, odometry_noise=None, keep_times=None,
+                min_interval: float = 0.0, sigma_bearing: float | None = None,
+                odometry_noise=None, keep_times=None,
                 odometry_lead: float | None = None) -> JointMeasurements:
     """:class:`JointMeasurements` of an :class:`qfg.datasets.mrclam.MRCLAMDataset`.
 
     Per robot: the views with at least one landmark (inside the odometry's span; repeated views
     left out) kept as keyframes when the dead-reckoned pose moved ``min_move`` m or turned
-    ``min_turn_deg`` since the last keyframe (robots without odometry: every view), plus every
-    view whose time is in ``keep_times[robot]`` (views to be scored as cameras); the odometry
+    ``min_turn_deg`` since the last keyframe (robots without odometry: every view) and, when
+    ``min_interval`` > 0, at least ``min_interval`` seconds after it (fewer images, for a curve
+    over how many a run uses: 120 / k keeps at most k per 120-s pass), plus every view whose
+    time is in ``keep_times[robot]`` (views to be scored as cameras); the odometry
     between keyframes from the dead-reckoned poses (:func:`odometry_steps`, noise
     ``odometry_noise``, default :data:`ODOMETRY_NOISE`); bearings with
     ``sigma_bearing`` (default the loader's ``DEFAULT_SIGMA_BEARING``)."""
@@ -1141,6 +1144,7 @@ def mrclam_runs(dataset, robots=None, *, min_move: float = 0.02, min_turn_deg: f
     robots = sorted(dataset.robots) if not robots else [int(r) for r in robots]
     min_turn = np.deg2rad(non_negative("min_turn_deg", min_turn_deg))
     min_move = non_negative("min_move", min_move)
+    min_interval = non_negative("min_interval", min_interval)
     runs = []
     for rn in robots:
         rd = dataset.robot(rn)
@@ -1157,17 +1161,25 @@ def mrclam_runs(dataset, robots=None, *, min_move: float = 0.02, min_turn_deg: f
             pos = pos[np.isclose(rd.view_times[pos], kt[:pos.size]) if pos.size == kt.size
                       else np.isin(rd.view_times[pos], kt)]
             forced[pos] = True
+        t = rd.view_times
         if P is not None:
             kf = [idx[0]]
             for i in idx[1:]:
                 a = P[kf[-1]]
-                if (forced[i] or np.hypot(*(P[i, :2] - a[:2])) >= min_move
-                        or abs(wrap_angle(P[i, 2] - a[2])) >= min_turn):
+                if forced[i] or (t[i] - t[kf[-1]] >= min_interval
+                                 and (np.hypot(*(P[i, :2] - a[:2])) >= min_move
+                                      or abs(wrap_angle(P[i, 2] - a[2])) >= min_turn)):
                     kf.append(i)
             kf = np.array(kf)
             z, s = odometry_steps(P[kf], odometry_noise)
         else:
             kf, z, s = idx, None, None
+            if min_interval > 0:
+                keep = [idx[0]]
+                for i in idx[1:]:
+                    if forced[i] or t[i] - t[keep[-1]] >= min_interval:
+                        keep.append(i)
+                kf = np.array(keep)
         vis = rd.visible[kf]
         vi, col = np.nonzero(vis)
         runs.append(RobotRun(robot=rn, times=rd.view_times[kf], bearing_pose=vi,

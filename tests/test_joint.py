@@ -432,6 +432,30 @@ def test_mrclam_runs_keep_requested_views_and_odometry_matches_dead_reckoning():
         meas.run(9)
 
 
+@pytest.mark.skipif(_mrclam_dir() is None, reason="MRCLAM dataset 6 not present")
+def test_mrclam_runs_min_interval_thins_the_images_in_time():
+    from qfg.datasets import mrclam
+
+    ds = mrclam.load(_mrclam_dir())
+    full = joint.mrclam_runs(ds, [2]).run(2)
+    thin = joint.mrclam_runs(ds, [2], min_interval=24.0).run(2)
+    assert np.diff(thin.times).min() >= 24.0
+    assert set(thin.times.tolist()) <= set(ds.robot(2).view_times.tolist())
+    # about one image per 24 s of the run, far fewer than the motion keyframes
+    span = full.times[-1] - full.times[0]
+    assert span / 24.0 / 2 <= thin.n_poses <= span / 24.0 + 1 < full.n_poses / 10
+    # the odometry still chains the kept poses as dead reckoning does
+    P, _ = mrclam.view_poses(ds.robot(2))
+    idx = np.searchsorted(ds.robot(2).view_times, thin.times)
+    assert np.allclose(joint_start.chain(P[idx[0]], thin.odometry)[:, :2], P[idx, :2], atol=1e-9)
+    # a view to be scored is kept however close it is
+    want = float(full.times[5])
+    kept = joint.mrclam_runs(ds, [2], min_interval=24.0, keep_times={2: {want}}).run(2)
+    assert want in set(kept.times.tolist())
+    with pytest.raises(ValueError, match="min_interval"):
+        joint.mrclam_runs(ds, [2], min_interval=-1)
+
+
 @pytest.mark.skipif(_mrclam_dir() is None or not (_mrclam_dir().parent / "MRCLAM_Dataset5").is_dir(),
                     reason="MRCLAM dataset 5 not present")
 def test_mrclam_dataset_without_odometry_skipped_says_the_pipeline_must_answer():
@@ -444,3 +468,18 @@ def test_mrclam_dataset_without_odometry_skipped_says_the_pipeline_must_answer()
     assert res.method == "none" and "no_odometry" in res.posterior.flags
     assert set(res.posterior.robot_flags.values()) == {"no_odometry"}
     assert res.triplets.method == "joint:none" and np.allclose(res.triplets[(6, 7, 8)], q)
+
+
+@pytest.mark.skipif(_mrclam_dir() is None or not (_mrclam_dir().parent / "MRCLAM_Dataset5").is_dir(),
+                    reason="MRCLAM dataset 5 not present")
+def test_mrclam_runs_min_interval_without_odometry():
+    from qfg.datasets import mrclam
+
+    ds = mrclam.load(_mrclam_dir().parent / "MRCLAM_Dataset5")
+    every = joint.mrclam_runs(ds, [1]).run(1)
+    thin = joint.mrclam_runs(ds, [1], min_interval=10.0).run(1)
+    assert thin.odometry is None and np.diff(thin.times).min() >= 10.0
+    assert set(thin.times.tolist()) <= set(every.times.tolist())
+    # greedy in time: the next image of the full set 10 s or more after a kept one is kept
+    nxt = every.times[np.searchsorted(every.times, thin.times[:-1] + 10.0)]
+    assert np.array_equal(nxt, thin.times[1:])
