@@ -214,20 +214,34 @@ class JointMeasurements:
                        f"(has {[r.robot for r in self.runs]})")
 
 
-def odometry_steps(poses, noise=None):
+def odometry_steps(poses, noise=None, travelled=None):
     """Relative poses ``X_i^{-1} X_{i+1}`` (P - 1, 3) of a dead-reckoned chain ``poses``
     (P, 3) and their noise from the model ``sigma = c0 + c_turn |dtheta| + c_dist d``
-    (:data:`ODOMETRY_NOISE` by default; ``d`` the step length). Returns ``(steps, sigmas)``.
+    (:data:`ODOMETRY_NOISE` by default). ``d`` and ``|dtheta|`` are the step's length and
+    turn or, given ``travelled`` (P - 1, 2), the path length and total turning the robot
+    covered between the poses (:meth:`qfg.datasets.mrclam.Odometry.travelled`), whichever
+    is larger: the error grows with the path, and a robot that drove away and came back has
+    a short step but a long path. Returns ``(steps, sigmas)``.
 
     >>> z, s = odometry_steps([[0, 0, 0], [1, 0, np.pi / 2]])
     >>> np.round(z, 3).tolist(), np.round(s, 3).tolist()
     ([[1.0, 0.0, 1.571]], [[0.154, 0.152, 0.467]])
+    >>> _, s = odometry_steps([[0, 0, 0], [0, 0, 0]], travelled=[[2.0, np.pi]])
+    >>> np.round(s, 3).tolist()          # there and back: the path's noise, not the step's
+    [[0.304, 0.302, 0.924]]
     """
     P = as_float_array("poses", poses, ndim=2, last_dim=3)
     nm = ODOMETRY_NOISE if noise is None else noise
     z = _nl._relative(P[:-1], P[1:])
-    d = np.hypot(z[:, 0], z[:, 1])[:, None]
-    s = (np.asarray(nm["c0"], float) + np.asarray(nm["c_turn"], float) * np.abs(z[:, 2:3])
+    d, turn = np.hypot(z[:, 0], z[:, 1])[:, None], np.abs(z[:, 2:3])
+    if travelled is not None:
+        tr = as_float_array("travelled", travelled, ndim=2, last_dim=2)
+        if tr.shape[0] != z.shape[0] or (tr < 0).any():
+            raise ValueError(f"travelled: expected ({z.shape[0]}, 2) non-negative path "
+                             f"lengths and turns, one per step, got shape {tr.shape}")
+        # the path's integral and the chord agree to rounding on a straight step
+        d, turn = np.maximum(tr[:, :1], d), np.maximum(tr[:, 1:], turn)
+    s = (np.asarray(nm["c0"], float) + np.asarray(nm["c_turn"], float) * turn
          + np.asarray(nm["c_dist"], float) * d)
     return z, s
 
@@ -1123,8 +1137,8 @@ def simulated_measurements(run, *, odometry: bool = True, robot: int = 0) -> Joi
 # ----------------------------------------------------------------------------- MRCLAM
 def mrclam_runs(dataset, robots=None, *, min_move: float = 0.02, min_turn_deg: float = 1.0,
                 min_interval: float = 0.0, sigma_bearing: float | None = None,
-                odometry_noise=None, keep_times=None,
-                odometry_lead: float | None = None) -> JointMeasurements:
+                odometry_noise=None, keep_times=None, odometry_lead: float | None = None,
+                noise_by_path: bool = True) -> JointMeasurements:
     """:class:`JointMeasurements` of an :class:`qfg.datasets.mrclam.MRCLAMDataset`.
 
     Per robot: the views with at least one landmark (inside the odometry's span; repeated views
@@ -1134,7 +1148,9 @@ def mrclam_runs(dataset, robots=None, *, min_move: float = 0.02, min_turn_deg: f
     over how many a run uses: 120 / k keeps at most k per 120-s pass), plus every view whose
     time is in ``keep_times[robot]`` (views to be scored as cameras); the odometry
     between keyframes from the dead-reckoned poses (:func:`odometry_steps`, noise
-    ``odometry_noise``, default :data:`ODOMETRY_NOISE`); bearings with
+    ``odometry_noise``, default :data:`ODOMETRY_NOISE`, its ``d`` and ``|dtheta|`` the path
+    length and turning the odometry covered between the keyframes, not the net step, unless
+    ``noise_by_path`` is False: they differ where keyframes are far apart); bearings with
     ``sigma_bearing`` (default the loader's ``DEFAULT_SIGMA_BEARING``)."""
     from .datasets import mrclam as _m
 
@@ -1171,7 +1187,9 @@ def mrclam_runs(dataset, robots=None, *, min_move: float = 0.02, min_turn_deg: f
                                       or abs(wrap_angle(P[i, 2] - a[2])) >= min_turn)):
                     kf.append(i)
             kf = np.array(kf)
-            z, s = odometry_steps(P[kf], odometry_noise)
+            tr = (np.diff(rd.odometry.travelled(rd.view_times[kf] - lead), axis=0)
+                  if noise_by_path else None)
+            z, s = odometry_steps(P[kf], odometry_noise, tr)
         else:
             kf, z, s = idx, None, None
             if min_interval > 0:

@@ -483,3 +483,32 @@ def test_mrclam_runs_min_interval_without_odometry():
     # greedy in time: the next image of the full set 10 s or more after a kept one is kept
     nxt = every.times[np.searchsorted(every.times, thin.times[:-1] + 10.0)]
     assert np.array_equal(nxt, thin.times[1:])
+
+
+
+@pytest.mark.skipif(_mrclam_dir() is None, reason="MRCLAM dataset 6 not present")
+def test_mrclam_runs_odometry_noise_grows_with_the_path_between_keyframes():
+    from qfg.datasets import mrclam
+
+    ds = mrclam.load(_mrclam_dir())
+    rd = ds.robot(3)
+    ratio = {}
+    for gap in (0.0, 40.0):
+        net = joint.mrclam_runs(ds, [3], min_interval=gap, noise_by_path=False).run(3)
+        path = joint.mrclam_runs(ds, [3], min_interval=gap).run(3)
+        assert np.array_equal(net.times, path.times) and np.allclose(net.odometry, path.odometry)
+        # the net-step model is what odometry_steps gives without the path
+        P, _ = mrclam.view_poses(rd)
+        idx = np.searchsorted(rd.view_times, net.times)
+        assert np.allclose(net.odometry_sigma, joint.odometry_steps(P[idx])[1])
+        # never below the net step's noise; the path's length from the velocity log
+        assert (path.odometry_sigma >= net.odometry_sigma - 1e-12).all()
+        tr = np.diff(rd.odometry.travelled(net.times - mrclam.DEFAULT_ODOMETRY_LEAD), axis=0)
+        c = joint.ODOMETRY_NOISE
+        want = c["c0"][0] + c["c_turn"][0] * np.maximum(tr[:, 1], np.abs(net.odometry[:, 2])) \
+            + c["c_dist"][0] * np.maximum(tr[:, 0], np.hypot(*net.odometry[:, :2].T))
+        assert np.allclose(path.odometry_sigma[:, 0], want)
+        ratio[gap] = path.odometry_sigma[:, 0] / net.odometry_sigma[:, 0]
+    # keyframes every 2 cm or 1 deg: path and step agree; 40 s apart the robot wanders between
+    assert np.percentile(ratio[0.0], 99) < 1.1
+    assert np.median(ratio[40.0]) > 1.15 and np.percentile(ratio[40.0], 90) > 2

@@ -181,6 +181,30 @@ def test_integrate_odometry_piecewise_commands_match_fine_euler():
     assert np.allclose(np.angle(np.exp(1j * (P[:, 2] - th[idx]))), 0.0, atol=1e-6)
 
 
+def test_travelled_is_the_dead_reckoned_path_length_and_turning():
+    rng = np.random.default_rng(4)
+    t = np.sort(np.concatenate([[0.0, 20.0], rng.uniform(0, 20, 15)]))
+    v, w = rng.uniform(-0.3, 0.5, t.size), rng.uniform(-0.8, 0.8, t.size)
+    od = mrclam.Odometry(t, v, w)
+    q = np.array([0.0, 3.3, 7.1, 12.9, 20.0])
+    got = od.travelled(q)
+    # independent reference: the dead-reckoned poses on a fine grid, chords and turns summed
+    fine = np.unique(np.concatenate([np.linspace(0.0, 20.0, 200_001), t, q]))
+    P = integrate_odometry(t, v, w, fine)
+    step = np.hypot(*np.diff(P[:, :2], axis=0).T)
+    turn = np.abs(np.angle(np.exp(1j * np.diff(P[:, 2]))))
+    idx = np.searchsorted(fine, q)
+    length = np.concatenate([[0.0], np.cumsum(step)])[idx]
+    turned = np.concatenate([[0.0], np.cumsum(turn)])[idx]
+    assert np.allclose(got[:, 0], length, atol=1e-6) and np.allclose(got[:, 1], turned, atol=1e-9)
+    # there and back: the path, not the net step
+    back = mrclam.Odometry(np.array([0.0, 1.0, 2.0]), np.array([1.0, -1.0, 0.0]), np.zeros(3))
+    assert np.allclose(back.travelled([2.0]), [[2.0, 0.0]])
+    assert np.allclose(integrate_odometry(back.time, back.v, back.omega, [2.0])[0], 0.0)
+    with pytest.raises(ValueError, match="times"):
+        od.travelled([21.0])
+
+
 @settings(max_examples=30, deadline=None)
 @given(split=st.floats(0.01, 9.99), seed=st.integers(0, 2**31))
 def test_integrate_odometry_extra_record_with_same_command_changes_nothing(split, seed):
