@@ -122,10 +122,10 @@ def run(path, *, seed=0, samples=2000, cameras=True, **options):
 PASS_S = 120.0  # the study's pass (``histories(max_gap=120)``): K per pass = one per 120 / K s
 
 
-def curve(path, per_pass, *, seed=0, samples=2000, progress=print):
+def curve(path, per_pass, *, seed=0, samples=2000, run_options=None, progress=print):
     """Rows of :func:`run` (seen and unseen, no cameras) at each images-per-pass count of
     ``per_pass`` (0: every keyframe), each row with ``per_pass`` and ``images`` (the poses the
-    map was given, all robots)."""
+    map was given, all robots); ``run_options``: more options of ``mrclam_runs``."""
     from qfg import joint
 
     ds, _ = study.prepare(path)
@@ -134,7 +134,7 @@ def curve(path, per_pass, *, seed=0, samples=2000, progress=print):
         k = int(k)
         if k < 0:
             raise ValueError(f"per_pass: expected counts >= 0, got {k}")
-        ro = {"min_interval": PASS_S / k} if k else {}
+        ro = dict(run_options or {}, **({"min_interval": PASS_S / k} if k else {}))
         n_img = sum(r.n_poses for r in joint.mrclam_runs(ds, **ro).runs)
         got = run(path, seed=seed, samples=samples, cameras=False, run_options=ro)
         for r in got:
@@ -231,6 +231,9 @@ def main(argv=None):
     ap.add_argument("--per-pass", type=int, nargs="+", default=None,
                     help="the curve over images per 120-s pass instead (0: every keyframe)")
     ap.add_argument("--figure", default="", help="with --per-pass: draw the curve here")
+    ap.add_argument("--noise-by-path", action="store_true",
+                    help="the odometry's noise from the path between keyframes "
+                         "(mrclam_runs(noise_by_path=True))")
     ap.add_argument("--from-json", default="", help="with --figure: draw a recorded curve")
     ap.add_argument("--json", default="")
     a = ap.parse_args(argv)
@@ -243,7 +246,8 @@ def main(argv=None):
               "unseen < 1% | prior alone (seen / unseen) | wall (s) |")
         print("|---|---|---|---|---|---|---|---|---|")
         for d in study.dataset_dirs(a.data, a.datasets):
-            got = curve(d, a.per_pass, seed=a.seed, samples=a.samples)
+            got = curve(d, a.per_pass, seed=a.seed, samples=a.samples,
+                        run_options={"noise_by_path": True} if a.noise_by_path else None)
             rows += got
             for k in a.per_pass:
                 s, u = [r for r in got if r["per_pass"] == k]

@@ -1138,7 +1138,7 @@ def simulated_measurements(run, *, odometry: bool = True, robot: int = 0) -> Joi
 def mrclam_runs(dataset, robots=None, *, min_move: float = 0.02, min_turn_deg: float = 1.0,
                 min_interval: float = 0.0, sigma_bearing: float | None = None,
                 odometry_noise=None, keep_times=None, odometry_lead: float | None = None,
-                noise_by_path: bool = True) -> JointMeasurements:
+                noise_by_path: bool = False) -> JointMeasurements:
     """:class:`JointMeasurements` of an :class:`qfg.datasets.mrclam.MRCLAMDataset`.
 
     Per robot: the views with at least one landmark (inside the odometry's span; repeated views
@@ -1148,9 +1148,10 @@ def mrclam_runs(dataset, robots=None, *, min_move: float = 0.02, min_turn_deg: f
     over how many a run uses: 120 / k keeps at most k per 120-s pass), plus every view whose
     time is in ``keep_times[robot]`` (views to be scored as cameras); the odometry
     between keyframes from the dead-reckoned poses (:func:`odometry_steps`, noise
-    ``odometry_noise``, default :data:`ODOMETRY_NOISE`, its ``d`` and ``|dtheta|`` the path
-    length and turning the odometry covered between the keyframes, not the net step, unless
-    ``noise_by_path`` is False: they differ where keyframes are far apart); bearings with
+    ``odometry_noise``, default :data:`ODOMETRY_NOISE`; with ``noise_by_path`` its ``d`` and
+    ``|dtheta|`` are the path length and turning the odometry covered between the keyframes,
+    not the net step: they differ only where keyframes are far apart, and there the option
+    helped dataset 6 and hurt datasets 1 and 3, docs/joint.md); bearings with
     ``sigma_bearing`` (default the loader's ``DEFAULT_SIGMA_BEARING``)."""
     from .datasets import mrclam as _m
 

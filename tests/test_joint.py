@@ -494,8 +494,8 @@ def test_mrclam_runs_odometry_noise_grows_with_the_path_between_keyframes():
     rd = ds.robot(3)
     ratio = {}
     for gap in (0.0, 40.0):
-        net = joint.mrclam_runs(ds, [3], min_interval=gap, noise_by_path=False).run(3)
-        path = joint.mrclam_runs(ds, [3], min_interval=gap).run(3)
+        net = joint.mrclam_runs(ds, [3], min_interval=gap).run(3)
+        path = joint.mrclam_runs(ds, [3], min_interval=gap, noise_by_path=True).run(3)
         assert np.array_equal(net.times, path.times) and np.allclose(net.odometry, path.odometry)
         # the net-step model is what odometry_steps gives without the path
         P, _ = mrclam.view_poses(rd)
