@@ -213,6 +213,30 @@ def sweep(path, *, seed=0, samples=2000, inflates=(1, 2, 4, 9), floors=(0.0, 1e-
         print(f"| {infl:g} | {fl:g} | " + " | ".join(cells) + " |", flush=True)
 
 
+def main_curve(a):
+    """``--per-pass``: the curve's table, rows and figure."""
+    rows = []
+    print("| dataset | K per pass | images | seen log p | seen < 1% | unseen log p | "
+          "unseen < 1% | prior alone (seen / unseen) | wall (s) |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for d in study.dataset_dirs(a.data, a.datasets):
+        got = curve(d, a.per_pass, seed=a.seed, samples=a.samples,
+                    run_options={"noise_by_path": True} if a.noise_by_path else None)
+        rows += got
+        for k in a.per_pass:
+            s, u = [r for r in got if r["per_pass"] == k]
+            print(f"| {s['dataset'][14:]} | {k or 'all'} | {s['images']} | "
+                  f"{s['log_score']:.3f} | {100 * s['truth_under_1pct']:.1f}% | "
+                  f"{u['log_score']:.3f} | {100 * u['truth_under_1pct']:.1f}% | "
+                  f"{s['prior_log_score']:.2f} / {u['prior_log_score']:.2f} | "
+                  f"{s['time_s']:.0f} |", flush=True)
+        if a.json:
+            with open(a.json, "w") as f:
+                json.dump(rows, f, indent=1)
+    if a.figure:
+        plot_curve(rows, a.figure)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("datasets", nargs="*", type=int, default=[6])
@@ -241,27 +265,7 @@ def main(argv=None):
         plot_curve(json.loads(open(a.from_json).read()), a.figure or "joint_per_pass.png")
         return
     if a.per_pass:
-        rows = []
-        print("| dataset | K per pass | images | seen log p | seen < 1% | unseen log p | "
-              "unseen < 1% | prior alone (seen / unseen) | wall (s) |")
-        print("|---|---|---|---|---|---|---|---|---|")
-        for d in study.dataset_dirs(a.data, a.datasets):
-            got = curve(d, a.per_pass, seed=a.seed, samples=a.samples,
-                        run_options={"noise_by_path": True} if a.noise_by_path else None)
-            rows += got
-            for k in a.per_pass:
-                s, u = [r for r in got if r["per_pass"] == k]
-                print(f"| {s['dataset'][14:]} | {k or 'all'} | {s['images']} | "
-                      f"{s['log_score']:.3f} | {100 * s['truth_under_1pct']:.1f}% | "
-                      f"{u['log_score']:.3f} | {100 * u['truth_under_1pct']:.1f}% | "
-                      f"{s['prior_log_score']:.2f} / {u['prior_log_score']:.2f} | "
-                      f"{s['time_s']:.0f} |", flush=True)
-            if a.json:
-                with open(a.json, "w") as f:
-                    json.dump(rows, f, indent=1)
-        if a.figure:
-            plot_curve(rows, a.figure)
-        return
+        return main_curve(a)
     opts = {}
     if a.inflate is not None:
         opts["inflate"] = a.inflate
