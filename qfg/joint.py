@@ -378,8 +378,10 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
         inflate_kinematic: a further factor on the covariance when a run solved with the
             kinematic prior is in the map (:data:`KINEMATIC_INFLATE`; 1: none), or ``"auto"``:
             the robots' own maps' scatter about the joint map (:func:`overdispersion`) when
-            it exceeds 1 (``info["overdispersion"]``; flag ``overdispersed`` above
-            :data:`OVERDISPERSED`).
+            it exceeds 1 (flag ``overdispersed`` above :data:`OVERDISPERSED`). The scatter is
+            measured on every map of two or more robots (``info["overdispersion"]``; NaN when
+            too few triplets are placed by two of them) and reported, not acted on, when
+            every run has odometry.
         sir_rays: landmarks with fewer rays are ``weak`` (sampled from their exact conditional).
         without_odometry: ``"kinematic"``: a run without odometry is solved with the
             ``kinematic`` motion prior in its place (:mod:`qfg.joint_start`), started at each
@@ -641,11 +643,14 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
             "kinematic_starts": starts_info}
     post = JointPosterior(ids, tuple(out_modes), constrained, tuple(lflags), robot_flags,
                           tuple(dict.fromkeys(flags)), "joint", poses, info, pr, fit, offs, weak)
-    if auto and kin:
-        # errors the model leaves out show as the robots' maps scattering about the joint one
+    if len(use) >= 2:
+        # errors the model leaves out show as the robots' maps scattering about the joint one;
+        # measured on every map, acted on only where a run had no odometry (with odometry the
+        # widening was measured to cost more than it gives, docs/joint.md)
         tell("the robots' own maps against the joint one (overdispersion)")
         kappa = overdispersion(post, [r.robot for r in use], seed=seed)
         info["overdispersion"] = kappa
+    if auto and kin and len(use) >= 2:
         if kappa > 1.0:
             post = scale_covariance(post, kappa)
             info["covariance_scale"] = scale * kappa

@@ -512,3 +512,19 @@ def test_mrclam_runs_odometry_noise_grows_with_the_path_between_keyframes():
     # keyframes every 2 cm or 1 deg: path and step agree; 40 s apart the robot wanders between
     assert np.percentile(ratio[0.0], 99) < 1.1
     assert np.median(ratio[40.0]) > 1.15 and np.percentile(ratio[40.0], 90) > 2
+
+
+def test_overdispersion_is_reported_not_acted_on_when_every_run_has_odometry():
+    rng = np.random.default_rng(3)
+    a = random_trajectory_run(rng, n_landmarks=6, n_poses=40, fov_deg=360)
+    b = random_trajectory_run(rng, n_poses=40, fov_deg=360, landmarks=a.landmarks)
+    runs = tuple(joint.simulated_measurements(r, robot=k).runs[0] for k, r in enumerate((a, b)))
+    post = joint.solve(joint.JointMeasurements(runs, tuple(range(6))))
+    kappa = post.info["overdispersion"]
+    assert np.isfinite(kappa) and kappa == joint.overdispersion(post, [0, 1], seed=0)
+    # the covariance is the Laplace approximation as is, whatever the scatter
+    assert post.info["covariance_scale"] == 1.0 and "overdispersed" not in post.flags
+    widened = joint.scale_covariance(post, 3.0)
+    assert joint.overdispersion(widened, [0, 1], seed=0) == pytest.approx(kappa / 3.0, rel=0.05)
+    lone = joint.solve(joint.JointMeasurements(runs[:1], tuple(range(6))))
+    assert "overdispersion" not in lone.info

@@ -777,13 +777,16 @@ def say_map_info(name: str, info, say) -> None:
         say(f"map {name}: {close} bearing{'s' if close > 1 else ''} from poses the fit had put "
             f"on the landmark seen ({out} left out, the others kept once the poses moved off)")
     flags = info.get("flags") or []
-    if not flags:
-        return
     extra = ""
     if "overdispersion" in info:
-        extra = (f"; the robots' own maps scatter {info['overdispersion']:.2f}x what its "
-                 f"covariance allows (covariance x{info.get('covariance_scale', 1.0):.2f})")
-    say(f"map {name}: flags {', '.join(flags)}{extra}")
+        scale = float(info.get("covariance_scale", 1.0))
+        extra = (f"the robots' own maps scatter {info['overdispersion']:.2f}x what its "
+                 f"covariance allows (" + (f"covariance x{scale:.2f})" if scale != 1.0 else
+                                          "not widened: every run has odometry)"))
+    if flags:
+        say(f"map {name}: flags {', '.join(flags)}" + (f"; {extra}" if extra else ""))
+    elif extra:
+        say(f"map {name}: {extra}")
 
 
 def score_map(prep: Prepared, seen, result, ests: list[_Light], common: dict) -> list[dict]:
