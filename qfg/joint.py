@@ -1140,6 +1140,20 @@ def simulated_measurements(run, *, odometry: bool = True, robot: int = 0) -> Joi
 
 
 # ----------------------------------------------------------------------------- MRCLAM
+def _keyframes(idx, t, P, forced, min_move, min_turn, min_interval) -> np.ndarray:
+    """Greedy keyframes among views ``idx``: each view ``min_interval`` s or more after the
+    last keyframe where the dead-reckoned pose ``P`` moved ``min_move`` or turned ``min_turn``
+    (every view counts as a move when ``P`` is None: no odometry), and every ``forced`` one."""
+    kf = [idx[0]]
+    for i in idx[1:]:
+        j = kf[-1]
+        if forced[i] or (t[i] - t[j] >= min_interval and (
+                P is None or np.hypot(*(P[i, :2] - P[j, :2])) >= min_move
+                or abs(wrap_angle(P[i, 2] - P[j, 2])) >= min_turn)):
+            kf.append(i)
+    return np.array(kf)
+
+
 def mrclam_runs(dataset, robots=None, *, min_move: float = 0.02, min_turn_deg: float = 1.0,
                 min_interval: float = 0.0, sigma_bearing: float | None = None,
                 odometry_noise=None, keep_times=None, odometry_lead: float | None = None,
@@ -1183,27 +1197,13 @@ def mrclam_runs(dataset, robots=None, *, min_move: float = 0.02, min_turn_deg: f
             pos = pos[np.isclose(rd.view_times[pos], kt[:pos.size]) if pos.size == kt.size
                       else np.isin(rd.view_times[pos], kt)]
             forced[pos] = True
-        t = rd.view_times
+        kf = _keyframes(idx, rd.view_times, P, forced, min_move, min_turn, min_interval)
         if P is not None:
-            kf = [idx[0]]
-            for i in idx[1:]:
-                a = P[kf[-1]]
-                if forced[i] or (t[i] - t[kf[-1]] >= min_interval
-                                 and (np.hypot(*(P[i, :2] - a[:2])) >= min_move
-                                      or abs(wrap_angle(P[i, 2] - a[2])) >= min_turn)):
-                    kf.append(i)
-            kf = np.array(kf)
             tr = (np.diff(rd.odometry.travelled(rd.view_times[kf] - lead), axis=0)
                   if noise_by_path else None)
             z, s = odometry_steps(P[kf], odometry_noise, tr)
         else:
-            kf, z, s = idx, None, None
-            if min_interval > 0:
-                keep = [idx[0]]
-                for i in idx[1:]:
-                    if forced[i] or t[i] - t[keep[-1]] >= min_interval:
-                        keep.append(i)
-                kf = np.array(keep)
+            z, s = None, None
         vis = rd.visible[kf]
         vi, col = np.nonzero(vis)
         runs.append(RobotRun(robot=rn, times=rd.view_times[kf], bearing_pose=vi,

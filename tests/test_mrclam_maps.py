@@ -202,13 +202,17 @@ def test_the_user_is_told_which_map_answered_and_what_it_flagged():
     say_map_info("pooled", {}, said.append)
     say_map_info("joint", {"answered_by": "joint", "flags": [], "overdispersion": 1.4},
                  said.append)
+    say_map_info("joint", {"answered_by": "joint", "flags": ["kinematic_prior"],
+                           "overdispersion": 0.8, "covariance_scale": 1.0}, said.append)
     assert said == ["map joint: answered by seen-prior: robots disagree",
                     "map joint: flags kinematic_prior, overdispersed; the robots' own maps "
                     "scatter 4.08x what its covariance allows (covariance x4.08)",
                     "map joint: 5 bearings from poses the fit had put on the landmark seen (5 "
                     "left out, the others kept once the poses moved off)",
                     "map joint: the robots' own maps scatter 1.40x what its covariance allows "
-                    "(not widened: every run has odometry)"]
+                    "(not widened: every run has odometry)",
+                    "map joint: flags kinematic_prior; the robots' own maps scatter 0.80x what "
+                    "its covariance allows (not widened: no more than it allows)"]
 
 
 def test_configuration_map_answers_every_ordered_triplet(root, tmp_path):

@@ -780,9 +780,11 @@ def say_map_info(name: str, info, say) -> None:
     extra = ""
     if "overdispersion" in info:
         scale = float(info.get("covariance_scale", 1.0))
+        why = (f"covariance x{scale:.2f}" if scale != 1.0 else "not widened: "
+               + ("no more than it allows" if "kinematic_prior" in flags
+                  else "every run has odometry"))
         extra = (f"the robots' own maps scatter {info['overdispersion']:.2f}x what its "
-                 f"covariance allows (" + (f"covariance x{scale:.2f})" if scale != 1.0 else
-                                          "not widened: every run has odometry)"))
+                 f"covariance allows ({why})")
     if flags:
         say(f"map {name}: flags {', '.join(flags)}" + (f"; {extra}" if extra else ""))
     elif extra:
