@@ -175,11 +175,12 @@ def plot_curve(rows, path):
     plt.close(fig)
 
 
-def sweep(path, *, seed=0, samples=2000, inflates=(1, 2, 4, 9), floors=(0.0, 1e-4, 1e-3, 1e-2)):
-    """Development table: one solve of a dataset, its seen and unseen triplets scored with the
-    covariances scaled by each of ``inflates`` (floor 1e-3) and each of ``floors`` (inflate 1)."""
-    import dataclasses
-
+def sweep(path, *, seed=0, samples=2000, inflates=(1, 2, 4, 9), floors=(0.0, 1e-4, 1e-3, 1e-2),
+          min_interval=0.0):
+    """Development table: one solve of a dataset (keyframes ``min_interval`` s apart or more),
+    its seen and unseen triplets scored with the covariances scaled by each of ``inflates``
+    (floor 1e-3), by the robots' measured scatter about the map (``joint.overdispersion``,
+    every robot with a map, when above 1) and with each of ``floors`` (inflate 1)."""
     from qfg import joint
 
     part = get_partition("edc")
@@ -194,23 +195,27 @@ def sweep(path, *, seed=0, samples=2000, inflates=(1, 2, 4, 9), floors=(0.0, 1e-
     keys = [tuple(int(ids[i]) for i in t) for t in trip.tolist()]
     seen = np.array([tuple(t) in seen_idx for t in trip.tolist()])
     g = truth_states(trip, ds.landmark_xy, "edc")
-    post = joint.solve(joint.mrclam_runs(ds), seed=seed)
-    print(f"{ds.name}: flags {post.flags}, robots {post.robot_flags}, bearings dropped "
-          f"{post.info['outliers_dropped']}")
+    post = joint.solve(joint.mrclam_runs(ds, min_interval=min_interval), seed=seed)
+    kappa = joint.overdispersion(post, seed=seed)
+    print(f"{ds.name} (keyframes {min_interval:g} s apart or more): flags {post.flags}, robots "
+          f"{post.robot_flags}, bearings dropped {post.info['outliers_dropped']}, the robots' "
+          f"scatter kappa {kappa:.2f}")
     print("| inflate | floor | seen log p | seen truth < 1% | seen ECE | unseen log p | "
           "unseen truth < 1% | unseen ECE |")
     print("|---|---|---|---|---|---|---|---|")
     combos = [(1, f) for f in floors] + [(i, 1e-3) for i in inflates if i != 1]
+    if np.isfinite(kappa) and kappa > 1:
+        combos.append((kappa, 1e-3))
     for infl, fl in combos:
-        modes = tuple(dataclasses.replace(m, covariance=m.covariance * infl) for m in post.modes)
-        P = joint.triplet_marginals(dataclasses.replace(post, modes=modes), keys, prior_states=q,
-                                    samples=samples, seed=seed, floor=fl).probabilities
+        pp = joint.scale_covariance(post, infl) if infl != 1 else post
+        P = joint.triplet_marginals(pp, keys, prior_states=q, samples=samples, seed=seed,
+                                    floor=fl).probabilities
         cells = []
         for m in (seen, ~seen):
             s = score(P[m], g[m])
             cells += [f"{s['log_score']:.3f}", f"{100 * s['truth_under_1pct']:.1f}%",
                       f"{s['ece']:.3f}"]
-        print(f"| {infl:g} | {fl:g} | " + " | ".join(cells) + " |", flush=True)
+        print(f"| {infl:.3g} | {fl:g} | " + " | ".join(cells) + " |", flush=True)
 
 
 def main_curve(a):
@@ -251,7 +256,8 @@ def main(argv=None):
     ap.add_argument("--outlier", type=float, default=None,
                     help="bearings beyond this many sigmas dropped (qfg.joint.solve; 0: none)")
     ap.add_argument("--sweep", action="store_true",
-                    help="development table instead: covariance scale and floor from one solve")
+                    help="development table instead: covariance scale and floor from one solve "
+                         "(with --per-pass: one per images-per-pass count)")
     ap.add_argument("--per-pass", type=int, nargs="+", default=None,
                     help="the curve over images per 120-s pass instead (0: every keyframe)")
     ap.add_argument("--figure", default="", help="with --per-pass: draw the curve here")
@@ -264,7 +270,7 @@ def main(argv=None):
     if a.from_json:
         plot_curve(json.loads(open(a.from_json).read()), a.figure or "joint_per_pass.png")
         return
-    if a.per_pass:
+    if a.per_pass and not a.sweep:
         return main_curve(a)
     opts = {}
     if a.inflate is not None:
@@ -275,7 +281,9 @@ def main(argv=None):
         opts["outlier"] = a.outlier
     if a.sweep:
         for d in study.dataset_dirs(a.data, a.datasets):
-            sweep(d, seed=a.seed, samples=a.samples)
+            for k in a.per_pass or [0]:
+                sweep(d, seed=a.seed, samples=a.samples,
+                      min_interval=PASS_S / k if k else 0.0)
         return
     rows = []
     print("| dataset | kind | method | n | log p(truth) | uniform | prior alone | Brier | "
