@@ -31,7 +31,9 @@ import numpy as np
 
 from qfg import joint
 from qfg.combine import prior_state_distribution
+from qfg.geometry import to_frame
 from qfg.harness.studies import mrclam as study
+from qfg.joint_start import similarity
 from qfg.partitions import get as get_partition
 
 PX = 1_000_000  # keys: poses k, drift rates PX + k, landmarks 2 PX + j
@@ -131,10 +133,7 @@ def main(argv=None):
     P = post.modes[0].points
     # the landmarks' best similarity onto the ground truth (states are similarity-free)
     ok = np.isfinite(P[:, 0])
-    A0, B0 = P[ok] - P[ok].mean(0), ds.landmark_xy[ok] - ds.landmark_xy[ok].mean(0)
-    U, S, Vt = np.linalg.svd(A0.T @ B0)
-    R = (U @ Vt).T
-    sc = S.sum() / (A0 ** 2).sum()
+    sc, R, t0 = similarity(P[ok], ds.landmark_xy[ok])
     gt, gok = ds.robot(a.robot).groundtruth_poses(run.times)
     X0 = post.poses[a.robot]
     idx_l = {int(x): j for j, x in enumerate(ds.landmark_ids)}
@@ -144,7 +143,7 @@ def main(argv=None):
     print("|---|---|---|---|---|---|")
     for q in [None, *a.q]:
         X, C = localise(run, P, ds.landmark_ids, X0, drift_q=q, q0=a.q0)
-        W = (X[:, :2] - P[ok].mean(0)) @ R.T * sc + ds.landmark_xy[ok].mean(0)
+        W = sc * X[:, :2] @ R.T + t0
         err = (W - gt[:, :2])[gok]
         Cw = (R @ C[:, :2, :2] @ R.T * sc ** 2)[gok]
         z2 = np.einsum("ni,nij,nj->n", err, np.linalg.inv(Cw), err)
@@ -157,13 +156,7 @@ def main(argv=None):
                 if g[v] < 0:
                     continue
                 xs = rng.multivariate_normal(X[k, :2], C[k, :2, :2], 300)
-                Aw, Bw = P[ia], P[ib]
-                e1 = Bw - Aw
-                L = np.hypot(*e1)
-                e1 = e1 / L
-                e0 = np.array([e1[1], -e1[0]])
-                rel = (xs - Aw) / L
-                s = part.state_of(np.stack([rel @ e0, rel @ e1], axis=1))
+                s = part.state_of(to_frame(xs, P[ia], P[ib]))
                 p = np.bincount(s[s >= 0], minlength=part.n_states)[:part.n_states] / 300
                 p = 0.999 * p + 0.001 * qx
                 lp.append(np.log(max(p[g[v]], 1e-4)))
@@ -176,7 +169,7 @@ def main(argv=None):
           "-0.25, 0, 0.25, 0.5, 1 s |")
     print("|---|---|---|---|")
     for r in meas.runs:
-        Wr = (post.poses[r.robot][:, :2] - P[ok].mean(0)) @ R.T * sc + ds.landmark_xy[ok].mean(0)
+        Wr = sc * post.poses[r.robot][:, :2] @ R.T + t0
         med = []
         for dt in (-1.0, -0.5, -0.25, 0.0, 0.25, 0.5, 1.0):
             g2, k2 = ds.robot(r.robot).groundtruth_poses(r.times + dt)

@@ -219,7 +219,7 @@ def odometry_steps(poses, noise=None, travelled=None):
     (P, 3) and their noise from the model ``sigma = c0 + c_turn |dtheta| + c_dist d``
     (:data:`ODOMETRY_NOISE` by default). ``d`` and ``|dtheta|`` are the step's length and
     turn or, given ``travelled`` (P - 1, 2), the path length and total turning the robot
-    covered between the poses (:meth:`qfg.datasets.mrclam.Odometry.travelled`), whichever
+    covered between the poses (:func:`qfg.datasets.mrclam.travelled`), whichever
     is larger: the error grows with the path, and a robot that drove away and came back has
     a short step but a long path. Returns ``(steps, sigmas)``.
 
@@ -650,11 +650,10 @@ def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 
         tell("the robots' own maps against the joint one (overdispersion)")
         kappa = overdispersion(post, [r.robot for r in use], seed=seed)
         info["overdispersion"] = kappa
-    if auto and kin and len(use) >= 2:
-        if kappa > 1.0:
+        if auto and kin and kappa > 1.0:
             post = scale_covariance(post, kappa)
             info["covariance_scale"] = scale * kappa
-        if kappa > OVERDISPERSED:
+        if auto and kin and kappa > OVERDISPERSED:
             post = dataclasses.replace(post, flags=post.flags + ("overdispersed",))
     return post
 

@@ -97,7 +97,7 @@ from ._histories import (
 from ._io import DataFormatError
 from ._load import data_root, find_datasets, load
 from ._noise import NoiseMeasurement, RobustStats, measure_noise, noise_table
-from ._odometry import dead_reckon, integrate_odometry
+from ._odometry import dead_reckon, integrate_odometry, travelled
 
 __all__ = [
     "DataFormatError",
@@ -110,6 +110,7 @@ __all__ = [
     "find_datasets",
     "data_root",
     "integrate_odometry",
+    "travelled",
     "dead_reckon",
     "landmark_fixes",
     "LandmarkFixes",

@@ -75,26 +75,17 @@ class Odometry:
         return integrate_odometry(self.time, self.v, self.omega, times, start=start)
 
     def travelled(self, times) -> np.ndarray:
-        """(n, 2) the path length (m) and the total turning (rad) of the commands from
-        ``time[0]`` to each of ``times`` (n,), in ``[time[0], time[-1]]``: the integrals of
-        ``|v|`` and ``|omega|``, exact for commands that hold between records. Between two
-        poses the difference is what the robot travelled, which can far exceed the net
-        displacement (a robot that drives away and back).
+        """(n, 2) path length (m) and total turning (rad) from the first record to each of
+        ``times`` (n,) (see :func:`travelled`).
 
         >>> od = Odometry(np.array([0.0, 1.0, 2.0]), np.array([1.0, -1.0, 0.0]),
         ...               np.array([0.0, 0.5, 0.0]))
         >>> od.travelled([0.5, 2.0]).tolist()
         [[0.5, 0.0], [2.0, 0.5]]
         """
-        q = as_float_array("times", times, ndim=1)
-        t = self.time
-        if q.size and (q.min() < t[0] or q.max() > t[-1]):
-            raise ValueError(f"times: expected times within the odometry's span [{t[0]}, {t[-1]}]")
-        dt = np.diff(t)
-        rate = np.abs(np.stack([self.v, self.omega], axis=1))
-        cum = np.vstack([np.zeros((1, 2)), np.cumsum(rate[:-1] * dt[:, None], axis=0)])
-        k = np.clip(np.searchsorted(t, q, side="right") - 1, 0, t.size - 1)
-        return cum[k] + rate[k] * (q - t[k])[:, None]
+        from ._odometry import travelled
+
+        return travelled(self.time, self.v, self.omega, times)
 
     @property
     def max_gap(self) -> float:

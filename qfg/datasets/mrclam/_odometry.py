@@ -13,6 +13,42 @@ if TYPE_CHECKING:  # an annotation only: _data imports this module (RobotData.po
     from ._data import RobotData
 
 
+def _commands(time, v, omega, query_times):
+    """The checked velocity log ``(time, v, omega)``, ``query_times`` and, per query, the
+    command k in force (command k holds on ``[time[k], time[k+1])``; the last query time
+    ``time[-1]`` ends the last interval)."""
+    t = as_float_array("time", time, ndim=1)
+    v = as_float_array("v", v, ndim=1)
+    w = as_float_array("omega", omega, ndim=1)
+    if not (t.shape == v.shape == w.shape):
+        raise ValueError(f"time, v, omega: expected equal lengths, got {t.shape}, {v.shape}, {w.shape}")
+    if t.size < 2:
+        raise ValueError(f"time: expected at least 2 records, got {t.size}")
+    if np.any(np.diff(t) < 0):
+        raise ValueError("time: expected non-decreasing values")
+    q = as_float_array("query_times", query_times)
+    if q.size and (q.min() < t[0] or q.max() > t[-1]):
+        raise ValueError(f"query_times: expected values in [{t[0]!r}, {t[-1]!r}] (the odometry's "
+                         f"span), got [{q.min()!r}, {q.max()!r}]")
+    return t, v, w, q, np.clip(np.searchsorted(t, q, side="right") - 1, 0, t.size - 2)
+
+
+def travelled(time, v, omega, query_times) -> np.ndarray:
+    """(..., 2) the path length (m) and the total turning (rad) of a velocity log from
+    ``time[0]`` to each of ``query_times`` (...), in the log's span: the integrals of ``|v|``
+    and ``|omega|``, exact for commands that hold between records (as in
+    :func:`integrate_odometry`). Between two poses the difference is what the robot
+    travelled, which can far exceed the net displacement (a robot that drives away and back).
+
+    >>> travelled([0.0, 1.0, 2.0], [1.0, -1.0, 0.0], [0.0, 0.5, 0.0], [0.5, 2.0]).tolist()
+    [[0.5, 0.0], [2.0, 0.5]]
+    """
+    t, v, w, q, k = _commands(time, v, omega, query_times)
+    rate = np.abs(np.stack([v, w], axis=1))
+    cum = np.vstack([np.zeros((1, 2)), np.cumsum(rate[:-1] * np.diff(t)[:, None], axis=0)])
+    return cum[k] + rate[k] * (q - t[k])[..., None]
+
+
 def integrate_odometry(time, v, omega, query_times, *, start=(0.0, 0.0, 0.0)) -> np.ndarray:
     """Dead-reckoned poses (n, 3) ``(x, y, theta)`` at ``query_times`` (n,) from a velocity log.
 
@@ -31,20 +67,8 @@ def integrate_odometry(time, v, omega, query_times, *, start=(0.0, 0.0, 0.0)) ->
     >>> integrate_odometry([0, 1, 2], [1, 1, 0], [0, np.pi / 2, 0], [1, 2]).round(6).tolist()
     [[1.0, 0.0, 0.0], [1.63662, 0.63662, 1.570796]]
     """
-    t = as_float_array("time", time, ndim=1)
-    v = as_float_array("v", v, ndim=1)
-    w = as_float_array("omega", omega, ndim=1)
-    if not (t.shape == v.shape == w.shape):
-        raise ValueError(f"time, v, omega: expected equal lengths, got {t.shape}, {v.shape}, {w.shape}")
-    if t.size < 2:
-        raise ValueError(f"time: expected at least 2 records, got {t.size}")
-    if np.any(np.diff(t) < 0):
-        raise ValueError("time: expected non-decreasing values")
-    q = as_float_array("query_times", query_times)
+    t, v, w, q, k = _commands(time, v, omega, query_times)
     s = as_float_array("start", start, ndim=1, last_dim=3)
-    if q.size and (q.min() < t[0] or q.max() > t[-1]):
-        raise ValueError(f"query_times: expected values in [{t[0]!r}, {t[-1]!r}] (the odometry's "
-                         f"span), got [{q.min()!r}, {q.max()!r}]")
     dt = np.diff(t)
     dth = w[:-1] * dt
     theta = s[2] + np.concatenate([[0.0], np.cumsum(dth)])  # heading at each record
@@ -52,7 +76,6 @@ def integrate_odometry(time, v, omega, query_times, *, start=(0.0, 0.0, 0.0)) ->
     mid = theta[:-1] + dth / 2
     x = s[0] + np.concatenate([[0.0], np.cumsum(chord * np.cos(mid))])
     y = s[1] + np.concatenate([[0.0], np.cumsum(chord * np.sin(mid))])
-    k = np.clip(np.searchsorted(t, q, side="right") - 1, 0, t.size - 2)
     tau = q - t[k]
     d = w[k] * tau
     c = v[k] * tau * np.sinc(d / (2 * np.pi))
