@@ -28,8 +28,8 @@ def _commands(time, v, omega, query_times):
         raise ValueError("time: expected non-decreasing values")
     q = as_float_array("query_times", query_times)
     if q.size and (q.min() < t[0] or q.max() > t[-1]):
-        raise ValueError(f"query_times: expected values in [{t[0]!r}, {t[-1]!r}] (the odometry's "
-                         f"span), got [{q.min()!r}, {q.max()!r}]")
+        raise ValueError(f"query_times: expected values in [{float(t[0])}, {float(t[-1])}] (the "
+                         f"odometry's span), got [{float(q.min())}, {float(q.max())}]")
     return t, v, w, q, np.clip(np.searchsorted(t, q, side="right") - 1, 0, t.size - 2)
 
 
