@@ -79,8 +79,8 @@ if TYPE_CHECKING:
 __all__ = ["RobotRun", "JointMeasurements", "Mode", "JointPosterior", "solve",
            "sample_landmarks", "triplet_marginals", "camera_marginals", "odometry_steps",
            "mrclam_runs", "mrclam_marginals", "MRCLAMJoint", "simulated_measurements",
-           "reference_samples", "ab_frame_moments", "ab_frame_z2", "overdispersion",
-           "scale_covariance",
+           "reference_samples", "ab_frame_moments", "ab_frame_z2", "landmark_moments",
+           "overdispersion", "scale_covariance",
            "ODOMETRY_NOISE", "FLOOR", "OUTLIER", "KINEMATIC_INFLATE", "OVERDISPERSED"]
 
 #: Per-step odometry noise model ``sigma = c0 + c_turn |dtheta| + c_dist d`` for (x, y, theta)
@@ -877,6 +877,41 @@ def ab_frame_moments(posterior: JointPosterior, triplets, samples: int = 2000, s
     mu[ok] = F.mean(axis=0)
     D = F - mu[ok]
     cov[ok] = np.einsum("nti,ntj->tij", D, D) / (samples - 1)
+    return mu, cov
+
+
+def landmark_moments(posterior: JointPosterior, samples: int = 2000, seed=0):
+    """Mean (L, 2) and covariance (L, 2, 2) of each landmark in the map frame, free of the
+    map's gauge: every joint sample (:func:`sample_landmarks` with ``seed``) is first mapped
+    onto the best mode's landmarks by its best similarity (:func:`qfg.joint_start.similarity`,
+    over the constrained landmarks). The covariances then describe the configuration's
+    shape, on which every qualitative state depends, and not where the map's anchor put it:
+    a landmark's uncertainty relative to the others, what an ellipse on a map should show.
+    Unconstrained landmarks (and every landmark of a map with fewer than 3 constrained) get
+    NaN.
+
+    >>> import numpy as np
+    >>> from qfg.simulation import random_trajectory_run
+    >>> run = random_trajectory_run(np.random.default_rng(0), n_landmarks=5, n_poses=30,
+    ...                             fov_deg=360)
+    >>> post = solve(simulated_measurements(run))
+    >>> mu, cov = landmark_moments(post, 500)
+    >>> mu.shape, cov.shape, bool(np.all(np.linalg.eigvalsh(cov) > 0))
+    ((5, 2), (5, 2, 2), True)
+    """
+    samples = positive_int("samples", samples, minimum=3)
+    L = len(posterior.landmark_ids)
+    mu, cov = np.full((L, 2), np.nan), np.full((L, 2, 2), np.nan)
+    ok = np.flatnonzero(np.asarray(posterior.constrained, bool)
+                        & np.isfinite(posterior.points).all(axis=1))
+    if posterior.method == "none" or ok.size < 3:
+        return mu, cov
+    S = sample_landmarks(posterior, samples, seed)[:, ok]              # (n, k, 2)
+    s, R, t = _start.similarity(S, posterior.points[ok])
+    F = s[:, None, None] * np.einsum("nij,nkj->nki", R, S) + t[:, None, :]
+    mu[ok] = F.mean(axis=0)
+    D = F - mu[ok]
+    cov[ok] = np.einsum("nki,nkj->kij", D, D) / (samples - 1)
     return mu, cov
 
 

@@ -439,18 +439,37 @@ def kinematic_start(r, lm_index, *, chunk: int = 50, min_rays: int = 5,
 
 
 # ----------------------------------------------------------------------------- agreement
-def similarity(src, dst, *, scale: bool = True) -> tuple[float, np.ndarray, np.ndarray]:
+def similarity(src, dst, *, scale: bool = True) -> tuple:
     """The similarity ``dst ~ s R src + t`` of least squares (Umeyama; a rotation, no
-    reflection; ``scale=False``: s = 1, a rigid fit). ``src``, ``dst``: (n, 2) matched points.
-    Returns ``(s, R (2, 2), t (2,))``."""
+    reflection; ``scale=False``: s = 1, a rigid fit). ``src``, ``dst``: (n, 2) matched points,
+    or stacks of them (..., n, 2) that broadcast (one fit per stack, e.g. every sample of a
+    posterior onto one configuration). Returns ``(s, R (2, 2), t (2,))``; for stacks
+    ``s`` (...), ``R`` (..., 2, 2), ``t`` (..., 2).
+
+    >>> A = np.array([[0.0, 0], [1, 0], [0, 1]])
+    >>> s, R, t = similarity(A, 2 * A[:, ::-1] * [1, -1] + 3)    # x2, turned -90 deg, moved
+    >>> round(s, 9), (np.round(R, 9) + 0.0).tolist(), np.round(t, 9).tolist()
+    (2.0, [[0.0, 1.0], [-1.0, 0.0]], [3.0, 3.0])
+    >>> similarity(np.stack([A, 2 * A]), A)[0].round(9).tolist()
+    [1.0, 0.5]
+    """
     A, B = np.asarray(src, float), np.asarray(dst, float)
-    ma, mb = A.mean(0), B.mean(0)
-    A0, B0 = A - ma, B - mb
-    U, S, Vt = np.linalg.svd(A0.T @ B0)
-    D = np.diag([1.0, np.sign(np.linalg.det(U @ Vt)) or 1.0])
-    R = (U @ D @ Vt).T
-    s = float((S * np.diag(D)).sum() / max((A0 ** 2).sum(), 1e-300)) if scale else 1.0
-    return s, R, mb - s * R @ ma
+    ma, mb = A.mean(-2), B.mean(-2)
+    A0, B0 = A - ma[..., None, :], B - mb[..., None, :]
+    U, S, Vt = np.linalg.svd(np.swapaxes(A0, -1, -2) @ B0)
+    d = np.sign(np.linalg.det(U @ Vt))
+    d = np.where(d == 0, 1.0, d)
+    D = np.zeros(d.shape + (2, 2))
+    D[..., 0, 0], D[..., 1, 1] = 1.0, d
+    R = np.swapaxes(U @ D @ Vt, -1, -2)
+    if scale:
+        s = (S[..., 0] + S[..., 1] * d) / np.maximum((A0 ** 2).sum((-2, -1)), 1e-300)
+    else:
+        s = np.ones(d.shape)
+    t = mb - s[..., None] * (R @ ma[..., None])[..., 0]
+    if np.ndim(s) == 0:
+        return float(s), R, t
+    return s, R, t
 
 
 def shape_misfit(a, b) -> float:

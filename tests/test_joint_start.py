@@ -78,6 +78,25 @@ def test_similarity_recovers_the_transform_and_misfit_is_invariant(s, a, tx, ty,
     assert joint_start.similarity(A, B, scale=False)[0] == 1.0
 
 
+def test_similarity_of_a_stack_is_each_fit_and_recovers_each_transform():
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(5, 7, 2))
+    a, s = rng.uniform(-np.pi, np.pi, 5), rng.uniform(0.2, 5, 5)
+    R = np.stack([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]]).transpose(2, 0, 1)
+    B = s[:, None, None] * np.einsum("kij,knj->kni", R, A) + rng.normal(size=(5, 1, 2))
+    B += rng.normal(0, 0.05, B.shape)              # not exact: each fit is a least squares
+    s2, R2, t2 = joint_start.similarity(A, B)
+    for k in range(5):
+        sk, Rk, tk = joint_start.similarity(A[k], B[k])
+        assert s2[k] == pytest.approx(sk, rel=1e-12)
+        np.testing.assert_allclose(R2[k], Rk, atol=1e-12)
+        np.testing.assert_allclose(t2[k], tk, atol=1e-12)
+    # exact copies: the transforms themselves; one target broadcast against the stack
+    s3, R3, _ = joint_start.similarity(np.stack([A[0] * 3, A[0] @ R[1].T]), A[0])
+    np.testing.assert_allclose(s3, [1 / 3, 1.0], rtol=1e-12)
+    np.testing.assert_allclose(R3[1], R[1].T, atol=1e-12)
+
+
 def test_a_mirror_image_or_a_moved_landmark_does_not_fit():
     A = np.random.default_rng(0).normal(size=(8, 2))
     assert joint_start.shape_misfit(A * [1, -1], A) > 0.1      # no reflections
@@ -243,6 +262,44 @@ def test_ab_frame_moments_are_the_linearised_gaussian_at_small_covariance():
     assert np.isnan(mu2[[0, 2]]).all() and np.isfinite(mu2[1]).all()
     with pytest.raises(ValueError, match="triplets"):
         joint.ab_frame_moments(post, [(0, 0, 1)])
+
+
+def test_landmark_moments_remove_the_gauge_and_keep_the_shape():
+    # a Gaussian map whose covariance is iid sigma^2 plus a large gauge part (moves of the
+    # whole map: translations, and (x, y) -> (1 + b + i a)(x, y), exact similarities). Aligned
+    # by similarity (4 dof) the shape's total variance is (2 L - 4) sigma^2 (the iid noise
+    # projected off the similarities' tangent space), whatever the gauge adds (its scale kept
+    # near 1: a map drawn at scale k has its noise at k sigma in the aligned frame).
+    L, sigma = 7, 1e-3
+    post = _posterior_with_robot_maps(2, 1.0, L=L, sigma=sigma)
+    P = post.points
+    X = P - P.mean(0)
+    G = np.column_stack([np.tile([1.0, 0.0], L), np.tile([0.0, 1.0], L),
+                         np.column_stack([-X[:, 1], X[:, 0]]).ravel(), X.ravel()])
+    gauge = G @ np.diag([0.5, 0.5, 0.02, 0.02]) ** 2 @ G.T
+    m = post.modes[0]
+    post = dataclasses.replace(post, modes=(dataclasses.replace(
+        m, covariance=m.covariance + gauge),))
+    mu, cov = joint.landmark_moments(post, samples=4000, seed=1)
+    raw = joint.sample_landmarks(post, 4000, seed=1)
+    raw_total = sum(np.trace(np.cov(raw[:, k].T)) for k in range(L))
+    total = np.trace(cov, axis1=1, axis2=2).sum()
+    assert total == pytest.approx((2 * L - 4) * sigma ** 2, rel=0.06)
+    assert raw_total > 1e3 * total
+    np.testing.assert_allclose(mu, P, atol=5 * sigma / np.sqrt(4000))
+    assert np.all(np.linalg.eigvalsh(cov) > 0)
+    # an unconstrained landmark: NaN; a map of two landmarks: no shape at all
+    keep = np.arange(L) != 4
+    cols = np.repeat(keep, 2)
+    loose = dataclasses.replace(post, constrained=keep, modes=(dataclasses.replace(
+        m, covariance=m.covariance[np.ix_(cols, cols)]),))
+    mu2, cov2 = joint.landmark_moments(loose, samples=50, seed=1)
+    assert np.isnan(mu2[4]).all() and np.isnan(cov2[4]).all() and np.isfinite(mu2[keep]).all()
+    two = np.arange(L) < 2
+    cols = np.repeat(two, 2)
+    pair = dataclasses.replace(post, constrained=two, modes=(dataclasses.replace(
+        m, covariance=m.covariance[np.ix_(cols, cols)]),))
+    assert np.isnan(joint.landmark_moments(pair, samples=50)[0]).all()
 
 
 def test_auto_inflation_widens_by_the_measured_overdispersion():
