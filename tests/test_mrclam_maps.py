@@ -353,3 +353,63 @@ def test_maps_figure_draws_each_row_from_the_prior_to_its_score(tmp_path, capsys
     assert mrclam_compare.main(["--from-csv", str(TABLE), "--output", str(out)]) == 0
     assert (out / "mrclam_maps.png").stat().st_size > 10_000
     assert "best (the default rule): " + mrclam_maps.DEFAULT_MAP in capsys.readouterr().out
+
+
+def test_the_joint_map_figure_is_drawn_and_counts_the_truths_inside_their_ellipses(root,
+                                                                                   tmp_path):
+    """``qfg mrclam`` with the joint map draws the map against the ground truth
+    (figures/joint_map.png) from a geometry recorded with the map; the figure's count of true
+    landmarks inside their 95 % ellipses is the chi-square count of errors drawn by hand."""
+    import types
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Ellipse
+
+    from qfg.harness.plotting_mrclam import joint_map_figure
+
+    out = tmp_path / "o"
+    assert main(["mrclam", str(root / "MRCLAM_Dataset1"), "--map", "joint", "--output",
+                 str(out), *[a for a in FAST if a != "--no-figures"]]) == 0
+    assert (out / "figures" / "joint_map.png").stat().st_size > 10_000
+    geom = _map_info(out, "joint")["map_geometry"]
+    assert set(geom) >= {"landmark_ids", "mean", "covariance", "paths", "landmark_flags"}
+    assert len(geom["mean"]) == len(geom["landmark_ids"]) and geom["paths"]
+
+    # by hand: 12 landmarks, the map a similarity of the truth plus known errors, each landmark
+    # 0.01 m iid. The errors are made orthogonal to the similarities' tangent space at the
+    # truth, so the best similarity leaves them as they are (to first order): the count is
+    # then the chi-square count of the errors themselves.
+    rng = np.random.default_rng(0)
+    truth = rng.uniform(0, 5, (12, 2))
+    X = truth - truth.mean(0)
+    G = np.column_stack([np.tile([1.0, 0.0], 12), np.tile([0.0, 1.0], 12),
+                         np.column_stack([-X[:, 1], X[:, 0]]).ravel(), X.ravel()])
+    e = rng.normal(0, 0.01, 24) * np.repeat([1.0] * 6 + [4.0] * 6, 2)
+    e = (e - G @ np.linalg.lstsq(G, e, rcond=None)[0]).reshape(12, 2)
+    z2 = (e ** 2).sum(1) / 0.01 ** 2
+    want, want_wide = int((z2 <= 5.991).sum()), int((z2 <= 5.991 * 20).sum())
+    assert 0 < want < 12
+    a, s = 0.7, 0.3
+    Rm = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    mu = ((truth + e) * s) @ Rm.T + [3.0, -1.0]
+    ds = types.SimpleNamespace(name="by hand", robots={},
+                               landmark_position=lambda ids: truth[np.asarray(ids)])
+    geom = {"landmark_ids": list(range(12)), "landmark_flags": ["ok"] * 12,
+            "mean": mu.tolist(), "covariance": np.tile((0.01 * s) ** 2 * np.eye(2),
+                                                       (12, 1, 1)).tolist(),
+            "paths": {"1": (mu[:3]).tolist()}, "overdispersion": 20.0,
+            "covariance_scale": 1.0}
+    fig = joint_map_figure(geom, ds)
+    note = " ".join(t.get_text() for t in fig.texts).replace("\n", " ")
+    assert f"{want} of 12 true landmarks inside their 95 % ellipse" in note
+    assert f"{want_wide} inside the dashed one (the covariance x20.00" in note
+    ells = [p for p in fig.axes[0].patches if isinstance(p, Ellipse)]
+    assert len(ells) == 24 and sum(p.get_linestyle() == "--" for p in ells) == 12
+    plt.close(fig)
+    # a map already widened by its scatter gets no dashed ellipses
+    fig = joint_map_figure({**geom, "covariance_scale": 20.0}, ds)
+    assert len([p for p in fig.axes[0].patches if isinstance(p, Ellipse)]) == 12
+    plt.close(fig)

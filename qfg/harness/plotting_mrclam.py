@@ -1,4 +1,5 @@
-"""Figures of MRCLAM data: the landmarks and one robot's path in the world frame.
+"""Figures of MRCLAM data: the landmarks and one robot's path in the world frame; a joint map
+against the ground truth.
 
 Plotting is the end of the data flow: this module imports ``qfg.datasets.mrclam``; nothing in the
 data path imports it.
@@ -6,13 +7,15 @@ data path imports it.
 
 from __future__ import annotations
 
+import textwrap
+
 import matplotlib.pyplot as plt
 import numpy as np
 
 from qfg.datasets import mrclam as _mrclam
 
 __all__ = ["draw_dataset", "dataset_figure", "reliability_figure", "curve_figure",
-           "maps_figure"]
+           "maps_figure", "joint_map_figure"]
 
 
 def draw_dataset(dataset, robot, ax=None, *, history=None, time_range=None,
@@ -214,4 +217,106 @@ def maps_figure(rows, *, title: str = "every map of qfg mrclam on MRCLAM dataset
                fontsize=8, frameon=False)
     fig.suptitle(title + " (bars from the prior alone to the map: up is better; hatched: "
                  "answered by the fallback)", fontsize=10)
+    return fig
+
+
+#: chi-square quantile (2 dof) of a 95 % ellipse
+_CHI2_95 = 5.991464547107979
+
+
+def _nice_factor(x: float) -> float:
+    """The smallest of 1, 2, 5, 10, 20, 50, ... at least ``x``."""
+    if not np.isfinite(x) or x <= 1:
+        return 1.0
+    e = 10.0 ** np.floor(np.log10(x))
+    return float(next(m * e for m in (1, 2, 5, 10) if m * e >= x))
+
+
+def joint_map_figure(geometry: dict, dataset, *, magnify: float | None = None):
+    """A joint map (``geometry``: :func:`qfg.harness.studies.mrclam_maps.joint_geometry`)
+    against the dataset's ground truth. The map is drawn in the ground truth's frame by the
+    landmarks' best similarity (a qualitative map has no scale, position or heading of its
+    own). Each landmark's error and 95 % ellipse (its uncertainty relative to the other
+    landmarks) are drawn about its true position, magnified ``magnify`` times (default: so
+    that they can be seen at the arena's scale); a calibrated map has about 95 % of the true
+    positions inside their ellipses: green inside, red outside. Dashed: the ellipses widened
+    by the robots' measured scatter about the map (``overdispersion``, no ground truth), when
+    it exceeds 1 and the map was not already widened by it. Robot paths: the map's keyframe
+    poses, and motion capture (grey) where the data has it. Returns the figure."""
+    from matplotlib.patches import Ellipse
+
+    from qfg.joint_start import similarity
+
+    ids = [int(x) for x in geometry["landmark_ids"]]
+    mu = np.asarray(geometry["mean"], dtype=float).reshape(-1, 2)
+    cov = np.asarray(geometry["covariance"], dtype=float).reshape(-1, 2, 2)
+    truth = dataset.landmark_position(ids)
+    ok = np.isfinite(mu).all(axis=1) & np.isfinite(cov).all(axis=(1, 2))
+    span = np.ptp(truth, axis=0)
+    fig, ax = plt.subplots(figsize=(float(np.clip(8.5 * span[0] / max(span[1], 1e-9) + 4.5,
+                                                  8.0, 15.0)), 9.0))
+    ax.plot(truth[:, 0], truth[:, 1], "k+", ms=9, mew=1.5, zorder=4,
+            label="landmarks (ground truth)")
+    for lid, (x, y) in zip(ids, truth, strict=True):
+        ax.annotate(str(lid), (x, y), xytext=(6, 6), textcoords="offset points", fontsize=8,
+                    zorder=5)
+    note = "fewer than 3 landmarks in the map: nothing to align"
+    if ok.sum() >= 3:
+        s, R, t = similarity(mu[ok], truth[ok])
+        M = s * mu[ok] @ R.T + t
+        C = s * s * np.einsum("ij,kjl,ml->kim", R, cov[ok], R)
+        err = M - truth[ok]
+        z2 = np.einsum("ki,kij,kj->k", err, np.linalg.inv(C), err)
+        sd = np.sqrt(np.linalg.eigvalsh(C)[:, 1])
+        k = magnify or _nice_factor(0.04 * float(span.max() or 1.0) / max(float(np.median(
+            np.maximum(np.hypot(*err.T), 2.45 * sd))), 1e-12))
+        kappa = float(geometry.get("overdispersion", np.nan))
+        widen = (np.isfinite(kappa) and kappa > 1
+                 and float(geometry.get("covariance_scale", 1.0)) == 1.0)
+        inside = z2 <= _CHI2_95
+        for c, e, tr, good in zip(C, err, truth[ok], inside, strict=True):
+            w, V = np.linalg.eigh(c)
+            ang = float(np.degrees(np.arctan2(V[1, 1], V[0, 1])))
+            col = "tab:green" if good else "tab:red"
+            for f, ls in ((1.0, "-"), (kappa, "--")) if widen else ((1.0, "-"),):
+                ax.add_patch(Ellipse(tr + k * e, 2 * k * np.sqrt(_CHI2_95 * f * w[1]),
+                                     2 * k * np.sqrt(_CHI2_95 * f * w[0]), angle=ang,
+                                     fill=False, color=col, lw=1.1, ls=ls, zorder=3))
+            ax.plot([tr[0], tr[0] + k * e[0]], [tr[1], tr[1] + k * e[1]], "-", color=col,
+                    lw=1.0, zorder=3)
+            ax.plot(*(tr + k * e), "o", color=col, ms=3, zorder=3)
+        for r, X in sorted(geometry.get("paths", {}).items(), key=lambda kv: int(kv[0])):
+            X = np.asarray(X, dtype=float).reshape(-1, 2)
+            W = s * X @ R.T + t
+            ax.plot(W[:, 0], W[:, 1], "-", lw=0.6, alpha=0.7, zorder=1, label=f"robot {r}: map")
+        note = (f"{int(inside.sum())} of {int(ok.sum())} true landmarks inside their 95 % "
+                f"ellipse (a calibrated map: about 95 %)"
+                + (f", {int((z2 <= _CHI2_95 * kappa).sum())} inside the dashed one (the "
+                   f"covariance x{kappa:.2f}, the robots' scatter about the map)" if widen
+                   else "")
+                + f"; errors median {100 * np.median(np.hypot(*err.T)):.1f} cm, ellipses' "
+                f"major semi-axis median {100 * np.median(np.sqrt(_CHI2_95) * sd):.1f} cm; "
+                f"both drawn x{k:g} about the true position")
+    gt = False
+    for r, rd in sorted(dataset.robots.items()):
+        if rd.groundtruth is not None and str(r) in geometry.get("paths", {}):
+            g = np.asarray(rd.groundtruth, dtype=float)
+            ax.plot(g[:, 1], g[:, 2], "-", color="0.6", lw=0.4, alpha=0.6, zorder=0,
+                    label=None if gt else "robots: motion capture")
+            gt = True
+    lost = [f"{i} ({f})" for i, f, good in zip(ids, geometry["landmark_flags"], ok, strict=True)
+            if not good]
+    if lost:
+        note += "; not in the map (the prior answers): " + ", ".join(lost)
+    ax.plot([], [], "-", color="tab:green", label="error and 95 % ellipse: truth inside")
+    ax.plot([], [], "-", color="tab:red", label="truth outside")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
+    ax.set_title(f"{dataset.name}: the joint map in the ground truth's frame (best similarity)",
+                 fontsize=10)
+    fig.text(0.02, 0.01, "\n".join(textwrap.wrap(note, 150)), fontsize=7, va="bottom",
+             ha="left")
+    fig.tight_layout(rect=(0, 0.05, 1, 1))
     return fig

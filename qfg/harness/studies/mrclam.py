@@ -1220,9 +1220,10 @@ def write_outputs(outdir, rows: list[dict], *, figures: bool = True, figure_robo
 
 # ----------------------------------------------------------------------------- figures
 def make_figures(outdir: Path, rows: list[dict], *, details=None, robot=None) -> list[Path]:
-    """Reliability (calibration) figures of each mode's seen, propagated and camera rows, and
-    one robot's path with the views of the seen triplet with most views (first dataset)."""
-    from qfg.harness.plotting_mrclam import reliability_figure
+    """Reliability (calibration) figures of each mode's seen, propagated and camera rows, one
+    robot's path with the views of the seen triplet with most views (first dataset) and, for a
+    joint map, the map against the ground truth (``joint_map``)."""
+    from qfg.harness.plotting_mrclam import joint_map_figure, reliability_figure
 
     paths = []
     for mode in sorted({r["mode"] for r in rows}):
@@ -1236,6 +1237,10 @@ def make_figures(outdir: Path, rows: list[dict], *, details=None, robot=None) ->
             fig = reliability_figure(groups, title=f"{mode} mode: reliability")
             paths.append(save_figure(fig, outdir, f"reliability_{mode}"))
     paths += _path_figure(outdir, rows, details, robot)
+    geom = dict(getattr((details or {}).get("map"), "info", None) or {}).get("map_geometry")
+    if geom:
+        paths.append(save_figure(joint_map_figure(geom, details["dataset"]), outdir,
+                                 "joint_map"))
     return paths
 
 

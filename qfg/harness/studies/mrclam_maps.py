@@ -436,10 +436,36 @@ def map_joint(seen: SeenEstimates) -> MapResult:
         v = post.info.get(key)
         if v is not None and np.isfinite(v):
             info[key] = float(v)
+    info["map_geometry"] = joint_geometry(post, seed=seen.seed)
     P = np.array([j.triplets[t] for t in subjects], dtype=float).reshape(len(wanted), -1)
     return MapResult(triplets=wanted, probabilities=P,
                      seen=is_seen, reached=~is_seen, info=info,
                      cameras=tuple(np.asarray(c, dtype=float) for c in j.cameras))
+
+
+def joint_geometry(post, *, samples: int = 2000, seed: int = 0, max_path: int = 1500) -> dict:
+    """What a figure of a joint map needs, JSON-able (recorded with the map): the landmarks'
+    ids, flags, gauge-free means (L, 2) and covariances (L, 2, 2) in the map frame
+    (:func:`qfg.joint.landmark_moments`; NaN where unconstrained), each solved robot's
+    keyframe positions (at most ``max_path`` of them, evenly thinned) in the same frame, the
+    robots' measured scatter about the map (``overdispersion``, :func:`qfg.joint.overdispersion`)
+    and the factor the map's covariance was already widened by (``covariance_scale``)."""
+    from qfg.joint import landmark_moments
+
+    mu, cov = landmark_moments(post, samples, seed)
+    paths = {}
+    for r, X in sorted(post.poses.items()):
+        X = np.asarray(X, dtype=float)[:, :2]
+        X = X[np.isfinite(X).all(axis=1)]
+        if len(X):
+            paths[str(r)] = np.round(X[::-(-len(X) // max_path)], 4).tolist()
+    return {"landmark_ids": [int(x) for x in post.landmark_ids],
+            "landmark_flags": [str(f) for f in post.landmark_flags],
+            "mean": np.round(mu, 6).tolist(), "covariance": cov.tolist(),
+            "robot_flags": {str(r): str(f) for r, f in post.robot_flags.items()},
+            "paths": paths,
+            "overdispersion": float(post.info.get("overdispersion", float("nan"))),
+            "covariance_scale": float(post.info.get("covariance_scale", 1.0))}
 
 
 def map_seen(seen: SeenEstimates) -> MapResult:
