@@ -320,6 +320,11 @@ def test_map_method_is_pluggable_recorded_and_resume_reuses_the_pieces(root, tmp
     assert main(["mrclam", str(d), "--output", str(out), "--piece-size", "8", "--seed", "4",
                  "--robots", "2", "--map", "flat", "--resume", *FAST]) == 0
     assert len(made) == n and "as recorded" in capsys.readouterr().err
+    # --overwrite starts again: the recorded maps too, not only the solved pieces
+    assert main(["mrclam", str(d), "--output", str(out), "--piece-size", "8", "--seed", "4",
+                 "--robots", "2", "--map", "flat", "--overwrite", *FAST]) == 0
+    assert len(made) == n + 1 and "as recorded" not in capsys.readouterr().err
+    assert not (out / "maps" / "pooled.npz").exists()
     # the former option names the same map
     assert study.map_name(True, "mean") == "pooled" and study.map_name(False) == "seen"
 

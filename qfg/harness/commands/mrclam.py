@@ -399,6 +399,7 @@ def _no_camera_reason(ds, robots) -> str:
 # ------------------------------------------------------------------------------ the command
 def _main(args):
     import shlex
+    import shutil
 
     from qfg.harness import runner
     from qfg.harness.studies import mrclam as study
@@ -516,6 +517,10 @@ def _main(args):
                      "temper_chosen": details.get("temper"),
                      "temper_check": details.get("temper_check")})
 
+    if args.overwrite:
+        # starting again means the maps too: a recorded map is reused whenever its inputs
+        # match, whatever code made it
+        shutil.rmtree(out / "maps", ignore_errors=True)
     pieces = runner.Study("mrclam", study.piece_tasks, study.run_piece, summarize,
                           "one MRCLAM dataset, solved in pieces")
     runner.run_study(pieces, params, out, seed=args.seed, resume=args.resume,
