@@ -3,13 +3,13 @@
 For each MRCLAM dataset (ground truth fixed as the mrclam study fixes it), the default joint map
 (`joint.mrclam_runs`, `joint.solve`, seed 0), its landmarks' gauge-free means and covariances
 (`joint.landmark_moments`, 2,000 samples), mapped onto the landmarks' ground truth by the best
-similarity; per landmark the squared Mahalanobis distance z^2 of the truth (chi-square with 2
-dof for a calibrated map: median 1.39, 95 % under 5.99). Printed as a table row: the landmarks
-in the map, the median error and the median standard deviation along the ellipse's major axis
-(cm), the median z^2, how many truths lie inside their 95 % ellipse, the robots' scatter about
-the map (`post.info["overdispersion"]`, no ground truth) and how many lie inside the ellipse
-widened by it. ``--calibrated``: the bearings first corrected by each robot's bias and scale
-measured on dataset 6 (`qfg.datasets.mrclam.DEFAULT_BEARING_CALIBRATION`).
+similarity (`joint.aligned_errors`); per landmark the squared Mahalanobis distance z^2 of the
+truth (chi-square with 2 dof for a calibrated map: median 1.39, 95 % under 5.99). Printed as
+a table row: the landmarks in the map, the median error and the median standard deviation along
+the ellipse's major axis (cm), the median z^2, how many truths lie inside their 95 % ellipse,
+the robots' scatter about the map (`post.info["overdispersion"]`, no ground truth) and how many
+lie inside the ellipse widened by it. ``--calibrated``: the bearings first corrected by each
+robot's bias and scale measured on dataset 6 (`qfg.datasets.mrclam.DEFAULT_BEARING_CALIBRATION`).
 
     python experiments/joint_landmark_calibration.py 6 1 2 3 4 5
     python experiments/joint_landmark_calibration.py 6 1 2 3 4 --calibrated
@@ -25,7 +25,6 @@ import numpy as np
 from qfg import joint
 from qfg.datasets import mrclam as data
 from qfg.harness.studies.mrclam import prepare
-from qfg.joint_start import similarity
 
 CHI2_95 = 5.991464547107979
 
@@ -47,10 +46,7 @@ def main(argv=None):
         mu, cov = joint.landmark_moments(post, 2000, 0)
         truth = ds.landmark_position(list(post.landmark_ids))
         ok = np.isfinite(mu).all(axis=1)
-        s, R, t = similarity(mu[ok], truth[ok])
-        err = s * mu[ok] @ R.T + t - truth[ok]
-        C = s * s * np.einsum("ij,kjl,ml->kim", R, cov[ok], R)
-        z2 = np.einsum("ki,kij,kj->k", err, np.linalg.inv(C), err)
+        err, C, z2, _ = joint.aligned_errors(mu[ok], cov[ok], truth[ok])
         kappa = float(post.info.get("overdispersion", np.nan))
         scale = float(post.info.get("covariance_scale", 1.0))
         print(f"| {d} | {'calibrated' if a.calibrated else 'as recorded'} | {int(ok.sum())} | "

@@ -80,7 +80,7 @@ __all__ = ["RobotRun", "JointMeasurements", "Mode", "JointPosterior", "solve",
            "sample_landmarks", "triplet_marginals", "camera_marginals", "odometry_steps",
            "mrclam_runs", "mrclam_marginals", "MRCLAMJoint", "simulated_measurements",
            "reference_samples", "ab_frame_moments", "ab_frame_z2", "landmark_moments",
-           "overdispersion", "scale_covariance",
+           "aligned_errors", "overdispersion", "scale_covariance",
            "ODOMETRY_NOISE", "FLOOR", "OUTLIER", "KINEMATIC_INFLATE", "OVERDISPERSED"]
 
 #: Per-step odometry noise model ``sigma = c0 + c_turn |dtheta| + c_dist d`` for (x, y, theta)
@@ -913,6 +913,36 @@ def landmark_moments(posterior: JointPosterior, samples: int = 2000, seed=0):
     D = F - mu[ok]
     cov[ok] = np.einsum("nki,nkj->kij", D, D) / (samples - 1)
     return mu, cov
+
+
+def aligned_errors(mean, covariance, truth):
+    """A map's landmarks against their true positions: ``mean`` (k, 2) and ``covariance``
+    (k, 2, 2) (e.g. :func:`landmark_moments`' rows without NaN) mapped onto ``truth`` (k, 2)
+    by the best similarity (a map's gauge is its own). Returns ``(errors (k, 2), covariances
+    (k, 2, 2), z2 (k,), (s, R, t))`` in the truth's frame; ``z2`` is each truth's squared
+    Mahalanobis distance, chi-square with 2 dof for a calibrated map (95 % under 5.99).
+
+    >>> import numpy as np
+    >>> truth = np.array([[0.0, 0], [2, 0], [0, 2], [2, 2]])
+    >>> e = np.array([[1, 0], [-1, 0], [-1, 0], [1, 0]]) * 1e-3    # no similarity in it
+    >>> err, C, z2, _ = aligned_errors(3 * (truth + e) + 1, np.tile(9e-6 * np.eye(2), (4, 1, 1)),
+    ...                                truth)                       # map: x3, its sd 3e-3
+    >>> np.round(z2, 2).tolist()
+    [1.0, 1.0, 1.0, 1.0]
+    """
+    mu = as_float_array("mean", mean, ndim=2, last_dim=2)
+    C = as_float_array("covariance", covariance, ndim=3)
+    X = as_float_array("truth", truth, ndim=2, last_dim=2)
+    if C.shape != (mu.shape[0], 2, 2) or X.shape != mu.shape:
+        raise ValueError(f"covariance, truth: expected {(mu.shape[0], 2, 2)} and {mu.shape}, "
+                         f"got {C.shape} and {X.shape}")
+    if mu.shape[0] < 3:
+        raise ValueError(f"mean: at least 3 landmarks to align, got {mu.shape[0]}")
+    s, R, t = _start.similarity(mu, X)
+    err = s * mu @ R.T + t - X
+    Cw = s * s * np.einsum("ij,kjl,ml->kim", R, C, R)
+    z2 = np.einsum("ki,kij,kj->k", err, np.linalg.inv(Cw), err)
+    return err, Cw, z2, (s, R, t)
 
 
 def overdispersion(posterior: JointPosterior, robots=None, *, triplets: int = 2000,

@@ -300,6 +300,22 @@ def test_landmark_moments_remove_the_gauge_and_keep_the_shape():
     pair = dataclasses.replace(post, constrained=two, modes=(dataclasses.replace(
         m, covariance=m.covariance[np.ix_(cols, cols)]),))
     assert np.isnan(joint.landmark_moments(pair, samples=50)[0]).all()
+    # against a truth: the map's own gauge (x2, turned, moved) is not an error
+    truth = P + rng_err(L)
+    Q = np.array([[0.0, -1.0], [1.0, 0.0]])
+    err, C, z2, (s, R, t) = joint.aligned_errors(2 * mu @ Q.T + 7,
+                                                 4 * np.einsum("ij,kjl,ml->kim", Q, cov, Q), truth)
+    np.testing.assert_allclose(err, joint.aligned_errors(mu, cov, truth)[0], atol=1e-12)
+    np.testing.assert_allclose(z2, joint.aligned_errors(mu, cov, truth)[2], rtol=1e-9)
+    assert s == pytest.approx(0.5 * joint.aligned_errors(mu, cov, truth)[3][0], rel=1e-12)
+    with pytest.raises(ValueError, match="at least 3"):
+        joint.aligned_errors(mu[:2], cov[:2], truth[:2])
+    with pytest.raises(ValueError, match="covariance, truth"):
+        joint.aligned_errors(mu, cov[:3], truth)
+
+
+def rng_err(L):
+    return np.random.default_rng(5).normal(0, 1e-3, (L, 2))
 
 
 def test_auto_inflation_widens_by_the_measured_overdispersion():

@@ -245,7 +245,7 @@ def joint_map_figure(geometry: dict, dataset, *, magnify: float | None = None):
     poses, and motion capture (grey) where the data has it. Returns the figure."""
     from matplotlib.patches import Ellipse
 
-    from qfg.joint_start import similarity
+    from qfg.joint import aligned_errors
 
     ids = [int(x) for x in geometry["landmark_ids"]]
     mu = np.asarray(geometry["mean"], dtype=float).reshape(-1, 2)
@@ -262,11 +262,7 @@ def joint_map_figure(geometry: dict, dataset, *, magnify: float | None = None):
                     zorder=5)
     note = "fewer than 3 landmarks in the map: nothing to align"
     if ok.sum() >= 3:
-        s, R, t = similarity(mu[ok], truth[ok])
-        M = s * mu[ok] @ R.T + t
-        C = s * s * np.einsum("ij,kjl,ml->kim", R, cov[ok], R)
-        err = M - truth[ok]
-        z2 = np.einsum("ki,kij,kj->k", err, np.linalg.inv(C), err)
+        err, C, z2, (s, R, t) = aligned_errors(mu[ok], cov[ok], truth[ok])
         sd = np.sqrt(np.linalg.eigvalsh(C)[:, 1])
         k = magnify or _nice_factor(0.04 * float(span.max() or 1.0) / max(float(np.median(
             np.maximum(np.hypot(*err.T), 2.45 * sd))), 1e-12))
