@@ -409,7 +409,11 @@ def test_the_joint_map_figure_is_drawn_and_counts_the_truths_inside_their_ellips
     ells = [p for p in fig.axes[0].patches if isinstance(p, Ellipse)]
     assert len(ells) == 24 and sum(p.get_linestyle() == "--" for p in ells) == 12
     plt.close(fig)
-    # a map already widened by its scatter gets no dashed ellipses
-    fig = joint_map_figure({**geom, "covariance_scale": 20.0}, ds)
+    # a map already widened by its scatter gets no dashed ellipses, and says so; robots left
+    # out are named
+    fig = joint_map_figure({**geom, "covariance_scale": 20.0,
+                            "robot_flags": {"1": "ok", "2": "local_minimum"}}, ds)
     assert len([p for p in fig.axes[0].patches if isinstance(p, Ellipse)]) == 12
+    note = " ".join(t.get_text() for t in fig.texts).replace("\n", " ")
+    assert "already widened x20.00" in note and "left out of the map: 2 (local_minimum)" in note
     plt.close(fig)

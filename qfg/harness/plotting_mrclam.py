@@ -253,7 +253,15 @@ def joint_map_figure(geometry: dict, dataset, *, magnify: float | None = None):
     truth = dataset.landmark_position(ids)
     ok = np.isfinite(mu).all(axis=1) & np.isfinite(cov).all(axis=(1, 2))
     span = np.ptp(truth, axis=0)
-    fig, ax = plt.subplots(figsize=(float(np.clip(8.5 * span[0] / max(span[1], 1e-9) + 4.5,
+    aligned = aligned_errors(mu[ok], cov[ok], truth[ok]) if ok.sum() >= 3 else None
+    paths = {}
+    if aligned is not None:
+        s, R, t = aligned[3]
+        paths = {r: s * np.asarray(X, dtype=float).reshape(-1, 2) @ R.T + t
+                 for r, X in sorted(geometry.get("paths", {}).items(), key=lambda kv: int(kv[0]))}
+    # the figure's shape from everything drawn: the landmarks and the robots' paths
+    ext = np.ptp(np.concatenate([truth, *paths.values()]), axis=0)
+    fig, ax = plt.subplots(figsize=(float(np.clip(8.5 * ext[0] / max(ext[1], 1e-9) + 4.5,
                                                   8.0, 15.0)), 9.0))
     ax.plot(truth[:, 0], truth[:, 1], "k+", ms=9, mew=1.5, zorder=4,
             label="landmarks (ground truth)")
@@ -261,8 +269,8 @@ def joint_map_figure(geometry: dict, dataset, *, magnify: float | None = None):
         ax.annotate(str(lid), (x, y), xytext=(6, 6), textcoords="offset points", fontsize=8,
                     zorder=5)
     note = "fewer than 3 landmarks in the map: nothing to align"
-    if ok.sum() >= 3:
-        err, C, z2, (s, R, t) = aligned_errors(mu[ok], cov[ok], truth[ok])
+    if aligned is not None:
+        err, C, z2, _ = aligned
         sd = np.sqrt(np.linalg.eigvalsh(C)[:, 1])
         k = magnify or _nice_factor(0.04 * float(span.max() or 1.0) / max(float(np.median(
             np.maximum(np.hypot(*err.T), 2.45 * sd))), 1e-12))
@@ -281,9 +289,7 @@ def joint_map_figure(geometry: dict, dataset, *, magnify: float | None = None):
             ax.plot([tr[0], tr[0] + k * e[0]], [tr[1], tr[1] + k * e[1]], "-", color=col,
                     lw=1.0, zorder=3)
             ax.plot(*(tr + k * e), "o", color=col, ms=3, zorder=3)
-        for r, X in sorted(geometry.get("paths", {}).items(), key=lambda kv: int(kv[0])):
-            X = np.asarray(X, dtype=float).reshape(-1, 2)
-            W = s * X @ R.T + t
+        for r, W in paths.items():
             ax.plot(W[:, 0], W[:, 1], "-", lw=0.6, alpha=0.7, zorder=1, label=f"robot {r}: map")
         note = (f"{int(inside.sum())} of {int(ok.sum())} true landmarks inside their 95 % "
                 f"ellipse (a calibrated map: about 95 %)"
@@ -300,10 +306,18 @@ def joint_map_figure(geometry: dict, dataset, *, magnify: float | None = None):
             ax.plot(g[:, 1], g[:, 2], "-", color="0.6", lw=0.4, alpha=0.6, zorder=0,
                     label=None if gt else "robots: motion capture")
             gt = True
+    scale = float(geometry.get("covariance_scale", 1.0))
+    if aligned is not None and scale != 1.0:
+        note += f" (the map's covariance already widened x{scale:.2f} by the robots' scatter)"
     lost = [f"{i} ({f})" for i, f, good in zip(ids, geometry["landmark_flags"], ok, strict=True)
             if not good]
     if lost:
         note += "; not in the map (the prior answers): " + ", ".join(lost)
+    out = [f"{r} ({f})" for r, f in sorted(geometry.get("robot_flags", {}).items(),
+                                           key=lambda kv: int(kv[0]))
+           if f not in ("ok", "kinematic")]
+    if out:
+        note += "; robots left out of the map: " + ", ".join(out)
     ax.plot([], [], "-", color="tab:green", label="error and 95 % ellipse: truth inside")
     ax.plot([], [], "-", color="tab:red", label="truth outside")
     ax.set_aspect("equal")
