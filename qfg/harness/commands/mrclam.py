@@ -504,6 +504,10 @@ def _main(args):
     shown = {}
 
     def summarize(outdir, rows, _params):
+        if args.overwrite:
+            # starting again means the maps too (a recorded map is reused whenever its inputs
+            # match, whatever code made it); here, under the run's lock
+            shutil.rmtree(Path(outdir) / "maps", ignore_errors=True)
         ests = study.estimates_from_rows(prep, rows)
         trows, details = study.finish(prep, ests, combine=after["combine"],
                                       temper=after["temper"], map_method=after["map"], tensor=T,
@@ -517,10 +521,6 @@ def _main(args):
                      "temper_chosen": details.get("temper"),
                      "temper_check": details.get("temper_check")})
 
-    if args.overwrite:
-        # starting again means the maps too: a recorded map is reused whenever its inputs
-        # match, whatever code made it
-        shutil.rmtree(out / "maps", ignore_errors=True)
     pieces = runner.Study("mrclam", study.piece_tasks, study.run_piece, summarize,
                           "one MRCLAM dataset, solved in pieces")
     runner.run_study(pieces, params, out, seed=args.seed, resume=args.resume,
