@@ -33,7 +33,7 @@ from qfg import joint
 from qfg.combine import prior_state_distribution
 from qfg.geometry import to_frame
 from qfg.harness.studies import mrclam as study
-from qfg.joint_start import similarity
+from qfg.joint_start import apply_similarity, similarity
 from qfg.partitions import get as get_partition
 
 PX = 1_000_000  # keys: poses k, drift rates PX + k, landmarks 2 PX + j
@@ -143,7 +143,7 @@ def main(argv=None):
     print("|---|---|---|---|---|---|")
     for q in [None, *a.q]:
         X, C = localise(run, P, ds.landmark_ids, X0, drift_q=q, q0=a.q0)
-        W = sc * X[:, :2] @ R.T + t0
+        W = apply_similarity(X[:, :2], (sc, R, t0))
         err = (W - gt[:, :2])[gok]
         Cw = (R @ C[:, :2, :2] @ R.T * sc ** 2)[gok]
         z2 = np.einsum("ni,nij,nj->n", err, np.linalg.inv(Cw), err)
@@ -169,7 +169,7 @@ def main(argv=None):
           "-0.25, 0, 0.25, 0.5, 1 s |")
     print("|---|---|---|---|")
     for r in meas.runs:
-        Wr = sc * post.poses[r.robot][:, :2] @ R.T + t0
+        Wr = apply_similarity(post.poses[r.robot][:, :2], (sc, R, t0))
         med = []
         for dt in (-1.0, -0.5, -0.25, 0.0, 0.25, 0.5, 1.0):
             g2, k2 = ds.robot(r.robot).groundtruth_poses(r.times + dt)

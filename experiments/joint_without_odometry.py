@@ -49,7 +49,7 @@ from qfg.configurations import prior_states
 from qfg.datasets import mrclam
 from qfg.geometry import to_frame
 from qfg.harness.studies.mrclam import make_prior, prepare
-from qfg.joint_start import similarity
+from qfg.joint_start import apply_similarity, similarity
 from qfg.metrics import brier, expected_calibration_error, log_score, truth_under
 
 
@@ -58,8 +58,8 @@ def _error_m(P, truth) -> float:
     m = np.isfinite(P[:, 0])
     if m.sum() < 3:
         return float("nan")
-    s, R, t = similarity(P[m], truth[m])
-    return float(np.median(np.hypot(*(s * P[m] @ R.T + t - truth[m]).T)))
+    moved = apply_similarity(P[m], similarity(P[m], truth[m]))
+    return float(np.median(np.hypot(*(moved - truth[m]).T)))
 
 
 def _landmark_z(post, truth) -> np.ndarray:
@@ -70,8 +70,7 @@ def _landmark_z(post, truth) -> np.ndarray:
         return np.zeros(0)
     m = post.modes[0]
     ok = np.flatnonzero(post.constrained)
-    s, R, t = similarity(truth[ok], m.points[ok])
-    e = s * truth[ok] @ R.T + t - m.points[ok]
+    e = apply_similarity(truth[ok], similarity(truth[ok], m.points[ok])) - m.points[ok]
     C = m.covariance.reshape(ok.size, 2, ok.size, 2)[np.arange(ok.size), :, np.arange(ok.size), :]
     return np.sqrt(np.einsum("ni,nij,nj->n", e, np.linalg.inv(C), e))
 

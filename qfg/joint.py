@@ -322,10 +322,10 @@ def _apply(sc, R, t, poses=None, points=None):
     """Poses and points moved by the similarity ``x -> sc R x + t`` (headings turned by R)."""
     out = []
     if poses is not None:
-        xy = sc * poses[:, :2] @ R.T + t
+        xy = _start.apply_similarity(poses[:, :2], (sc, R, t))
         out.append(np.column_stack([xy, wrap_angle(poses[:, 2] + np.arctan2(R[1, 0], R[0, 0]))]))
     if points is not None:
-        out.append(sc * points @ R.T + t)
+        out.append(_start.apply_similarity(points, (sc, R, t)))
     return out
 
 
@@ -907,8 +907,7 @@ def landmark_moments(posterior: JointPosterior, samples: int = 2000, seed=0):
     if posterior.method == "none" or ok.size < 3:
         return mu, cov
     S = sample_landmarks(posterior, samples, seed)[:, ok]              # (n, k, 2)
-    s, R, t = _start.similarity(S, posterior.points[ok])
-    F = s[:, None, None] * np.einsum("nij,nkj->nki", R, S) + t[:, None, :]
+    F = _start.apply_similarity(S, _start.similarity(S, posterior.points[ok]))
     mu[ok] = F.mean(axis=0)
     D = F - mu[ok]
     cov[ok] = np.einsum("nki,nkj->kij", D, D) / (samples - 1)
@@ -938,8 +937,8 @@ def aligned_errors(mean, covariance, truth):
                          f"got {C.shape} and {X.shape}")
     if mu.shape[0] < 3:
         raise ValueError(f"mean: at least 3 landmarks to align, got {mu.shape[0]}")
-    s, R, t = _start.similarity(mu, X)
-    err = s * mu @ R.T + t - X
+    s, R, t = sim = _start.similarity(mu, X)
+    err = _start.apply_similarity(mu, sim) - X
     Cw = s * s * np.einsum("ij,kjl,ml->kim", R, C, R)
     z2 = np.einsum("ki,kij,kj->k", err, np.linalg.inv(Cw), err)
     return err, Cw, z2, (s, R, t)

@@ -40,7 +40,8 @@ from ._validate import non_negative, positive_int
 from .geometry import wrap_angle
 
 __all__ = ["KinematicPrior", "KINEMATIC", "AGREE", "kinematic_run", "visual_steps",
-           "odometry_start", "kinematic_start", "similarity", "shape_misfit", "agreeing_group",
+           "odometry_start", "kinematic_start", "similarity", "apply_similarity", "shape_misfit",
+           "agreeing_group",
            "chain"]
 
 #: Two robots' maps agree when, on their common landmarks, the median misfit after the best
@@ -472,6 +473,21 @@ def similarity(src, dst, *, scale: bool = True) -> tuple:
     return s, R, t
 
 
+def apply_similarity(points, sim) -> np.ndarray:
+    """``points`` (..., n, 2) moved by ``sim = (s, R, t)`` (:func:`similarity`'s answer, one
+    fit or a stack of them): ``s R x + t``.
+
+    >>> A = np.array([[0.0, 0], [1, 0], [0, 1]])
+    >>> B = 2 * A + 3
+    >>> np.round(apply_similarity(A, similarity(A, B)), 9).tolist() == B.tolist()
+    True
+    """
+    s, R, t = sim
+    X = np.asarray(points, float)
+    return (np.asarray(s, float)[..., None, None] * X @ np.swapaxes(R, -1, -2)
+            + np.asarray(t, float)[..., None, :])
+
+
 def shape_misfit(a, b) -> float:
     """How far two maps of the same landmarks differ in shape: the median distance of ``a``
     (n, 2) mapped onto ``b`` by the best similarity, over ``b``'s rms radius (0: the same shape
@@ -482,9 +498,9 @@ def shape_misfit(a, b) -> float:
     0.0
     """
     A, B = np.asarray(a, float), np.asarray(b, float)
-    s, R, t = similarity(A, B)
     radius = float(np.sqrt(np.mean(np.sum((B - B.mean(0)) ** 2, axis=1))))
-    return float(np.median(np.hypot(*(A @ R.T * s + t - B).T))) / max(radius, 1e-300)
+    return float(np.median(np.hypot(*(apply_similarity(A, similarity(A, B)) - B).T))) / max(
+        radius, 1e-300)
 
 
 def agreeing_group(maps: dict, tolerance: float = AGREE, *, min_common: int = 4) -> tuple:

@@ -246,6 +246,7 @@ def joint_map_figure(geometry: dict, dataset, *, magnify: float | None = None):
     from matplotlib.patches import Ellipse
 
     from qfg.joint import aligned_errors
+    from qfg.joint_start import apply_similarity
 
     ids = [int(x) for x in geometry["landmark_ids"]]
     mu = np.asarray(geometry["mean"], dtype=float).reshape(-1, 2)
@@ -256,8 +257,7 @@ def joint_map_figure(geometry: dict, dataset, *, magnify: float | None = None):
     aligned = aligned_errors(mu[ok], cov[ok], truth[ok]) if ok.sum() >= 3 else None
     paths = {}
     if aligned is not None:
-        s, R, t = aligned[3]
-        paths = {r: s * np.asarray(X, dtype=float).reshape(-1, 2) @ R.T + t
+        paths = {r: apply_similarity(np.asarray(X, dtype=float).reshape(-1, 2), aligned[3])
                  for r, X in sorted(geometry.get("paths", {}).items(), key=lambda kv: int(kv[0]))}
     # the figure's shape from everything drawn: the landmarks and the robots' paths
     ext = np.ptp(np.concatenate([truth, *paths.values()]), axis=0)
