@@ -179,8 +179,9 @@ def sweep(path, *, seed=0, samples=2000, inflates=(1, 2, 4, 9), floors=(0.0, 1e-
           min_interval=0.0):
     """Development table: one solve of a dataset (keyframes ``min_interval`` s apart or more),
     its seen and unseen triplets scored with the covariances scaled by each of ``inflates``
-    (floor 1e-3), by the robots' measured scatter about the map (``joint.overdispersion``,
-    every robot with a map, when above 1) and with each of ``floors`` (inflate 1)."""
+    (floor 1e-3), by the robots' measured scatter about the map (``joint.overdispersion`` as
+    ``solve`` measured it over the robots in the map, when above 1) and with each of ``floors``
+    (inflate 1)."""
     from qfg import joint
 
     part = get_partition("edc")
@@ -196,7 +197,7 @@ def sweep(path, *, seed=0, samples=2000, inflates=(1, 2, 4, 9), floors=(0.0, 1e-
     seen = np.array([tuple(t) in seen_idx for t in trip.tolist()])
     g = truth_states(trip, ds.landmark_xy, "edc")
     post = joint.solve(joint.mrclam_runs(ds, min_interval=min_interval), seed=seed)
-    kappa = joint.overdispersion(post, seed=seed)
+    kappa = float(post.info.get("overdispersion", np.nan))   # measured by solve, its robots
     print(f"{ds.name} (keyframes {min_interval:g} s apart or more): flags {post.flags}, robots "
           f"{post.robot_flags}, bearings dropped {post.info['outliers_dropped']}, the robots' "
           f"scatter kappa {kappa:.2f}")
