@@ -28,6 +28,13 @@ def weighted_state_errors(states, weights, groups, n_groups: int, m: int) -> np.
     >>> weighted_state_errors(s, w, np.array([0, 0, 1, 1]), 2, 2).round(4).tolist()
     [0.3536, 0.2652]
     """
+    return weighted_state_histograms(states, weights, groups, n_groups, m)[1]
+
+
+def weighted_state_histograms(states, weights, groups, n_groups: int, m: int) -> tuple:
+    """``(p, errors)``: each group's weighted state histogram ``p`` (n_groups, m) and its
+    :func:`weighted_state_errors` (n_groups,), from one pass over the samples (the histogram is
+    the delta method's mean)."""
     w = np.asarray(weights, dtype=float)
     g = np.asarray(groups, dtype=np.intp)
     cell = g * m + np.asarray(states, dtype=np.intp)
@@ -38,7 +45,7 @@ def weighted_state_errors(states, weights, groups, n_groups: int, m: int) -> np.
     tot = np.bincount(g, weights=w2, minlength=n_groups)[:, None]
     var = a * (1 - p) ** 2 + (tot - a) * p**2
     has = np.bincount(g, weights=w > 0, minlength=n_groups) > 0
-    return np.where(has, np.sqrt(var.max(axis=1, initial=0.0)), np.nan)
+    return p, np.where(has, np.sqrt(var.max(axis=1, initial=0.0)), np.nan)
 
 
 def state_histogram(part, points, weights) -> tuple[np.ndarray, bool]:

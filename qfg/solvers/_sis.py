@@ -1481,8 +1481,7 @@ def finish(state: SISState, hypotheses: bool = False):
     w = np.where(s[flat_tid] > 0, e / np.where(s > 0, s, 1.0)[flat_tid], 0.0)
     Lf = L.reshape(-1, 2)
     ls = part.state_of(Lf) if Lf.size else np.zeros(0, dtype=int)
-    lm = np.bincount(flat_tid * m + ls, weights=w, minlength=T * m).reshape(T, m)
-    mc_errors = _histograms.weighted_state_errors(ls, w, flat_tid, T, m)
+    lm, mc_errors = _histograms.weighted_state_histograms(ls, w, flat_tid, T, m)
     cw = w.reshape(-1, k).sum(axis=1) if w.size else np.zeros(0)
     cs = part.state_of(poses[..., :2]) if poses.size else np.zeros((0, n), dtype=int)
     cidx = (tid[:, None] * n + np.arange(n)) * m + cs
