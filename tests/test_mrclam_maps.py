@@ -215,16 +215,60 @@ def test_the_user_is_told_which_map_answered_and_what_it_flagged():
                     "its covariance allows (not widened: no more than it allows)"]
 
 
-def test_configuration_map_answers_every_ordered_triplet(root, tmp_path):
+def test_configuration_map_answers_every_ordered_triplet_and_is_drawn(root, tmp_path):
     out = tmp_path / "o"
     assert main(["mrclam", str(root / "MRCLAM_Dataset1"), "--map", "config-state", "--method",
-                 "fast", "--output", str(out), *FAST]) == 0
+                 "fast", "--output", str(out), *[a for a in FAST if a != "--no-figures"]]) == 0
     rows = _rows(out)
     keys = {(r["A"], r["B"], r["C"]) for r in rows}
     assert len(keys) == len(rows) and {r["map"] for r in rows} == {"config-state"}
     P = np.array([[float(x) for x in r["probabilities"].split(";")] for r in rows])
     assert np.all(np.isfinite(P)) and np.allclose(P.sum(axis=1), 1.0)
     assert all(np.isfinite(float(r["log_score"])) for r in rows)
+    assert (out / "figures" / "configuration_map.png").stat().st_size > 10_000
+    geom = _map_info(out, "config-state")["map_geometry"]
+    ids = {int(r[k]) for r in rows for k in ("A", "B", "C")}
+    assert geom["kind"] == "configurations" and set(geom["landmark_ids"]) == ids
+    S = np.asarray(geom["samples"])
+    assert S.shape[1:] == (len(ids), 2) and 0 < len(S) <= 300
+    assert len(geom["components"]) == len(ids)
+
+
+def test_the_configuration_map_figure_aligns_each_sample_onto_the_truth():
+    """By hand: every sample a random similarity of the truth, so aligned it is the truth
+    (distance 0), except landmark 5, which no seen triplet links to the others (its own
+    component) and which every sample puts 0.5 m from its truth in the truth's frame: it is left
+    out of the alignment, drawn exactly 0.5 m off and named."""
+    import types
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from qfg.harness.plotting_mrclam import configuration_map_figure
+
+    rng = np.random.default_rng(1)
+    truth = rng.uniform(0, 5, (8, 2))
+    off = truth.copy()
+    off[5] += [0.3, 0.4]
+    samples = []
+    for _ in range(40):
+        a, s, t = rng.uniform(-np.pi, np.pi), rng.uniform(0.1, 3), rng.normal(0, 2, 2)
+        R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+        samples.append(s * off @ R.T + t)
+    ds = types.SimpleNamespace(name="by hand", robots={},
+                               landmark_position=lambda ids: truth[np.asarray(ids)])
+    geom = {"kind": "configurations", "landmark_ids": list(range(8)),
+            "samples": np.array(samples).tolist(), "components": [0] * 5 + [1] + [0] * 2}
+    fig = configuration_map_figure(geom, ds)
+    note = " ".join(t.get_text() for t in fig.texts).replace("\n", " ")
+    assert "over the 7 landmarks of the largest linked group" in note
+    assert "median distance of a landmark's dots from its truth: 0.00 m" in note
+    assert "largest 5 (0.50 m)" in note and "(the prior alone places them): 5" in note
+    dots = [ln for ln in fig.axes[0].lines if ln.get_marker() == "."]
+    assert len(dots) == 8 and all(len(ln.get_xdata()) == 40 for ln in dots)
+    plt.close(fig)
 
 
 def test_method_none_with_a_map_made_from_estimates_is_refused(root, tmp_path, capsys):

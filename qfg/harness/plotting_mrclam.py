@@ -1,5 +1,5 @@
 """Figures of MRCLAM data: the landmarks and one robot's path in the world frame; a joint map
-against the ground truth.
+or a configuration map against the ground truth.
 
 Plotting is the end of the data flow: this module imports ``qfg.datasets.mrclam``; nothing in the
 data path imports it.
@@ -15,7 +15,7 @@ import numpy as np
 from qfg.datasets import mrclam as _mrclam
 
 __all__ = ["draw_dataset", "dataset_figure", "reliability_figure", "curve_figure",
-           "maps_figure", "joint_map_figure"]
+           "maps_figure", "joint_map_figure", "configuration_map_figure"]
 
 
 def draw_dataset(dataset, robot, ax=None, *, history=None, time_range=None,
@@ -326,6 +326,60 @@ def joint_map_figure(geometry: dict, dataset, *, magnify: float | None = None):
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
     ax.set_title(f"{dataset.name}: the joint map in the ground truth's frame (best similarity)",
                  fontsize=10)
+    fig.text(0.02, 0.01, "\n".join(textwrap.wrap(note, 150)), fontsize=7, va="bottom",
+             ha="left")
+    fig.tight_layout(rect=(0, 0.05, 1, 1))
+    return fig
+
+
+def configuration_map_figure(geometry: dict, dataset):
+    """A configuration map (``geometry``: :func:`qfg.harness.studies.mrclam_maps.
+    configuration_geometry`) against the dataset's ground truth. Each sampled configuration is
+    moved onto the truth by its best similarity over the landmarks of the largest linked group
+    (a configuration's states do not change under position, rotation and scale) and its
+    landmarks are drawn as dots, one colour per landmark, about their true positions (+): a
+    sharp and right map puts each landmark's dots in a tight cloud on its +, a tight cloud off
+    its + is a landmark the map places wrongly and confidently. Landmarks outside the largest
+    group are drawn aligned the same way (only the prior places them relative to it) and named
+    in the note, with each landmark's median distance from its truth. Returns the figure."""
+    from qfg.joint_start import apply_similarity, similarity
+
+    ids = [int(x) for x in geometry["landmark_ids"]]
+    X = np.asarray(geometry["samples"], dtype=float).reshape(-1, len(ids), 2)
+    comp = np.asarray(geometry.get("components", [0] * len(ids)), dtype=int)
+    truth = dataset.landmark_position(ids)
+    main = comp == np.bincount(comp).argmax()
+    fig, ax = plt.subplots(figsize=(11.0, 8.5))
+    note = "fewer than 3 linked landmarks: nothing to align"
+    if main.sum() >= 3 and len(X):
+        A = apply_similarity(X, similarity(X[:, main], truth[main][None]))      # (S, L, 2)
+        dist = np.median(np.hypot(*(A - truth[None]).transpose(2, 0, 1)), axis=0)  # (L,)
+        colours = plt.get_cmap("tab20")(np.arange(len(ids)) % 20)
+        for j, lid in enumerate(ids):
+            ax.plot(A[:, j, 0], A[:, j, 1], ".", ms=2.5, alpha=0.35, color=colours[j],
+                    zorder=2, label=f"landmark {lid}: {dist[j]:.2f} m")
+        worst = np.argsort(-dist)[:3]
+        span = float(np.ptp(truth, axis=0).max())
+        note = (f"{len(X)} sampled configurations, each moved onto the ground truth by its best "
+                f"similarity over the {int(main.sum())} landmarks of the largest linked group; "
+                f"median distance of a landmark's dots from its truth: {np.median(dist):.2f} m "
+                f"over the landmarks (the arena spans {span:.1f} m), largest "
+                + ", ".join(f"{ids[j]} ({dist[j]:.2f} m)" for j in worst))
+        if not main.all():
+            note += ("; not linked to that group by any seen triplet (the prior alone places "
+                     "them): " + ", ".join(str(i) for i, k in zip(ids, main, strict=True)
+                                            if not k))
+    ax.plot(truth[:, 0], truth[:, 1], "k+", ms=10, mew=1.6, zorder=4,
+            label="landmarks (ground truth)")
+    for lid, (x, y) in zip(ids, truth, strict=True):
+        ax.annotate(str(lid), (x, y), xytext=(6, 6), textcoords="offset points", fontsize=8,
+                    zorder=5)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, markerscale=4)
+    ax.set_title(f"{dataset.name}: the configuration map's samples in the ground truth's frame "
+                 "(best similarity)", fontsize=10)
     fig.text(0.02, 0.01, "\n".join(textwrap.wrap(note, 150)), fontsize=7, va="bottom",
              ha="left")
     fig.tight_layout(rect=(0, 0.05, 1, 1))

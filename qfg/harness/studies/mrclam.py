@@ -1222,8 +1222,9 @@ def write_outputs(outdir, rows: list[dict], *, figures: bool = True, figure_robo
 def make_figures(outdir: Path, rows: list[dict], *, details=None, robot=None) -> list[Path]:
     """Reliability (calibration) figures of each mode's seen, propagated and camera rows, one
     robot's path with the views of the seen triplet with most views (first dataset) and, for a
-    joint map, the map against the ground truth (``joint_map``)."""
-    from qfg.harness.plotting_mrclam import joint_map_figure, reliability_figure
+    joint map or a configuration map, the map against the ground truth (``joint_map``,
+    ``configuration_map``)."""
+    from qfg.harness.plotting_mrclam import configuration_map_figure, joint_map_figure, reliability_figure
 
     paths = []
     for mode in sorted({r["mode"] for r in rows}):
@@ -1238,7 +1239,10 @@ def make_figures(outdir: Path, rows: list[dict], *, details=None, robot=None) ->
             paths.append(save_figure(fig, outdir, f"reliability_{mode}"))
     paths += _path_figure(outdir, rows, details, robot)
     geom = dict(getattr((details or {}).get("map"), "info", None) or {}).get("map_geometry")
-    if geom:
+    if geom and geom.get("kind") == "configurations":
+        paths.append(save_figure(configuration_map_figure(geom, details["dataset"]), outdir,
+                                 "configuration_map"))
+    elif geom:
         paths.append(save_figure(joint_map_figure(geom, details["dataset"]), outdir,
                                  "joint_map"))
     return paths

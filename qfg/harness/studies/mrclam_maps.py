@@ -43,7 +43,7 @@ import numpy as np
 __all__ = ["SeenEstimates", "MapResult", "MapMethod", "MAP_METHODS", "register", "get",
            "inputs_digest", "save_map", "load_map", "save_seen", "map_pooled", "map_best",
            "map_seen", "map_configurations", "map_configurations_metric", "state_evidence",
-           "metric_evidence",
+           "metric_evidence", "configuration_geometry",
            "map_seen_configurations", "map_seen_prior", "map_joint", "joint_answer", "joint_of",
            "joint_why",
            "JOINT_FALLBACK", "DEFAULT_MAP"]
@@ -304,8 +304,30 @@ def _configuration_map(seen: SeenEstimates, evidence: dict, likelihood: str) -> 
     if chk is not None:
         info["check_widen"] = chk.widen
         info["check_mean_log_cpo"] = float(np.mean(chk.log_cpo)) if chk.log_cpo.size else 0.0
+    info["map_geometry"] = configuration_geometry(res.info["configurations"],
+                                                  seen.dataset.landmark_ids, seed=seen.seed)
     return MapResult(triplets=wanted, probabilities=np.asarray(res.probabilities, dtype=float),
                      seen=is_seen, reached=~is_seen, info={"likelihood": likelihood, **info})
+
+
+def configuration_geometry(post, landmark_ids, *, samples: int = 300, seed: int = 0) -> dict:
+    """What a figure of a configuration map needs, JSON-able (recorded with the map): the
+    landmarks' ids (``landmark_ids[i]`` for the posterior's landmark index ``i``), ``samples``
+    of its configurations (S, L, 2) in the prior's box (drawn without replacement from the
+    particles, which are equally weighted after the final resampling) and each landmark's
+    connected component of the evidence (:meth:`qfg.configurations.ConfigurationPosterior.
+    components`: landmarks in different components are placed by the prior alone relative to
+    each other)."""
+    ids = np.asarray(landmark_ids)
+    X = np.asarray(post.positions, dtype=float)
+    w = np.asarray(post.weights, dtype=float)
+    rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(7,)))
+    pick = rng.choice(len(X), size=min(int(samples), len(X)), replace=False,
+                      p=w / w.sum() if not np.allclose(w, w[0]) else None)
+    return {"kind": "configurations",
+            "landmark_ids": [int(ids[int(i)]) for i in post.landmarks],
+            "samples": np.round(X[np.sort(pick)], 4).tolist(),
+            "components": [int(c) for c in post.components()]}
 
 
 def map_configurations_metric(seen: SeenEstimates) -> MapResult:
