@@ -232,6 +232,13 @@ def _nice_factor(x: float) -> float:
     return float(next(m * e for m in (1, 2, 5, 10) if m * e >= x))
 
 
+def _map_size(points) -> tuple:
+    """A map figure's size (inches) for ``points`` (n, 2) drawn at equal aspect, with room for
+    the legend on the right: 9 inches tall, as wide as their extent asks within 8-15."""
+    ext = np.ptp(np.asarray(points, dtype=float), axis=0)
+    return float(np.clip(8.5 * ext[0] / max(ext[1], 1e-9) + 4.5, 8.0, 15.0)), 9.0
+
+
 def joint_map_figure(geometry: dict, dataset, *, magnify: float | None = None):
     """A joint map (``geometry``: :func:`qfg.harness.studies.mrclam_maps.joint_geometry`)
     against the dataset's ground truth. The map is drawn in the ground truth's frame by the
@@ -260,9 +267,7 @@ def joint_map_figure(geometry: dict, dataset, *, magnify: float | None = None):
         paths = {r: apply_similarity(np.asarray(X, dtype=float).reshape(-1, 2), aligned[3])
                  for r, X in sorted(geometry.get("paths", {}).items(), key=lambda kv: int(kv[0]))}
     # the figure's shape from everything drawn: the landmarks and the robots' paths
-    ext = np.ptp(np.concatenate([truth, *paths.values()]), axis=0)
-    fig, ax = plt.subplots(figsize=(float(np.clip(8.5 * ext[0] / max(ext[1], 1e-9) + 4.5,
-                                                  8.0, 15.0)), 9.0))
+    fig, ax = plt.subplots(figsize=_map_size(np.concatenate([truth, *paths.values()])))
     ax.plot(truth[:, 0], truth[:, 1], "k+", ms=9, mew=1.5, zorder=4,
             label="landmarks (ground truth)")
     for lid, (x, y) in zip(ids, truth, strict=True):
@@ -349,7 +354,7 @@ def configuration_map_figure(geometry: dict, dataset):
     comp = np.asarray(geometry.get("components", [0] * len(ids)), dtype=int)
     truth = dataset.landmark_position(ids)
     main = comp == np.bincount(comp).argmax()
-    fig, ax = plt.subplots(figsize=(11.0, 8.5))
+    fig, ax = plt.subplots(figsize=_map_size(truth))
     note = "fewer than 3 linked landmarks: nothing to align"
     if main.sum() >= 3 and len(X):
         A = apply_similarity(X, similarity(X[:, main], truth[main][None]))      # (S, L, 2)
@@ -357,7 +362,9 @@ def configuration_map_figure(geometry: dict, dataset):
         colours = plt.get_cmap("tab20")(np.arange(len(ids)) % 20)
         for j, lid in enumerate(ids):
             ax.plot(A[:, j, 0], A[:, j, 1], ".", ms=2.5, alpha=0.35, color=colours[j],
-                    zorder=2, label=f"landmark {lid}: {dist[j]:.2f} m")
+                    zorder=2)
+            ax.plot([], [], ".", ms=9, color=colours[j],
+                    label=f"landmark {lid}: {dist[j]:.2f} m from its truth")
         worst = np.argsort(-dist)[:3]
         span = float(np.ptp(truth, axis=0).max())
         note = (f"{len(X)} sampled configurations, each moved onto the ground truth by its best "
@@ -377,7 +384,7 @@ def configuration_map_figure(geometry: dict, dataset):
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, markerscale=4)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
     ax.set_title(f"{dataset.name}: the configuration map's samples in the ground truth's frame "
                  "(best similarity)", fontsize=10)
     fig.text(0.02, 0.01, "\n".join(textwrap.wrap(note, 150)), fontsize=7, va="bottom",
