@@ -234,6 +234,25 @@ def test_configuration_map_answers_every_ordered_triplet_and_is_drawn(root, tmp_
     assert len(geom["components"]) == len(ids)
 
 
+def test_configuration_geometry_draws_distinct_particles_or_by_weight():
+    """Equal weights: distinct particles, ids through the posterior's landmark indices; all the
+    weight on one particle: every sample is that particle."""
+    import types
+
+    X = np.arange(50 * 3 * 2, dtype=float).reshape(50, 3, 2)
+    post = types.SimpleNamespace(positions=X, weights=np.full(50, 0.02), landmarks=(2, 0, 1),
+                                 components=lambda: np.array([0, 0, 1]))
+    g = mrclam_maps.configuration_geometry(post, np.array([11, 12, 13]), samples=20, seed=3)
+    S = np.asarray(g["samples"])
+    assert S.shape == (20, 3, 2) and len({tuple(x.ravel()) for x in S}) == 20
+    assert g["landmark_ids"] == [13, 11, 12] and g["components"] == [0, 0, 1]
+    w = np.zeros(50)
+    w[7] = 1.0
+    g = mrclam_maps.configuration_geometry(types.SimpleNamespace(**{**vars(post), "weights": w}),
+                                           np.array([11, 12, 13]), samples=20, seed=3)
+    assert np.array_equal(np.asarray(g["samples"]), np.repeat(X[7:8], 20, axis=0))
+
+
 def test_the_configuration_map_figure_aligns_each_sample_onto_the_truth():
     """By hand: every sample a random similarity of the truth, so aligned it is the truth
     (distance 0), except landmark 5, which no seen triplet links to the others (its own

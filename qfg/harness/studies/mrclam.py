@@ -1224,7 +1224,11 @@ def make_figures(outdir: Path, rows: list[dict], *, details=None, robot=None) ->
     robot's path with the views of the seen triplet with most views (first dataset) and, for a
     joint map or a configuration map, the map against the ground truth (``joint_map``,
     ``configuration_map``)."""
-    from qfg.harness.plotting_mrclam import configuration_map_figure, joint_map_figure, reliability_figure
+    from qfg.harness.plotting_mrclam import (
+        configuration_map_figure,
+        joint_map_figure,
+        reliability_figure,
+    )
 
     paths = []
     for mode in sorted({r["mode"] for r in rows}):

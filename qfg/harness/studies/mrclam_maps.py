@@ -314,16 +314,18 @@ def configuration_geometry(post, landmark_ids, *, samples: int = 300, seed: int 
     """What a figure of a configuration map needs, JSON-able (recorded with the map): the
     landmarks' ids (``landmark_ids[i]`` for the posterior's landmark index ``i``), ``samples``
     of its configurations (S, L, 2) in the prior's box (drawn without replacement from the
-    particles, which are equally weighted after the final resampling) and each landmark's
-    connected component of the evidence (:meth:`qfg.configurations.ConfigurationPosterior.
-    components`: landmarks in different components are placed by the prior alone relative to
-    each other)."""
+    particles when they are equally weighted, as after the final resampling, else by weight)
+    and each landmark's connected component of the evidence (:meth:`qfg.configurations.
+    ConfigurationPosterior.components`: landmarks in different components are placed by the
+    prior alone relative to each other)."""
     ids = np.asarray(landmark_ids)
     X = np.asarray(post.positions, dtype=float)
     w = np.asarray(post.weights, dtype=float)
     rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(7,)))
-    pick = rng.choice(len(X), size=min(int(samples), len(X)), replace=False,
-                      p=w / w.sum() if not np.allclose(w, w[0]) else None)
+    if np.allclose(w, w[0]):
+        pick = rng.choice(len(X), size=min(int(samples), len(X)), replace=False)
+    else:   # weighted particles (not resampled): draws by weight, repeats allowed
+        pick = rng.choice(len(X), size=int(samples), replace=True, p=w / w.sum())
     return {"kind": "configurations",
             "landmark_ids": [int(ids[int(i)]) for i in post.landmarks],
             "samples": np.round(X[np.sort(pick)], 4).tolist(),
