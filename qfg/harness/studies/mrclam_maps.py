@@ -501,11 +501,14 @@ def map_seen(seen: SeenEstimates) -> MapResult:
                      seen=np.ones(s, bool), reached=np.zeros(s, bool))
 
 
-register("pooled", map_pooled, "full map, unseen triplets by pooled composition (default)")
+register("pooled", map_pooled, "full map, unseen triplets by pooled composition (the paper's "
+         "pipeline with the pooled rule)")
 register("best", map_best, "full map, unseen triplets by the paper's Algorithm 2")
 register("seen", map_seen, "the seen triplets alone (no map)")
 register("config-state", map_configurations,
-         "every triplet by configuration inference over the seen estimates (qfg.configurations)",
+         "every triplet by configuration inference over the seen estimates (qfg.configurations; "
+         "it shares their systematic errors and can be confidently wrong where they agree on a "
+         "wrong configuration, as on MRCLAM datasets 2 and 5: docs/configurations.md)",
          whole_configurations=True)
 register("config-metric", map_configurations_metric,
          "every triplet by configuration inference over the seen sets' summaries of C's "
