@@ -288,6 +288,25 @@ def test_the_configuration_map_figure_aligns_each_sample_onto_the_truth():
     dots = [ln for ln in fig.axes[0].lines if ln.get_marker() == "." and len(ln.get_xdata())]
     assert len(dots) == 8 and all(len(ln.get_xdata()) == 40 for ln in dots)
     plt.close(fig)
+    # samples that scatter about the truth (sd 0.3 of its rms radius, then a random similarity)
+    # are drawn about the truth, not shrunk toward its centre: each cloud's mean within 0.1 of
+    # the radius of its truth, and the clouds as wide as the truth (a least-squares scale would
+    # shrink them by about 1 / (1 + 2 x 0.3^2) = 0.85)
+    T = truth[:7]
+    rad = np.sqrt(np.mean(np.sum((T - T.mean(0)) ** 2, axis=1)))
+    samples = []
+    for _ in range(400):
+        a, s, t = rng.uniform(-np.pi, np.pi), rng.uniform(0.1, 3), rng.normal(0, 2, 2)
+        R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+        samples.append(s * (T + rng.normal(0, 0.3 * rad, T.shape)) @ R.T + t)
+    ds7 = types.SimpleNamespace(name="by hand", robots={},
+                                landmark_position=lambda ids: T[np.asarray(ids)])
+    fig = configuration_map_figure({"kind": "configurations", "landmark_ids": list(range(7)),
+                                    "samples": np.array(samples).tolist()}, ds7)
+    dots = [ln for ln in fig.axes[0].lines if ln.get_marker() == "." and len(ln.get_xdata())]
+    centre = np.array([[np.mean(ln.get_xdata()), np.mean(ln.get_ydata())] for ln in dots])
+    assert np.max(np.hypot(*(centre - T).T)) < 0.1 * rad
+    plt.close(fig)
 
 
 def test_method_none_with_a_map_made_from_estimates_is_refused(root, tmp_path, capsys):

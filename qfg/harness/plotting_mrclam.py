@@ -340,8 +340,9 @@ def joint_map_figure(geometry: dict, dataset, *, magnify: float | None = None):
 def configuration_map_figure(geometry: dict, dataset):
     """A configuration map (``geometry``: :func:`qfg.harness.studies.mrclam_maps.
     configuration_geometry`) against the dataset's ground truth. Each sampled configuration is
-    moved onto the truth by its best similarity over the landmarks of the largest linked group
-    (a configuration's states do not change under position, rotation and scale) and its
+    scaled to the truth's rms radius and turned and moved onto it by least squares, over the
+    landmarks of the largest linked group (a configuration's states do not change under
+    position, rotation and scale), and its
     landmarks are drawn as dots, one colour per landmark, about their true positions (+): a
     sharp and right map puts each landmark's dots in a tight cloud on its +, a tight cloud off
     its + is a landmark the map places wrongly and confidently. Landmarks outside the largest
@@ -357,7 +358,17 @@ def configuration_map_figure(geometry: dict, dataset):
     fig, ax = plt.subplots(figsize=_map_size(truth))
     note = "fewer than 3 linked landmarks: nothing to align"
     if main.sum() >= 3 and len(X):
-        A = apply_similarity(X, similarity(X[:, main], truth[main][None]))      # (S, L, 2)
+        # each sample scaled to the truth's rms radius over the group, then turned and moved
+        # onto it by least squares: a least-squares scale regresses toward 0 when the samples
+        # scatter (and collapses a sample unlike the truth onto its centroid), which would draw
+        # a vague map as a shrunken one
+        c = X[:, main].mean(axis=1, keepdims=True)
+        rx = np.sqrt(np.mean(np.sum((X[:, main] - c) ** 2, axis=-1), axis=-1))
+        T0 = truth[main] - truth[main].mean(axis=0)
+        scale = np.sqrt(np.mean(np.sum(T0 ** 2, axis=-1))) / np.maximum(rx, 1e-12)
+        Xs = (X - c) * scale[:, None, None]
+        _, R, t = similarity(Xs[:, main], truth[main][None], scale=False)
+        A = apply_similarity(Xs, (np.ones(len(X)), R, t))                      # (S, L, 2)
         dist = np.median(np.hypot(*(A - truth[None]).transpose(2, 0, 1)), axis=0)  # (L,)
         colours = plt.get_cmap("tab20")(np.arange(len(ids)) % 20)
         for j, lid in enumerate(ids):
@@ -367,8 +378,9 @@ def configuration_map_figure(geometry: dict, dataset):
                     label=f"landmark {lid}: {dist[j]:.2f} m from its truth")
         worst = np.argsort(-dist)[:3]
         span = float(np.ptp(truth, axis=0).max())
-        note = (f"{len(X)} sampled configurations, each moved onto the ground truth by its best "
-                f"similarity over the {int(main.sum())} landmarks of the largest linked group; "
+        note = (f"{len(X)} sampled configurations, each scaled to the ground truth's size and "
+                f"turned and moved onto it over the {int(main.sum())} landmarks of the largest "
+                f"linked group; "
                 f"median distance of a landmark's dots from its truth: {np.median(dist):.2f} m "
                 f"over the landmarks (the arena spans {span:.1f} m), largest "
                 + ", ".join(f"{ids[j]} ({dist[j]:.2f} m)" for j in worst))
@@ -385,8 +397,8 @@ def configuration_map_figure(geometry: dict, dataset):
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
-    ax.set_title(f"{dataset.name}: the configuration map's samples in the ground truth's frame "
-                 "(best similarity)", fontsize=10)
+    ax.set_title(f"{dataset.name}: the configuration map's samples in the ground truth's frame",
+                 fontsize=10)
     fig.text(0.02, 0.01, "\n".join(textwrap.wrap(note, 150)), fontsize=7, va="bottom",
              ha="left")
     fig.tight_layout(rect=(0, 0.05, 1, 1))
