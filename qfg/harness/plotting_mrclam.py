@@ -239,6 +239,20 @@ def _map_size(points) -> tuple:
     return float(np.clip(8.5 * ext[0] / max(ext[1], 1e-9) + 4.5, 8.0, 15.0)), 9.0
 
 
+def _finish_map(fig, ax, title: str, note: str):
+    """A map figure's common end: equal axes in metres, the legend on the right, the title and
+    the note under the axes."""
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
+    ax.set_title(title, fontsize=10)
+    fig.text(0.02, 0.01, "\n".join(textwrap.wrap(note, 150)), fontsize=7, va="bottom",
+             ha="left")
+    fig.tight_layout(rect=(0, 0.05, 1, 1))
+    return fig
+
+
 def joint_map_figure(geometry: dict, dataset, *, magnify: float | None = None):
     """A joint map (``geometry``: :func:`qfg.harness.studies.mrclam_maps.joint_geometry`)
     against the dataset's ground truth. The map is drawn in the ground truth's frame by the
@@ -325,16 +339,8 @@ def joint_map_figure(geometry: dict, dataset, *, magnify: float | None = None):
         note += "; robots left out of the map: " + ", ".join(out)
     ax.plot([], [], "-", color="tab:green", label="error and 95 % ellipse: truth inside")
     ax.plot([], [], "-", color="tab:red", label="truth outside")
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
-    ax.set_title(f"{dataset.name}: the joint map in the ground truth's frame (best similarity)",
-                 fontsize=10)
-    fig.text(0.02, 0.01, "\n".join(textwrap.wrap(note, 150)), fontsize=7, va="bottom",
-             ha="left")
-    fig.tight_layout(rect=(0, 0.05, 1, 1))
-    return fig
+    return _finish_map(fig, ax, f"{dataset.name}: the joint map in the ground truth's frame (best "
+                       "similarity)", note)
 
 
 def configuration_map_figure(geometry: dict, dataset):
@@ -393,13 +399,5 @@ def configuration_map_figure(geometry: dict, dataset):
     for lid, (x, y) in zip(ids, truth, strict=True):
         ax.annotate(str(lid), (x, y), xytext=(6, 6), textcoords="offset points", fontsize=8,
                     zorder=5)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
-    ax.set_title(f"{dataset.name}: the configuration map's samples in the ground truth's frame",
-                 fontsize=10)
-    fig.text(0.02, 0.01, "\n".join(textwrap.wrap(note, 150)), fontsize=7, va="bottom",
-             ha="left")
-    fig.tight_layout(rect=(0, 0.05, 1, 1))
-    return fig
+    return _finish_map(fig, ax, f"{dataset.name}: the configuration map's samples in the ground "
+                       "truth's frame", note)
