@@ -32,8 +32,13 @@ import time
 from pathlib import Path
 
 import numpy as np
+from scipy.special import logsumexp
 
-from qfg.configurations import CHECK_GRID, configuration_marginals, infer_configurations
+from qfg.configurations import (
+    configuration_marginals,
+    infer_configurations,
+    prior_mixing_weight,
+)
 from qfg.graph import truth_states
 from qfg.harness.studies import mrclam as study
 from qfg.harness.studies import mrclam_maps as maps
@@ -62,9 +67,7 @@ def predictive_ordinates(post, evidence, seed=0):
     have = np.array([all(x in col for x in t) for t in terms.evidence])
     order = [col.get(lm, 0) for lm in terms.landmarks]
     ll = terms.log_likelihoods(post.positions[:, order])[have]           # (T, P)
-    w = np.asarray(post.weights, float)
-    mx = ll.max(axis=1, keepdims=True)
-    log_m = mx[:, 0] + np.log(np.exp(ll - mx) @ w)
+    log_m = logsumexp(ll, axis=1, b=np.asarray(post.weights, float)[None])
     return [t for t, h in zip(terms.evidence, have, strict=True) if h], log_m
 
 
@@ -97,9 +100,7 @@ def main(argv=None) -> int:
                                       check=maps.CONFIG_CHECK, **maps.CONFIG_OPTIONS)
         trips, log_m = predictive_ordinates(res.info["configurations"], ev_r, a.seed)
         only = np.array([t not in ev_o for t in trips], bool)
-        m = np.exp(log_m)
-        score = np.mean(np.log((1 - CHECK_GRID[:, None]) * m[None] + CHECK_GRID[:, None]), axis=1)
-        lam = float(CHECK_GRID[int(np.argmax(score))])
+        lam, _ = prior_mixing_weight(log_m)
         rows = {t: i for i, t in enumerate(res.triplets)}
         T = np.array([rows[t] for t in trips], dtype=np.intp)
         truth = truth_states(np.array(trips, dtype=np.intp).reshape(-1, 3), ds.landmark_xy,

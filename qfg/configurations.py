@@ -62,7 +62,7 @@ from ._validate import as_float_array, as_rng, non_negative, positive_int
 
 __all__ = ["PositionSummary", "summarize_position", "combine_positions", "ConfigurationPosterior",
            "infer_configurations", "configuration_marginals", "prior_states",
-           "one_ordering_per_set", "LeaveOneOutCheck", "CHECK_GRID", "LIKELIHOODS",
+           "one_ordering_per_set", "LeaveOneOutCheck", "CHECK_GRID", "prior_mixing_weight", "LIKELIHOODS",
            "DEFAULTS", "NotSettledWarning", "UNSETTLED_ERROR", "UNSETTLED_SHARE"]
 
 #: Likelihood kinds of :func:`infer_configurations`.
@@ -988,6 +988,25 @@ class LeaveOneOutCheck:
 CHECK_GRID = np.linspace(0.0, 1.0, 101)
 
 
+def prior_mixing_weight(log_m) -> tuple:
+    """``(lam, (mean log m, the mean at lam))``: the weight ``lam`` of :data:`CHECK_GRID` that
+    maximizes ``mean_t log((1 - lam) m_t + lam)``, for predictive ordinates ``log_m`` (T,) of
+    evidence relative to the prior's (:meth:`ConfigurationPosterior.loo_check`): the share of the
+    prior a mixture needs to predict the evidence best (0 when it predicts it at least as well
+    as the prior does on average).
+
+    >>> lam, _ = prior_mixing_weight(np.log([2.0, 3.0]))
+    >>> lam
+    0.0
+    >>> prior_mixing_weight(np.log([1e-3, 1e-3]))[0]
+    1.0
+    """
+    m = np.exp(np.asarray(log_m, dtype=float))
+    score = np.mean(np.log((1.0 - CHECK_GRID[:, None]) * m[None] + CHECK_GRID[:, None]), axis=1)
+    k = int(np.argmax(score))
+    return float(CHECK_GRID[k]), (float(score[0]), float(score[k]))
+
+
 class ConfigurationPosterior:
     """Weighted samples of the landmarks' world positions given the seen triplets' evidence.
 
@@ -1254,12 +1273,8 @@ class ConfigurationPosterior:
             neg = -ll
             mx = neg.max(axis=1, keepdims=True)
             log_cpo[idx] = -(mx[:, 0] + np.log(np.exp(neg - mx) @ w))
-        m = np.exp(log_cpo)
-        score = np.mean(np.log((1.0 - CHECK_GRID[:, None]) * m[None] + CHECK_GRID[:, None]),
-                        axis=1)
-        k = int(np.argmax(score))
-        return LeaveOneOutCheck(tuple(t.triplets), log_cpo, float(CHECK_GRID[k]),
-                                (float(score[0]), float(score[k])))
+        lam, agreement = prior_mixing_weight(log_cpo)
+        return LeaveOneOutCheck(tuple(t.triplets), log_cpo, lam, agreement)
 
     def update(self, evidence, *, seed=None, landmarks=(), ess=None) -> "ConfigurationPosterior":
         """A new posterior with more evidence, tempered in from these particles (cheaper than a

@@ -253,6 +253,13 @@ def test_configuration_geometry_draws_distinct_particles_or_by_weight():
     assert np.array_equal(np.asarray(g["samples"]), np.repeat(X[7:8], 20, axis=0))
 
 
+def _random_similarity(rng, X):
+    """``X`` (n, 2) turned, scaled and moved at random (a configuration's gauge)."""
+    a, s, t = rng.uniform(-np.pi, np.pi), rng.uniform(0.1, 3), rng.normal(0, 2, 2)
+    R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    return s * X @ R.T + t
+
+
 def test_the_configuration_map_figure_aligns_each_sample_onto_the_truth():
     """By hand: every sample a random similarity of the truth, so aligned it is the truth
     (distance 0), except landmark 5, which no seen triplet links to the others (its own
@@ -271,11 +278,7 @@ def test_the_configuration_map_figure_aligns_each_sample_onto_the_truth():
     truth = rng.uniform(0, 5, (8, 2))
     off = truth.copy()
     off[5] += [0.3, 0.4]
-    samples = []
-    for _ in range(40):
-        a, s, t = rng.uniform(-np.pi, np.pi), rng.uniform(0.1, 3), rng.normal(0, 2, 2)
-        R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
-        samples.append(s * off @ R.T + t)
+    samples = [_random_similarity(rng, off) for _ in range(40)]
     ds = types.SimpleNamespace(name="by hand", robots={},
                                landmark_position=lambda ids: truth[np.asarray(ids)])
     geom = {"kind": "configurations", "landmark_ids": list(range(8)),
@@ -294,11 +297,8 @@ def test_the_configuration_map_figure_aligns_each_sample_onto_the_truth():
     # shrink them by about 1 / (1 + 2 x 0.3^2) = 0.85)
     T = truth[:7]
     rad = np.sqrt(np.mean(np.sum((T - T.mean(0)) ** 2, axis=1)))
-    samples = []
-    for _ in range(400):
-        a, s, t = rng.uniform(-np.pi, np.pi), rng.uniform(0.1, 3), rng.normal(0, 2, 2)
-        R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
-        samples.append(s * (T + rng.normal(0, 0.3 * rad, T.shape)) @ R.T + t)
+    samples = [_random_similarity(rng, T + rng.normal(0, 0.3 * rad, T.shape))
+               for _ in range(400)]
     ds7 = types.SimpleNamespace(name="by hand", robots={},
                                 landmark_position=lambda ids: T[np.asarray(ids)])
     fig = configuration_map_figure({"kind": "configurations", "landmark_ids": list(range(7)),
