@@ -70,6 +70,8 @@ def _refused(capsys, argv, *words):
     (["--max-views", "1"], "--max-views"), (["--max-views", "-2"], "--max-views"),
     (["--spread-views", "1"], "--spread-views"),
     (["--sigma-distance-ratio", "-1"], "--sigma-distance-ratio"),
+    (["--sigma-bearing-deg", "-0.5"], "--sigma-bearing-deg"),
+    (["--sigma-heading-deg", "nan"], "--sigma-heading-deg"),
     (["--curve", "3,x"], "--curve"), (["--curve", "3,-1"], "--curve"),
     (["--piece-size", "0"], "--piece-size"),
     (["--tensor", "/no/such/tensor.npz"], "--tensor"),

@@ -398,3 +398,26 @@ def test_bearing_calibration_reaches_the_histories_and_the_map(data):
     assert not np.allclose(rd.view_bearings[rd0.visible], rd0.view_bearings[rd0.visible])
     with pytest.raises(ValueError, match="bearing_calibration: expected one of"):
         study.prepare_run(p, robots=[1], bearing_calibration="fitted")
+
+
+def test_sigma_options_reach_the_histories_from_the_command_line(data):
+    # `qfg mrclam --sigma-bearing-deg / --sigma-heading-deg` -> the run's parameters -> every
+    # history's sigmas (the bearing tail's core would otherwise set the bearing sigma)
+    import argparse
+
+    from qfg.harness.commands import mrclam as cmd
+
+    p = data / "MRCLAM_Dataset1"
+    ap = argparse.ArgumentParser()
+    cmd.register(ap.add_subparsers())
+    args = ap.parse_args(["mrclam", str(p), "--robots", "1", "--bearing-tail", "measured",
+                          "--sigma-bearing-deg", "0.5", "--sigma-heading-deg", "2.2"])
+    params = cmd.check_options(args)
+    assert (params["sigma_bearing_deg"], params["sigma_heading_deg"]) == (0.5, 2.2)
+    prep = study.prepare_run(p, robots=[1], bearing_tail="measured",
+                             sigma_bearing_deg=params["sigma_bearing_deg"],
+                             sigma_heading_deg=params["sigma_heading_deg"])
+    assert prep.histories
+    for _, h in prep.histories:
+        assert np.isclose(h.sigma_bearing, np.deg2rad(0.5))
+        assert np.allclose(h.sigma_heading, np.deg2rad(2.2))

@@ -105,6 +105,12 @@ def register(sub):
     p.add_argument("--distances", action=argparse.BooleanOptionalAction, default=True,
                    help="use the odometry's travelled distances (a factor on ratios of "
                         "consecutive step lengths; default on: seen triplets of dataset 6 -1.16 vs -1.21)")
+    p.add_argument("--sigma-bearing-deg", type=float, default=0.0,
+                   help="bearing sigma the solvers assume, degrees (default 0: the loader's "
+                        "0.66, measured on dataset 6; with a bearing tail, its core)")
+    p.add_argument("--sigma-heading-deg", type=float, default=0.0,
+                   help="odometry heading sigma the solvers assume, degrees (default 0: the "
+                        "loader's 1.57, measured on dataset 6; docs/mrclam.md)")
     p.add_argument("--sigma-distance-ratio", type=float, default=0.0,
                    help="noise of their log ratio (default 0: the loader's 0.074)")
     p.add_argument("--bearing-tail", default="normal", choices=("normal", "measured",
@@ -311,7 +317,8 @@ def check_options(args) -> dict:
         "max_gap": _number(args, "--max-gap", lo=0.0, lo_open=True),
         "max_views": _views(args, "--max-views"),
         "spread_views": _views(args, "--spread-views"),
-        "sigma_bearing_deg": 0.0, "sigma_heading_deg": 0.0,
+        "sigma_bearing_deg": _number(args, "--sigma-bearing-deg", lo=0.0),
+        "sigma_heading_deg": _number(args, "--sigma-heading-deg", lo=0.0),
         "distances": bool(args.distances),
         "sigma_distance_ratio": _number(args, "--sigma-distance-ratio", lo=0.0),
         "piece": int(args.piece_size), "seed": int(args.seed),
