@@ -78,7 +78,8 @@ if TYPE_CHECKING:
 
 __all__ = ["RobotRun", "JointMeasurements", "Mode", "JointPosterior", "solve",
            "sample_landmarks", "triplet_marginals", "camera_marginals", "odometry_steps",
-           "mrclam_runs", "mrclam_marginals", "MRCLAMJoint", "simulated_measurements",
+           "mrclam_runs", "mrclam_reference", "mrclam_marginals", "MRCLAMJoint",
+           "simulated_measurements",
            "reference_samples", "ab_frame_moments", "ab_frame_z2", "landmark_moments",
            "aligned_errors", "overdispersion", "scale_covariance",
            "ODOMETRY_NOISE", "FLOOR", "OUTLIER", "KINEMATIC_INFLATE", "OVERDISPERSED"]
@@ -1276,6 +1277,55 @@ def mrclam_runs(dataset, robots=None, *, min_move: float = 0.02, min_turn_deg: f
     if not runs:
         raise ValueError(f"dataset: {dataset.name} has no robot with landmark views")
     return JointMeasurements(tuple(runs), tuple(int(x) for x in dataset.landmark_ids))
+
+
+def mrclam_reference(dataset, posterior: JointPosterior, measurements: JointMeasurements, *,
+                     align: bool = False):
+    """A copy of ``dataset`` whose ground truth is the joint map: the landmarks at the map's
+    points (its best mode) and each solved robot's ``groundtruth`` its map poses at the
+    measurement times of its kept views, so that :func:`qfg.datasets.mrclam.measure_noise`
+    measures the noise against the map where there is no motion capture (datasets 1-5).
+
+    Robots the map did not solve (flags other than ``"ok"`` and ``"kinematic"``, or NaN
+    poses) get no ground truth and drop out of every measurement; landmarks it did not place
+    are made invisible. The map's poses sit at the measurement stamps by construction, so
+    measure with ``offsets=[0.0]``. The fit absorbs part of the noise it is fitted to (each
+    pose explains its own bearings): docs/mrclam.md measures how far this reads low on
+    dataset 6, where both references exist. The map keeps its own frame (bearings, headings'
+    errors and step-length ratios do not depend on it); ``align``: moved first onto the
+    dataset's landmark ground truth by the best similarity of the placed landmarks (for what
+    does depend on the frame, e.g. an arena prior built from the landmarks' box). Usage (``ds``
+    an MRCLAM dataset)::
+
+        meas = mrclam_runs(ds, min_move=0.0, min_turn_deg=0.0)   # every usable view a pose
+        ref = mrclam_reference(ds, solve(meas), meas)
+        noise = qfg.datasets.mrclam.measure_noise(ref, offsets=[0.0])
+    """
+    xy = np.full((len(dataset.landmark_ids), 2), np.nan)
+    xy[dataset.landmark_index(list(posterior.landmark_ids))] = posterior.points
+    placed = np.isfinite(xy).all(axis=1)
+    sim = None
+    if align:
+        if placed.sum() < 3:
+            raise ValueError(f"posterior: at least 3 placed landmarks to align, got "
+                             f"{int(placed.sum())}")
+        sim = _start.similarity(xy[placed], dataset.landmark_xy[placed])
+        xy[placed] = _start.apply_similarity(xy[placed], sim)
+    by_robot = {r.robot: r for r in measurements.runs}
+    robots = {}
+    for n, rd in dataset.robots.items():
+        P = posterior.poses.get(n)
+        gt = None
+        if (n in by_robot and P is not None and len(P) == len(by_robot[n].times)
+                and np.isfinite(P).all() and posterior.robot_flags.get(n) in ("ok", "kinematic")):
+            if sim is not None:
+                R = sim[1]
+                P = np.column_stack([_start.apply_similarity(P[:, :2], sim),
+                                     wrap_angle(P[:, 2] + np.arctan2(R[1, 0], R[0, 0]))])
+            gt = np.column_stack([by_robot[n].times, P])
+        robots[n] = dataclasses.replace(rd, groundtruth=gt, visible=rd.visible & placed[None, :])
+    return dataclasses.replace(dataset, landmark_xy=np.where(placed[:, None], xy, 0.0),
+                               robots=robots)
 
 
 @dataclass(frozen=True, eq=False)

@@ -528,3 +528,49 @@ def test_overdispersion_is_reported_not_acted_on_when_every_run_has_odometry():
     assert joint.overdispersion(widened, [0, 1], seed=0) == pytest.approx(kappa / 3.0, rel=0.05)
     lone = joint.solve(joint.JointMeasurements(runs[:1], tuple(range(6))))
     assert "overdispersion" not in lone.info
+
+
+@pytest.mark.skipif(_mrclam_dir() is None, reason="MRCLAM dataset 6 not present")
+def test_mrclam_reference_puts_the_ground_truth_at_the_maps_poses_and_points():
+    from qfg.datasets import mrclam
+    from qfg.geometry import bearing, wrap_angle
+
+    ds = mrclam.load(_mrclam_dir())
+    meas = joint.mrclam_runs(ds, [2, 3], min_interval=24.0)
+    post = joint.solve(meas, seed=0)
+    ref = joint.mrclam_reference(ds, post, meas)
+    assert ref.robot(1).groundtruth is None and ds.robot(1).groundtruth is not None
+    placed = np.isfinite(post.points).all(1)
+    cols = ds.landmark_index(np.array(post.landmark_ids)[placed])
+    assert np.allclose(ref.landmark_xy[cols], post.points[placed])
+    for n in (2, 3):
+        run = meas.run(n)
+        P, ok = ref.robot(n).groundtruth_poses(run.times)
+        assert ok.all() and np.allclose(P, post.poses[n])
+        # the measured bearings against the reference are the map's own residuals, computed
+        # here from the posterior directly
+        k = placed[post.index(run.bearing_landmark)]
+        pose, lm = run.bearing_pose[k], run.bearing_landmark[k]
+        own = wrap_angle(run.bearing[k] - bearing(post.poses[n][pose],
+                                                  post.points[post.index(lm)]))
+        rd = ref.robot(n)
+        v = np.searchsorted(rd.view_times, run.times)[pose]
+        col = ref.landmark_index(lm)
+        got = wrap_angle(rd.view_bearings[v, col] - bearing(P[pose], ref.landmark_xy[col]))
+        assert k.sum() > 20 and np.allclose(got, own, atol=1e-9) and rd.visible[v, col].all()
+    unplaced = ds.landmark_index(np.array(post.landmark_ids)[~placed])
+    assert unplaced.size and not any(r.visible[:, unplaced].any() for r in ref.robots.values())
+    m = mrclam.measure_noise(ref, offsets=[0.0])
+    assert set(m.robots) == {2, 3} and m.bearing.n > 0
+    # aligned onto the landmarks' ground truth: the least-squares similarity's normal
+    # equations hold (errors sum to zero, and are orthogonal to the centred map points and to
+    # their quarter-turns: translation, scale and rotation optimal); the same bearing
+    # residuals (a similarity keeps every angle)
+    al = joint.mrclam_reference(ds, post, meas, align=True)
+    X = al.landmark_xy[cols]
+    e, X0 = X - ds.landmark_xy[cols], X - X.mean(0)
+    assert np.allclose(e.sum(0), 0, atol=1e-9) and abs(np.sum(X0 * e)) < 1e-9
+    assert abs(np.sum(X0[:, 0] * e[:, 1] - X0[:, 1] * e[:, 0])) < 1e-9
+    ma = mrclam.measure_noise(al, offsets=[0.0])
+    assert ma.bearing.n == m.bearing.n and np.isclose(ma.bearing.robust_std, m.bearing.robust_std)
+    assert np.isclose(ma.heading_step.sigma90, m.heading_step.sigma90)
