@@ -30,7 +30,7 @@ clustered by landmark set.
 
     QFG_MRCLAM_DIR=... python experiments/mrclam_synthetic_twin.py [--views 3 5] [--robots 1 2]
         [--dataset 6] [--reference capture]
-        [--limit 0] [--seed 0] [--solver-seed SEED] [--method full] [--model measured] [--camera-prior point]
+        [--limit 0] [--seed 0] [--solver-seed SEED] [--method full] [--prior arena] [--model measured] [--camera-prior point]
         [--budget 1] [--populations 1] [--no-distances] [--csv out/twin.csv]
         [--against out/other.csv] [--from-csv out/twin.csv]
 """
@@ -163,6 +163,8 @@ def main(argv=None):
                          "twin measurements, with --against, shows the answers' seed-to-seed "
                          "spread")
     ap.add_argument("--method", default="full", choices=("full", "fast", "reference"))
+    ap.add_argument("--prior", default="arena", choices=study.PRIORS,
+                    help="the solvers' prior (qfg mrclam --prior; default arena)")
     ap.add_argument("--model", default="measured", type=model_parts,
                     help="measured (default): the measured bearing tail, heading walk and "
                          "ratio tail (the reference takes none of them); simple: normal "
@@ -210,7 +212,8 @@ def main(argv=None):
     rows = []
     for k in a.views:
         model = {k: v for k, v in MODEL_PARTS.items() if k in a.model}
-        prep = study.prepare_run(path, dataset=ds, robots=a.robots, spread_views=k, **model)
+        prep = study.prepare_run(path, dataset=ds, robots=a.robots, spread_views=k,
+                                 prior=a.prior, **model)
         if a.no_distances:
             prep.solver_options.pop("distance_tail", None)
         sel = select(prep, a.limit)
