@@ -1288,7 +1288,8 @@ def mrclam_reference(dataset, posterior: JointPosterior, measurements: JointMeas
 
     Robots the map did not solve (flags other than ``"ok"`` and ``"kinematic"``, or NaN
     poses) get no ground truth and drop out of every measurement; landmarks it did not place
-    are made invisible. The map's poses sit at the measurement stamps by construction, so
+    are made invisible; a posterior solved from other measurements (pose counts that differ)
+    gets a ValueError naming the robot. The map's poses sit at the measurement stamps by construction, so
     measure with ``offsets=[0.0]``. The fit absorbs part of the noise it is fitted to (each
     pose explains its own bearings): docs/mrclam.md measures how far this reads low on
     dataset 6, where both references exist. The map keeps its own frame (bearings, headings'
@@ -1316,8 +1317,11 @@ def mrclam_reference(dataset, posterior: JointPosterior, measurements: JointMeas
     for n, rd in dataset.robots.items():
         P = posterior.poses.get(n)
         gt = None
-        if (n in by_robot and P is not None and len(P) == len(by_robot[n].times)
-                and np.isfinite(P).all() and posterior.robot_flags.get(n) in ("ok", "kinematic")):
+        if n in by_robot and P is not None and len(P) != len(by_robot[n].times):
+            raise ValueError(f"posterior: robot {n} has {len(P)} poses, the measurements "
+                             f"{len(by_robot[n].times)} views: not the measurements it solved")
+        if (n in by_robot and P is not None and np.isfinite(P).all()
+                and posterior.robot_flags.get(n) in ("ok", "kinematic")):
             if sim is not None:
                 R = sim[1]
                 P = np.column_stack([_start.apply_similarity(P[:, :2], sim),

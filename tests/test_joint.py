@@ -539,6 +539,8 @@ def test_mrclam_reference_puts_the_ground_truth_at_the_maps_poses_and_points():
     meas = joint.mrclam_runs(ds, [2, 3], min_interval=24.0)
     post = joint.solve(meas, seed=0)
     ref = joint.mrclam_reference(ds, post, meas)
+    with pytest.raises(ValueError, match="robot 2 has .* poses"):
+        joint.mrclam_reference(ds, post, joint.mrclam_runs(ds, [2, 3]))
     assert ref.robot(1).groundtruth is None and ds.robot(1).groundtruth is not None
     placed = np.isfinite(post.points).all(1)
     cols = ds.landmark_index(np.array(post.landmark_ids)[placed])
