@@ -30,9 +30,10 @@ clustered by landmark set.
 
     QFG_MRCLAM_DIR=... python experiments/mrclam_synthetic_twin.py [--views 3 5] [--robots 1 2]
         [--dataset 6] [--reference capture]
-        [--limit 0] [--seed 0] [--solver-seed SEED] [--method full] [--prior arena] [--model measured] [--camera-prior point]
+        [--limit 0] [--seed 0] [--solver-seed SEED] [--method full] [--prior arena]
+        [--model measured] [--camera-prior point]
         [--budget 1] [--populations 1] [--no-distances] [--csv out/twin.csv]
-        [--against out/other.csv] [--from-csv out/twin.csv]
+        [--against out/other.csv] [--from-csv out/twin.csv] [--detail]
 """
 
 from __future__ import annotations
@@ -180,6 +181,10 @@ def main(argv=None):
     ap.add_argument("--no-distances", action="store_true",
                     help="solve without the odometry's distances")
     ap.add_argument("--csv", type=Path, default=None)
+    ap.add_argument("--detail", action="store_true",
+                    help="also print each history whose answer puts the truth under 1%%: its "
+                         "p(truth), top state's probability, the truth state's prior mass and "
+                         "how far the camera moved from first view to last (m)")
     ap.add_argument("--against", type=Path, default=None,
                     help="another run's --csv: print this run minus that one, paired")
     ap.add_argument("--from-csv", type=Path, default=None,
@@ -233,6 +238,13 @@ def main(argv=None):
             ls, under = log_score(P, g), truth_under(P, g)
             print(f"k={k} {v}: {len(hs)} histories, log p(truth) {ls.mean():.3f}, "
                   f"under 1% {under.mean():.3f} ({time.time() - t0:.0f} s)", flush=True)
+            for (r, h), p, u in zip(sel, P, under, strict=True) if a.detail else ():
+                if u:
+                    xy = np.asarray(h.truth.poses_world)[:, :2]
+                    print(f"  robot {r} {'-'.join(map(str, h.landmarks))} t={h.views[0]:.1f}: "
+                          f"p(truth) {p[h.truth.state]:.5f}, top {p.max():.2f}, prior mass "
+                          f"{prep.prior_states[h.truth.state]:.3f}, moved "
+                          f"{np.hypot(*(xy[-1] - xy[0])):.2f} m")
             for (r, h), s, u in zip(sel, ls, under, strict=True):
                 rows.append(dict(variant=v, views=k, robot=r, landmarks="-".join(map(str, h.landmarks)),
                                  start=float(h.views[0]), end=float(h.views[-1]),
