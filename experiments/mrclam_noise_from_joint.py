@@ -26,7 +26,6 @@ from __future__ import annotations
 import argparse
 import csv
 import dataclasses
-import os
 import sys
 
 import numpy as np
@@ -35,7 +34,7 @@ from scipy.special import expit, logit
 
 from qfg import joint
 from qfg.datasets import mrclam
-from qfg.geometry import bearing, wrap_angle
+from qfg.datasets.mrclam._noise import _bearing_residuals, _landmark_rows
 from qfg.harness.studies.mrclam import prepare
 from qfg.solvers._likelihood import BearingTail, log_bearing
 
@@ -43,14 +42,14 @@ TAIL_AT = np.deg2rad(2.0)
 
 
 def bearing_residuals(ds, offset: float) -> np.ndarray:
-    """Every covered landmark row's measured minus reference bearing (radians)."""
+    """Every covered landmark row's measured minus reference bearing (radians), as
+    `measure_noise` computes them."""
     out = []
     for rd in ds.robots.values():
-        if rd.groundtruth is None:
-            continue
-        v, col = np.nonzero(rd.visible)
-        P, ok = rd.groundtruth_poses(rd.view_times[v] + offset)
-        out.append(wrap_angle(rd.view_bearings[v, col] - bearing(P, ds.landmark_xy[col]))[ok])
+        if rd.groundtruth is not None:
+            t, phi, lxy, _, _ = _landmark_rows(ds, rd)
+            r, ok = _bearing_residuals(rd, t, phi, lxy, offset)
+            out.append(r[ok])
     return np.concatenate(out)
 
 
@@ -78,10 +77,8 @@ def row(d, ref, m, r, extra=""):
     sigma, tail = fit_tail(r)
     lag = {(lo, hi): p for lo, hi, _, p, _ in m.bearing_lag_correlation}
 
-    def deg(s, attr=None):
+    def deg(s, attr):
         # a robot without odometry has no steps: no number, not the all-zero summary
-        if attr is None:
-            return float(np.degrees(s))
         return float(np.degrees(getattr(s, attr))) if s.n else float("nan")
 
     return {
@@ -89,7 +86,7 @@ def row(d, ref, m, r, extra=""):
         "bearings": m.bearing.n, "bearing_robust_deg": deg(m.bearing, "robust_std"),
         "bearing_sigma90_deg": deg(m.bearing, "sigma90"),
         "beyond_2deg_pct": 100 * float(np.mean(np.abs(r - np.median(r)) > TAIL_AT)),
-        "tail_sigma_deg": deg(sigma), "tail_share": tail.share, "tail_scale": tail.scale,
+        "tail_sigma_deg": float(np.degrees(sigma)), "tail_share": tail.share, "tail_scale": tail.scale,
         "tail_outlier": tail.outlier, "within_view_sigma90_deg": deg(m.bearing_within_view, "sigma90"),
         "heading_steps": m.heading_step.n,
         "heading_step_median_deg": deg(m.heading_step, "median"),
@@ -123,13 +120,14 @@ def main(argv=None):
     ap.add_argument("--csv", help="also write the rows to this file")
     ap.add_argument("--per-robot", action="store_true",
                     help="also one joint row per solved robot (only its ground truth kept)")
-    ap.add_argument("--root", default=os.environ.get("QFG_MRCLAM_DIR", "../shared/data/mrclam"))
+    ap.add_argument("--root", default=None,
+                    help="the folder of the MRCLAM_Dataset* folders (default $QFG_MRCLAM_DIR)")
     a = ap.parse_args(argv)
     print("| " + " | ".join(c for c, _ in COLUMNS) + " |")
     print("|" + "---|" * len(COLUMNS), flush=True)
     rows = []
     for d in a.datasets:
-        ds, _ = prepare(f"{a.root}/MRCLAM_Dataset{d}")
+        ds, _ = prepare(mrclam.data_root(a.root) / f"MRCLAM_Dataset{d}")
         refs = []
         if any(rd.groundtruth is not None for rd in ds.robots.values()):
             m = mrclam.measure_noise(ds)

@@ -1289,8 +1289,8 @@ def mrclam_reference(dataset, posterior: JointPosterior, measurements: JointMeas
     Robots the map did not solve (flags other than ``"ok"`` and ``"kinematic"``, or NaN
     poses) get no ground truth and drop out of every measurement; landmarks it did not place
     are made invisible; a posterior solved from other measurements (pose counts that differ)
-    gets a ValueError naming the robot. The map's poses sit at the measurement stamps by construction, so
-    measure with ``offsets=[0.0]``. The fit absorbs part of the noise it is fitted to (each
+    gets a ValueError naming the robot. The map's poses sit at the measurement stamps by
+    construction, so measure with ``offsets=[0.0]``. The fit absorbs part of the noise it is fitted to (each
     pose explains its own bearings): docs/mrclam.md measures how far this reads low on
     dataset 6, where both references exist. The map keeps its own frame (bearings, headings'
     errors and step-length ratios do not depend on it); ``align``: moved first onto the
@@ -1311,7 +1311,7 @@ def mrclam_reference(dataset, posterior: JointPosterior, measurements: JointMeas
             raise ValueError(f"posterior: at least 3 placed landmarks to align, got "
                              f"{int(placed.sum())}")
         sim = _start.similarity(xy[placed], dataset.landmark_xy[placed])
-        xy[placed] = _start.apply_similarity(xy[placed], sim)
+        xy[placed] = _apply(*sim, points=xy[placed])[0]
     by_robot = {r.robot: r for r in measurements.runs}
     robots = {}
     for n, rd in dataset.robots.items():
@@ -1323,9 +1323,7 @@ def mrclam_reference(dataset, posterior: JointPosterior, measurements: JointMeas
         if (n in by_robot and P is not None and np.isfinite(P).all()
                 and posterior.robot_flags.get(n) in ("ok", "kinematic")):
             if sim is not None:
-                R = sim[1]
-                P = np.column_stack([_start.apply_similarity(P[:, :2], sim),
-                                     wrap_angle(P[:, 2] + np.arctan2(R[1, 0], R[0, 0]))])
+                P = _apply(*sim, poses=P)[0]
             gt = np.column_stack([by_robot[n].times, P])
         robots[n] = dataclasses.replace(rd, groundtruth=gt, visible=rd.visible & placed[None, :])
     return dataclasses.replace(dataset, landmark_xy=np.where(placed[:, None], xy, 0.0),
