@@ -29,6 +29,8 @@ __all__ = [
     "log_score",
     "brier",
     "truth_under",
+    "expected_log_score",
+    "expected_truth_under",
     "Reliability",
     "reliability",
     "expected_calibration_error",
@@ -163,6 +165,36 @@ def truth_under(p, g, threshold: float = 0.01) -> np.ndarray:
     """
     p = _probs(p)
     return _pg(p, _truth(p, g)) < float(threshold)
+
+
+def expected_log_score(p, clip: float = 1e-4) -> np.ndarray:
+    """``sum_s p_s log(max(p_s, clip))``: the :func:`log_score` an estimate expects of itself,
+    its mean over truths drawn from the estimate. Over many estimates, a calibrated forecaster's
+    mean log score equals the mean of this up to sampling error; a mean log score below it says
+    the truths are less likely than the estimates claim (over-confidence, or a model that does
+    not fit the data), with no reference solver needed. ``-entropy(p)`` but for the clip.
+
+    >>> round(float(expected_log_score([0.5, 0.5])), 4), round(float(expected_log_score([1.0, 0.0])), 4)
+    (-0.6931, 0.0)
+    """
+    p = _probs(p)
+    c = float(clip)
+    if not (0 < c <= 1):
+        raise ValueError(f"clip: expected a number in (0, 1], got {clip!r}")
+    return np.sum(p * np.log(np.maximum(p, c)), axis=-1)
+
+
+def expected_truth_under(p, threshold: float = 0.01) -> np.ndarray:
+    """``sum_s p_s 1[p_s < threshold]``: the chance an estimate gives itself of :func:`truth_under`
+    (its truth in a state it gives under ``threshold``). The mean over estimates is the share of
+    truths under ``threshold`` that calibrated estimates would show; it is at most
+    ``m * threshold`` for m states, and usually far below that bound.
+
+    >>> round(float(expected_truth_under([0.995, 0.005])), 4), float(expected_truth_under([0.5, 0.5]))
+    (0.005, 0.0)
+    """
+    p = _probs(p)
+    return np.sum(np.where(p < float(threshold), p, 0.0), axis=-1)
 
 
 @dataclass(frozen=True)

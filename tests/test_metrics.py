@@ -151,6 +151,32 @@ def test_scores_are_proper():
         assert expected(metrics.brier, p) >= expected(metrics.brier, q) - 1e-12
 
 
+def test_self_expected_scores_are_the_scores_averaged_over_truths_drawn_from_the_estimate():
+    # the definition, by enumeration over the truth, and by simulation: a calibrated forecaster
+    # (truths drawn from its own estimates) scores its self-expected mean, an over-confident one less
+    rng = np.random.default_rng(3)
+    P = rng.dirichlet(np.full(6, 0.3), size=40)
+    P[0] = [0.995, 0.005, 0, 0, 0, 0]
+    states = np.arange(6)
+    for p in P:
+        tiled = np.tile(p, (6, 1))
+        assert metrics.expected_log_score(p) == pytest.approx(
+            np.sum(p * metrics.log_score(tiled, states)), abs=1e-12)
+        assert metrics.expected_log_score(p, clip=0.05) == pytest.approx(
+            np.sum(p * metrics.log_score(tiled, states, clip=0.05)), abs=1e-12)
+        assert metrics.expected_truth_under(p, 0.02) == pytest.approx(
+            np.sum(p * metrics.truth_under(tiled, states, 0.02)), abs=1e-12)
+    Q = rng.dirichlet(np.ones(6), size=20000)
+    g = (Q.cumsum(1) < rng.random((20000, 1))).sum(1)
+    se = metrics.log_score(Q, g).std() / np.sqrt(len(g))
+    assert abs(metrics.log_score(Q, g).mean() - metrics.expected_log_score(Q).mean()) < 4 * se
+    sharp = Q ** 3 / np.sum(Q ** 3, axis=1, keepdims=True)
+    assert metrics.log_score(sharp, g).mean() < metrics.expected_log_score(sharp).mean() - 10 * se
+    assert metrics.expected_truth_under([0.995, 0.005]) == pytest.approx(0.005)
+    with pytest.raises(ValueError, match="clip"):
+        metrics.expected_log_score(P, clip=0)
+
+
 def test_reliability_against_brute_force():
     rng = np.random.default_rng(2)
     P = rng.dirichlet(np.full(4, 0.5), size=300)
