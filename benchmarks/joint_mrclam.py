@@ -111,7 +111,10 @@ def run(path, *, seed=0, samples=2000, cameras=True, **options):
                "prior_log_score": score(np.tile(q_x, (len(gc), 1)), gc)["log_score"],
                "flagged": 0.0}
         out.append(row)
+    # every run the map was given, solved or not, has its poses there (NaN rows if not solved)
+    n_img = sum(len(v) for v in res.posterior.poses.values())
     for r in out:
+        r["images"] = int(n_img)
         r["time_s"] = wall
         r["cpu_s"] = cpu
         r["flags"] = ";".join(res.posterior.flags)
@@ -126,24 +129,19 @@ def curve(path, per_pass, *, seed=0, samples=2000, run_options=None, progress=pr
     """Rows of :func:`run` (seen and unseen, no cameras) at each images-per-pass count of
     ``per_pass`` (0: every keyframe), each row with ``per_pass`` and ``images`` (the poses the
     map was given, all robots); ``run_options``: more options of ``mrclam_runs``."""
-    from qfg import joint
-
-    ds, _ = study.prepare(path)
     rows = []
     for k in per_pass:
         k = int(k)
         if k < 0:
             raise ValueError(f"per_pass: expected counts >= 0, got {k}")
         ro = dict(run_options or {}, **({"min_interval": PASS_S / k} if k else {}))
-        n_img = sum(r.n_poses for r in joint.mrclam_runs(ds, **ro).runs)
         got = run(path, seed=seed, samples=samples, cameras=False, run_options=ro)
         for r in got:
             r["per_pass"] = k
-            r["images"] = int(n_img)
         rows += got
         if progress:
             s, u = got[0], got[1]
-            progress(f"  {ds.name} K={k or 'all'}: {n_img} images, seen {s['log_score']:.3f}, "
+            progress(f"  {s['dataset']} K={k or 'all'}: {s['images']} images, seen {s['log_score']:.3f}, "
                      f"unseen {u['log_score']:.3f} ({s['time_s']:.0f} s)")
     return rows
 
