@@ -38,7 +38,7 @@ geometry.
         [--limit 0] [--seed 0] [--solver-seed SEED] [--method full] [--prior arena]
         [--model measured] [--camera-prior point]
         [--budget 1] [--populations 1] [--no-distances] [--csv out/twin.csv]
-        [--against out/other.csv] [--from-csv out/twin.csv] [--detail] [--travel]
+        [--against out/other.csv] [--from-csv out/twin.csv] [--detail] [--travel] [--geometry]
 
 ``--travel`` gives each history its own prior, :class:`qfg.priors.TravelPrior`: the arena box
 joined with the odometry's first step length in metres (log error 0.07 with 10% at five times
@@ -212,6 +212,10 @@ def main(argv=None):
     ap.add_argument("--travel", action="store_true",
                     help="each history under the arena box joined with its first step's "
                          "length in metres (qfg.priors.TravelPrior; module docstring)")
+    ap.add_argument("--geometry", action="store_true",
+                    help="also print where the histories' true AB-frame geometry falls under the "
+                         "solvers' prior (percentiles of the first step, the first-to-last "
+                         "baseline, the first camera's and C's distance from A, in |AB|)")
     ap.add_argument("--csv", type=Path, default=None)
     ap.add_argument("--detail", action="store_true",
                     help="also print each history whose answer puts the truth under 1%%: its "
@@ -254,6 +258,8 @@ def main(argv=None):
         if a.no_distances:
             prep.solver_options.pop("distance_tail", None)
         sel = select(prep, a.limit)
+        if a.geometry:
+            report_geometry(prep, sel, k)
         for v in a.variants:
             rng = np.random.default_rng(np.random.SeedSequence(a.seed, spawn_key=(k, 7)))
             hs = [h if v == "real" else twin(h, rng, prep.solver_options,
@@ -294,6 +300,36 @@ def main(argv=None):
     report(rows, a.views)
     if a.against is not None:
         report_against(rows, other, a.against)
+
+
+GEOMETRY = ("first step", "first to last view", "first camera from A", "C from A")
+
+
+def _geometry(q) -> np.ndarray:
+    """(..., 4) lengths in |AB| of AB-frame configurations q (..., 1 + n, 2) = [C, X_1..X_n]."""
+    C, X = q[..., 0, :], q[..., 1:, :]
+    return np.stack([np.linalg.norm(X[..., 1, :] - X[..., 0, :], axis=-1),
+                     np.linalg.norm(X[..., -1, :] - X[..., 0, :], axis=-1),
+                     np.linalg.norm(X[..., 0, :], axis=-1), np.linalg.norm(C, axis=-1)], -1)
+
+
+def report_geometry(prep, sel, k, draws: int = 200_000) -> None:
+    """Where the histories' true geometry falls under the solvers' prior: per length of
+    :data:`GEOMETRY`, the median over histories and over the prior's draws, and the histories'
+    percentiles under the prior (median, 10th-90th)."""
+    # a pass may have fewer than k views: each history's own lengths
+    F = np.array([_geometry(np.concatenate([np.asarray(h.truth.C_ab)[None],
+                                            np.asarray(h.truth.poses_ab)[:, :2]]))
+                  for _, h in sel])
+    G = np.sort(_geometry(np.asarray(prep.prior.sample(0, k, draws))), axis=0)
+    print(f"\nk={k}: the true geometry of {len(sel)} histories under the prior ({draws} draws)")
+    print("| length (|AB|) | histories' median | prior's median | histories' percentile "
+          "under the prior: median (10th-90th) |")
+    print("|---|---|---|---|")
+    for j, name in enumerate(GEOMETRY):
+        pct = 100.0 * np.searchsorted(G[:, j], F[:, j]) / draws
+        print(f"| {name} | {np.median(F[:, j]):.3g} | {np.median(G[:, j]):.3g} | "
+              f"{np.median(pct):.0f} ({np.percentile(pct, 10):.0f}-{np.percentile(pct, 90):.0f}) |")
 
 
 def read_rows(path: Path) -> list[dict]:
