@@ -30,8 +30,7 @@ import numpy as np
 from ._validate import as_float_array, as_rng, non_negative, positive_int
 
 __all__ = ["Prior", "WorldBoxPrior", "TravelPrior", "WindowPrior", "ProductPrior", "CallablePrior",
-           "get",
-           "sample_measurements", "NAMES", "DEFAULT_WINDOW"]
+           "get", "sample_measurements", "NAMES", "DEFAULT_WINDOW"]
 
 #: Names :func:`get` accepts.
 NAMES = ("world", "world-product", "uniform")
@@ -564,7 +563,8 @@ class TravelPrior(Prior):
             return self.box.log_density(p)
         flat = p.reshape(-1, k, 2)
         out = np.empty(flat.shape[0])
-        step = max(1, _CHUNK_ELEMENTS // (self.box.n_rho * self.nodes))
+        # (nodes, n_rho, chunk) arrays of about 8 MB: the grid in log s multiplies the box's work
+        step = max(1, (_CHUNK_ELEMENTS << 4) // (self.box.n_rho * self.nodes))
         for i in range(0, flat.shape[0], step):
             out[i:i + step] = self._flat(flat[i:i + step], j)
         return out.reshape(lead)
