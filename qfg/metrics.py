@@ -73,6 +73,13 @@ def _truth(p, g) -> np.ndarray:
     return np.broadcast_to(g, p.shape[:-1])
 
 
+def _clip(clip) -> float:
+    c = float(clip)
+    if not (0 < c <= 1):
+        raise ValueError(f"clip: expected a number in (0, 1], got {clip!r}")
+    return c
+
+
 def _pg(p, g):
     return np.take_along_axis(p, g[..., None], axis=-1)[..., 0]
 
@@ -138,10 +145,7 @@ def log_score(p, g, clip: float = 1e-4) -> np.ndarray:
     (-1.204, -9.2103)
     """
     p = _probs(p)
-    c = float(clip)
-    if not (0 < c <= 1):
-        raise ValueError(f"clip: expected a number in (0, 1], got {clip!r}")
-    return np.log(np.maximum(_pg(p, _truth(p, g)), c))
+    return np.log(np.maximum(_pg(p, _truth(p, g)), _clip(clip)))
 
 
 def brier(p, g) -> np.ndarray:
@@ -178,10 +182,7 @@ def expected_log_score(p, clip: float = 1e-4) -> np.ndarray:
     (-0.6931, 0.0)
     """
     p = _probs(p)
-    c = float(clip)
-    if not (0 < c <= 1):
-        raise ValueError(f"clip: expected a number in (0, 1], got {clip!r}")
-    return np.sum(p * np.log(np.maximum(p, c)), axis=-1)
+    return np.sum(p * np.log(np.maximum(p, _clip(clip))), axis=-1)
 
 
 def expected_truth_under(p, threshold: float = 0.01) -> np.ndarray:

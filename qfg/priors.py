@@ -368,6 +368,15 @@ class WorldBoxPrior(Prior):
         xr = np.subtract(hi, lo, out=hi).reshape(self.n_rho, -1)
         return self._from_extents(xr, d2.ravel(), c.ravel(), k + 1).reshape(c.shape)
 
+    def _least_scale(self, d2):
+        """s0 = d_min / delta (N,): the least scale that keeps every pair d_min apart, from the
+        least squared pairwise distance ``d2`` (N,) of the configurations (inf where points
+        coincide and d_min > 0)."""
+        delta = np.sqrt(d2)
+        with np.errstate(divide="ignore"):
+            return np.where(delta > 0, self.d_min / np.where(delta > 0, delta, 1.0),
+                            0.0 if self.d_min == 0 else np.inf)
+
     def _from_extents(self, xr, d2, c, k):
         """The log density from the scaled configurations' x extents ``xr`` (M, N) over the
         rotations rho (overwritten), their least squared pairwise distance ``d2`` (N,) and scale
@@ -388,10 +397,7 @@ class WorldBoxPrior(Prior):
         a = 2 * k + 1 + self.scale_power
         inner = np.multiply(q, -(1.0 / (a + 2) - 1.0 / (a + 3)), out=yr)
         inner += 1.0 / (a + 1) - 1.0 / (a + 2)                        # G(1) > 0
-        delta = np.sqrt(d2)                                           # (N,)
-        with np.errstate(divide="ignore"):
-            s0 = np.where(delta > 0, self.d_min / np.where(delta > 0, delta, 1.0),
-                          0.0 if self.d_min == 0 else np.inf)
+        s0 = self._least_scale(d2)                                    # (N,)
         # u0^(a+1) by repeated squaring (it underflows to 0 for the usual tiny u0: d_min much
         # smaller than the scale, and then the G(u0) term is skipped: first checked at each
         # configuration's largest u0, which bounds the others, on (N,) instead of (M, N))
@@ -576,8 +582,7 @@ class TravelPrior(Prior):
         xr = hi - lo                                                   # (M, N)
         yr = np.roll(xr, -box.n_rho // 2, axis=0)
         W, H, a = box.width, box.height, 2 * k + 1 + box.scale_power
-        s0 = np.where(d2 > 0, box.d_min / np.sqrt(np.where(d2 > 0, d2, 1.0)),
-                      0.0 if box.d_min == 0 else np.inf)
+        s0 = box._least_scale(d2)
         b = np.hypot(*(q[:, j + 1] - q[:, j]).T)
         with np.errstate(divide="ignore"):
             mu = np.log(self.distance) - np.log(b)                     # log s where d = s b
