@@ -520,6 +520,17 @@ class TravelPrior(Prior):
     consecutive step lengths (the solvers' ``distances``) carry no scale; this is the scale.
     Where the box's metric scale does not describe the robot's world, neither does this prior.
 
+    ``detection = (near, far, near_width, far_width)`` (metres; None: off) also weighs every camera's range r
+    to each of A, B and C by the chance that the camera detects a landmark there,
+
+        D(r) = sigmoid((r - near) / near_width) sigmoid((far - r) / far_width),
+
+    inside the integral over s (the ranges in metres are s times the AB-frame ranges). The box
+    places landmarks and cameras independently, so its ranges are those of two uniform points;
+    a real camera reads its landmarks only between a least and a greatest range. The answers
+    are then the posterior given that every landmark of every view was detected (the factor's
+    normalizer does not depend on the configuration).
+
     On configurations with fewer points than the step needs (the solvers' intermediate targets)
     it is the box's own density.
 
@@ -534,7 +545,8 @@ class TravelPrior(Prior):
     name = "travel"
 
     def __init__(self, box: WorldBoxPrior, distance: float, *, step: int = 0,
-                 sigma: float = 0.07, tail: tuple = (0.1, 5.0), nodes: int = 41):
+                 sigma: float = 0.07, tail: tuple = (0.1, 5.0), nodes: int = 41,
+                 detection: tuple | None = None):
         if not isinstance(box, WorldBoxPrior):
             raise ValueError(f"box: expected a WorldBoxPrior, got {box!r}")
         d = float(distance)
@@ -552,14 +564,27 @@ class TravelPrior(Prior):
             raise ValueError(f"tail: expected (share, scale), got {tail!r}") from None
         if not (0 <= share < 1 and scale >= 1):
             raise ValueError(f"tail: expected share in [0, 1) and scale >= 1, got {tail!r}")
+        if detection is not None:
+            try:
+                near, far, wn, wf = (float(x) for x in detection)
+            except (TypeError, ValueError):
+                raise ValueError(f"detection: expected (near, far, near_width, far_width) in "
+                                 f"metres, got {detection!r}") from None
+            if not (np.isfinite([near, far, wn, wf]).all() and 0 <= near < far
+                    and wn > 0 and wf > 0):
+                raise ValueError(f"detection: expected 0 <= near < far and widths > 0 "
+                                 f"(metres), got {detection!r}")
+            detection = (near, far, wn, wf)
+        self.detection = detection
         self.box, self.distance, self.step, self.sigma = box, d, int(step), sg
         self.tail = (share, scale)
         self.nodes = positive_int("nodes", nodes, minimum=5)
         self._z = np.linspace(-5.0, 5.0, self.nodes)
 
     def __repr__(self):
+        det = "" if self.detection is None else f", detection={self.detection}"
         return (f"TravelPrior({self.box!r}, distance={self.distance:g}, step={self.step}, "
-                f"sigma={self.sigma:g}, tail={self.tail})")
+                f"sigma={self.sigma:g}, tail={self.tail}{det})")
 
     def log_density(self, points) -> np.ndarray:
         p = _points(points)
@@ -587,6 +612,7 @@ class TravelPrior(Prior):
         with np.errstate(divide="ignore"):
             mu = np.log(self.distance) - np.log(b)                     # log s where d = s b
         share, scale = self.tail
+        ranges = None if self.detection is None else self._ab_ranges(q)   # (3 (k - 1), N)
         terms = []
         for w, sg in ((1.0 - share, self.sigma), (share, self.sigma * scale)):
             if w == 0:
@@ -596,6 +622,8 @@ class TravelPrior(Prior):
             f = np.maximum(W - sv[:, None, :] * xr[None], 0.0)
             f *= np.maximum(H - sv[:, None, :] * yr[None], 0.0)
             g = f.mean(axis=1) * (sv >= s0[None, :])                   # mean over rho (G, N)
+            if ranges is not None:
+                g *= np.exp(self._log_detection(sv[:, None, :] * ranges[None]).sum(axis=1))
             # s^a ds = e^((a+1) u) du, and the normal's density in u; trapezoid in z (the
             # integrand vanishes at +-5 sigma to 1e-6 of its peak)
             lw = (a + 1) * u - 0.5 * self._z[:, None] ** 2
@@ -608,6 +636,21 @@ class TravelPrior(Prior):
         # c_k pi: the box's constant (rho over [0, 2 pi) covers [0, pi) twice)
         out = t + np.log(2.0 * np.pi) - (k + 2) * np.log(W * H)
         return np.where(np.isfinite(out) & (b > 0), out, -np.inf)
+
+    @staticmethod
+    def _ab_ranges(q):
+        """(3 (k - 1), N) every camera's AB-frame range to A, B and C (q: (N, k, 2), C first)."""
+        cams = q[:, 1:]                                                # (N, k - 1, 2)
+        marks = np.stack([np.zeros_like(q[:, 0]), np.broadcast_to([0.0, 1.0], q[:, 0].shape),
+                          q[:, 0]], axis=1)                            # (N, 3, 2): A, B, C
+        r = np.hypot(*np.moveaxis(cams[:, :, None] - marks[:, None], -1, 0))
+        return r.reshape(q.shape[0], -1).T
+
+    def _log_detection(self, r):
+        """log D(r) for ranges ``r`` in metres (class docstring), elementwise."""
+        near, far, wn, wf = self.detection
+        # log sigmoid(x) = -logaddexp(0, -x): no overflow at any range
+        return -np.logaddexp(0.0, -(r - near) / wn) - np.logaddexp(0.0, -(far - r) / wf)
 
     def sample(self, seed, n_cameras: int, size: int) -> np.ndarray:
         raise ValueError("sample: a TravelPrior is a posterior-side prior of one history "

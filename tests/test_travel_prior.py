@@ -54,10 +54,49 @@ def test_coinciding_cameras_have_no_density_not_nan():
 @pytest.mark.parametrize("kw, match", [
     (dict(box="world"), "box"), (dict(distance=0.0), "distance"), (dict(distance=np.nan), "distance"),
     (dict(step=-1), "step"), (dict(sigma=0.0), "sigma"), (dict(tail=(1.0, 2.0)), "tail"),
-    (dict(tail=3), "tail"), (dict(nodes=2), "nodes")])
+    (dict(tail=3), "tail"), (dict(nodes=2), "nodes"), (dict(detection=(2.0, 1.0, 0.1, 0.1)),
+                                                        "detection"),
+    (dict(detection=(1.0, 6.0, 0.0, 0.4)), "detection"), (dict(detection=(1.0, 6.0)), "detection")])
 def test_bad_parameters_are_named(kw, match):
     args = {"box": WorldBoxPrior(), "distance": 1.0, **kw}
     with pytest.raises(ValueError, match=match):
         TravelPrior(args.pop("box"), args.pop("distance"), **args)
     with pytest.raises(ValueError, match="sampler"):
         TravelPrior(WorldBoxPrior(), 1.0).sample(0, 2, 3)
+
+
+def test_detection_weighs_each_range_at_the_scale_the_step_fixes():
+    # with the step's error tiny the integral over s collapses to s* = d / b, so the detection
+    # factor adds exactly sum over cameras and landmarks of log D(s* r) (D written out here)
+    box = WorldBoxPrior(width=6.0, height=11.0)
+    q = box.sample(5, 3, 8)                                      # C and three cameras
+    det = (1.2, 6.0, 0.1, 0.5)
+    plain = TravelPrior(box, 0.4, sigma=1e-5, tail=(0.0, 1.0))
+    seen = TravelPrior(box, 0.4, sigma=1e-5, tail=(0.0, 1.0), detection=det)
+    s = 0.4 / np.hypot(*(q[:, 2] - q[:, 1]).T)
+    marks = np.array([[0.0, 0.0], [0.0, 1.0]])
+    want = np.zeros(len(q))
+    for i in range(len(q)):
+        for cam in q[i, 1:]:
+            for lm in (marks[0], marks[1], q[i, 0]):
+                r = s[i] * np.hypot(*(cam - lm))
+                want[i] += np.log(1 / (1 + np.exp(-(r - det[0]) / det[2]))
+                                  / (1 + np.exp(-(det[1] - r) / det[3])))
+    got = seen.log_density(q) - plain.log_density(q)
+    ok = np.isfinite(plain.log_density(q))
+    assert ok.sum() >= 4
+    np.testing.assert_allclose(got[ok], want[ok], atol=1e-6)
+
+
+def test_detection_prefers_landmarks_in_range():
+    # one camera step of 0.5 m; the cameras 2 |AB| from A: at |AB| = s the range is 2 s, and
+    # the step of 0.25 |AB| fixes s = 2 m, so the landmarks stand about 4 m away; a step of
+    # 0.05 |AB| makes s = 10 m and the landmarks 20 m away, out of the camera's range
+    box = WorldBoxPrior(width=30.0, height=30.0)
+    near = np.array([[0.5, 0.5], [2.0, 0.5], [2.0, 0.75]])
+    far = np.array([[0.5, 0.5], [2.0, 0.5], [2.0, 0.55]])
+    det = TravelPrior(box, 0.5, detection=(1.0, 8.0, 0.1, 0.5))
+    plain = TravelPrior(box, 0.5)
+    # the box alone favours the far pair (its density grows as s^(2k+1)); detection reverses it
+    assert plain.log_density(near) < plain.log_density(far) - 5
+    assert det.log_density(near) > det.log_density(far) + 3
