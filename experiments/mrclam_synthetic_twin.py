@@ -61,7 +61,7 @@ from qfg.datasets import mrclam
 from qfg.geometry import bearing, motion_heading, wrap_angle
 from qfg.harness.studies import mrclam as study
 from qfg.metrics import expected_log_score, expected_truth_under, log_score, truth_under
-from qfg.priors import TravelPrior
+from qfg.priors import TrajectoryPrior, TravelPrior
 from qfg.solvers import solve_triplet, solve_triplets
 from qfg.solvers._options import scaled_budget
 
@@ -155,7 +155,7 @@ TRAVEL_ERROR = (0.07, (0.1, 5.0))
 DETECTION = (1.18, 6.27, 0.07, 0.40)
 
 
-def solve(prep, hs, seed, method="full", travel=None, detection=None,
+def solve(prep, hs, seed, method="full", travel=None, detection=None, trajectory=False,
           **options) -> np.ndarray:
     """(T, m) the solver's state distributions, in chunks, seeded per chunk (``options`` on top
     of the run's); ``travel`` (T,) first step lengths (m): each history under its own
@@ -167,13 +167,16 @@ def solve(prep, hs, seed, method="full", travel=None, detection=None,
             ss = np.random.SeedSequence(int(seed), spawn_key=(i // CHUNK, i % CHUNK))
             pr = TravelPrior(prep.prior, float(d), sigma=TRAVEL_ERROR[0],
                              tail=TRAVEL_ERROR[1], detection=detection)
+            if trajectory:
+                pr = TrajectoryPrior(pr, n_first=2)
             out.append(solve_triplet(h, method=method, partition=prep.partition, seed=ss,
                                      prior=pr, **opts).landmark)
         return np.array(out)
     for i in range(0, len(hs), CHUNK):
         ss = np.random.SeedSequence(int(seed), spawn_key=(i // CHUNK,))
         est = solve_triplets(hs[i:i + CHUNK], method=method, partition=prep.partition, seed=ss,
-                             prior=prep.prior, **opts)
+                             prior=TrajectoryPrior(prep.prior) if trajectory else prep.prior,
+                             **opts)
         out.extend(e.landmark for e in est)
     return np.array(out)
 
@@ -220,6 +223,10 @@ def main(argv=None):
     ap.add_argument("--travel", action="store_true",
                     help="each history under the arena box joined with its first step's "
                          "length in metres (qfg.priors.TravelPrior; module docstring)")
+    ap.add_argument("--trajectory", action="store_true",
+                    help="the cameras after the box's first (after --travel's first two) reached "
+                         "by scale-free steps (qfg.priors.TrajectoryPrior) instead of each "
+                         "uniform in the box")
     ap.add_argument("--detection", action="store_true",
                     help="with --travel: the prior also weighs every camera-landmark range by "
                          "the camera's detection range (DETECTION, fitted on dataset 6)")
@@ -287,7 +294,8 @@ def main(argv=None):
                 hs = [dataclasses.replace(h, distances=None) for h in hs]
             P = solve(prep, hs, a.seed if a.solver_seed is None else a.solver_seed,
                       a.method, travel=travel,
-                      detection=DETECTION if a.detection else None, **extra)
+                      detection=DETECTION if a.detection else None,
+                      trajectory=a.trajectory, **extra)
             g = np.array([h.truth.state for h in hs])
             ls, under = log_score(P, g), truth_under(P, g)
             print(f"k={k} {v}: {len(hs)} histories, log p(truth) {ls.mean():.3f}, "

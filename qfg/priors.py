@@ -29,8 +29,8 @@ import numpy as np
 
 from ._validate import as_float_array, as_rng, non_negative, positive_int
 
-__all__ = ["Prior", "WorldBoxPrior", "TravelPrior", "WindowPrior", "ProductPrior", "CallablePrior",
-           "get", "sample_measurements", "NAMES", "DEFAULT_WINDOW"]
+__all__ = ["Prior", "WorldBoxPrior", "TravelPrior", "TrajectoryPrior", "WindowPrior",
+           "ProductPrior", "CallablePrior", "get", "sample_measurements", "NAMES", "DEFAULT_WINDOW"]
 
 #: Names :func:`get` accepts.
 NAMES = ("world", "world-product", "uniform")
@@ -655,6 +655,77 @@ class TravelPrior(Prior):
     def sample(self, seed, n_cameras: int, size: int) -> np.ndarray:
         raise ValueError("sample: a TravelPrior is a posterior-side prior of one history "
                          "(the box given a measured distance) and has no sampler")
+
+
+class TrajectoryPrior(Prior):
+    """One robot's cameras: ``first`` places C and the first ``n_first`` cameras, and every
+    later camera is one step from the camera before it, in a uniform direction, its length
+    ``b`` (|AB| units) log-uniform on ``steps = (lo, hi)``:
+
+        prior(q_1..q_k) = first(q_1..q_(1+n_first)) prod_(j > n_first) 1[lo <= b_j <= hi] /
+                          (2 π b_j^2 log(hi / lo)),   b_j = |X_j - X_(j-1)|.
+
+    A box prior (:class:`WorldBoxPrior`) makes every camera an independent point of the box, so
+    with k cameras on a trajectory of one shape its density grows as λ^(2k - 2) with the
+    trajectory's scale λ: the more views, the longer it expects the robot's path, however short
+    it was. Scale-free steps add views without that pull; the odometry's ratios and headings
+    (the solvers' likelihood) give the path its shape. With ``first`` a :class:`TravelPrior`
+    (``n_first=2``: its step 0 joins the box with the first step's metres) the path has a
+    scale too.
+
+    >>> box = WorldBoxPrior(width=6.0, height=11.0)
+    >>> p = TrajectoryPrior(box)
+    >>> q = np.array([[0.5, 0.5], [2.0, 0.5], [2.0, 0.6], [2.0, 0.8]])  # C, X_1, X_2, X_3
+    >>> step = -np.log(2 * np.pi * np.log(1e6))                          # a step of 1 |AB|
+    >>> want = box.log_density(q[:2]) + step - 2 * np.log(0.1) + step - 2 * np.log(0.2)
+    >>> bool(np.isclose(p.log_density(q), want))
+    True
+    """
+
+    name = "trajectory"
+
+    def __init__(self, first: Prior, *, n_first: int = 1, steps: tuple = (1e-4, 1e2)):
+        if not isinstance(first, Prior):
+            raise ValueError(f"first: expected a qfg.priors.Prior, got {first!r}")
+        self.first = first
+        self.n_first = positive_int("n_first", n_first, minimum=0)
+        try:
+            lo, hi = (float(x) for x in steps)
+        except (TypeError, ValueError):
+            raise ValueError(f"steps: expected (lo, hi) in |AB| units, got {steps!r}") from None
+        if not (np.isfinite([lo, hi]).all() and 0 < lo < hi):
+            raise ValueError(f"steps: expected 0 < lo < hi (|AB| units), got {steps!r}")
+        self.steps = (lo, hi)
+        self._c = -np.log(2.0 * np.pi * np.log(hi / lo))
+
+    def __repr__(self):
+        return f"TrajectoryPrior({self.first!r}, n_first={self.n_first}, steps={self.steps})"
+
+    def log_density(self, points) -> np.ndarray:
+        p = _points(points)
+        m = 1 + min(p.shape[-2] - 1, self.n_first)
+        out = np.asarray(self.first.log_density(p[..., :m, :]), dtype=float)
+        if p.shape[-2] > m:
+            v = np.diff(p[..., m - 1:, :], axis=-2)
+            b2 = np.sum(v * v, axis=-1)
+            lo, hi = self.steps
+            with np.errstate(divide="ignore"):
+                lp = np.where((b2 >= lo * lo) & (b2 <= hi * hi), self._c - np.log(b2), -np.inf)
+            out = out + lp.sum(axis=-1)
+        return out
+
+    def sample(self, seed, n_cameras: int, size: int) -> np.ndarray:
+        n_cameras, size = _sample_args(n_cameras, size)
+        rng = as_rng(seed)
+        m = min(n_cameras, self.n_first)
+        head = np.asarray(self.first.sample(rng, m, size), dtype=float)
+        n = n_cameras - m
+        lo, hi = self.steps
+        b = np.exp(rng.uniform(np.log(lo), np.log(hi), (size, n)))
+        th = rng.uniform(-np.pi, np.pi, (size, n))
+        walk = head[:, -1:, :] + np.cumsum(b[..., None] * np.stack([np.cos(th), np.sin(th)],
+                                                                   axis=-1), axis=1)
+        return np.concatenate([head, walk], axis=1)
 
 
 class WindowPrior(Prior):
