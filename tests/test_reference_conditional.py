@@ -159,3 +159,22 @@ def test_c_proposal_matches_the_laplace_marginal_it_is_tempered_to():
     lw = R.laplace_marginal(L, PRIOR, C) - mix.log_density(C)
     w = np.exp(lw[np.isfinite(lw)] - np.max(lw[np.isfinite(lw)]))
     assert w.sum() ** 2 / np.sum(w * w) > 300
+
+
+def test_the_estimate_carries_the_evidence_and_it_prefers_the_true_prior():
+    # E over data from prior A of log Z_A - log Z_B is KL(p_A(data) || p_B(data)) >= 0: the
+    # simulator's world box against a wide uniform window, on histories the box generated
+    from qfg.priors import WindowPrior, WorldBoxPrior
+    from qfg.solvers import solve_triplet
+
+    diffs = []
+    for i in range(12):
+        h = random_triplet_history(np.random.default_rng(710000 + i), 3, np.deg2rad(2),
+                                   np.deg2rad(5))
+        z = [solve_triplet(h, method="reference", seed=i, prior=p, n_samples=2000).log_evidence
+             for p in (WorldBoxPrior(), WindowPrior((-12.0, 12.0, -11.5, 12.5)))]
+        assert np.all(np.isfinite(z))
+        diffs.append(z[0] - z[1])
+    assert np.mean(diffs) > 5.0 and np.mean(np.array(diffs) > 0) >= 0.9, diffs
+    est = solve_triplet(h, method="full", seed=0)
+    assert np.isnan(est.log_evidence)

@@ -199,6 +199,7 @@ def _reference_estimate(meas, part, opts, root) -> TripletEstimate:
         n_hypotheses=int(out["n_samples"]), degenerate=bool(reasons), reason="; ".join(reasons),
         method="reference", partition=part.name, n_views=meas.n_views, ess=float(out["ess"]),
         mc_error=float(np.max(out["mc_error"])), pareto_k=float(out.get("pareto_k", np.nan)),
+        log_evidence=np.nan if out["log_evidence"] is None else float(out["log_evidence"]),
         prior=_estimate.prior_name(opts),
         options=_estimate.public_options(opts))
 

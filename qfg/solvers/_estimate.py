@@ -36,6 +36,10 @@ class TripletEstimate:
         depth_unresolved: share of the final weight on hypotheses whose C depth along the lines
             of sight is unresolved (``full`` and ``fast`` from 2 views; NaN elsewhere); above
             ``_degenerate.UNRESOLVED_SHARE`` the answer is flagged.
+        log_evidence: log p(measurements) under the model and the prior, angles in radians
+            (``reference`` only, NaN elsewhere): the marginal likelihood that compares priors
+            or noise models on the same measurements (the larger, the better they explain
+            them; differences of a few tenths are within its Monte Carlo error).
         degenerate: True when the input was degenerate or nothing survived; the distributions are
             then as spread as the geometry allows, uniform wherever nothing is known (never NaN).
         reason: why ``degenerate`` is set ("" otherwise).
@@ -70,6 +74,7 @@ class TripletEstimate:
     pareto_k: float = float("nan")
     model_check: float = float("nan")
     depth_unresolved: float = float("nan")
+    log_evidence: float = float("nan")
     prior: str = ""
     options: dict = field(default_factory=dict)
 
