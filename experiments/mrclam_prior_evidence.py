@@ -107,6 +107,33 @@ def report(rows: list[dict], names: list[str]) -> None:
                   f"{(ls - ex).mean():+.3f} ± {clustered_se(ls - ex, cl):.3f} | {z} |")
 
 
+def report_paired(rows: list[dict], names: list[str], against: str = "box") -> None:
+    """Each answer minus ``against`` per history, and each answer's larger ``k`` minus its
+    smallest, paired by robot, landmark set and pass (SE clustered by landmark set)."""
+    def key(r):
+        return r["variant"], r["robot"], r["landmarks"], round(float(r["start"]), 6)
+
+    views = sorted({r["views"] for r in rows})
+    print(f"\n| variant | views | answer | minus {against}, paired | minus {views[0]} views, "
+          "paired |")
+    print("|---|---|---|---|---|")
+    for v in dict.fromkeys(r["variant"] for r in rows):
+        first = {key(r): r for r in rows if r["variant"] == v and r["views"] == views[0]}
+        for k in views:
+            sub = [r for r in rows if r["variant"] == v and r["views"] == k]
+            cl = [r["landmarks"] for r in sub]
+            for n in [*names, "mixture"]:
+                d = np.array([r[f"score_{n}"] - r[f"score_{against}"] for r in sub])
+                vs = f"{d.mean():+.3f} ± {clustered_se(d, cl):.3f}" if n != against else ""
+                pk = [(r, first[key(r)]) for r in sub if key(r) in first]
+                if k != views[0] and pk:
+                    e = np.array([r[f"score_{n}"] - f[f"score_{n}"] for r, f in pk])
+                    over = f"{e.mean():+.3f} ± {clustered_se(e, [r['landmarks'] for r, _ in pk]):.3f}"
+                else:
+                    over = ""
+                print(f"| {v} | {k} | {n} | {vs} | {over} |")
+
+
 def read_rows(path: Path) -> list[dict]:
     with open(path, newline="") as fh:
         rows = list(csv.DictReader(fh))
@@ -138,6 +165,8 @@ def main(argv=None):
         rows = read_rows(a.from_csv)
         names = [k[len("logz_"):] for k in rows[0] if k.startswith("logz_")]
         report(rows, names)
+        if "box" in names:
+            report_paired(rows, names)
         return
     path = mrclam.data_root() / f"MRCLAM_Dataset{a.dataset}"
     ds = study.prepare(path)[0]
@@ -183,6 +212,8 @@ def main(argv=None):
             w.writeheader()
             w.writerows(rows)
     report(rows, a.priors)
+    if "box" in a.priors:
+        report_paired(rows, a.priors)
 
 
 if __name__ == "__main__":

@@ -39,7 +39,7 @@ geometry.
         [--model measured] [--camera-prior point]
         [--budget 1] [--populations 1] [--no-distances] [--csv out/twin.csv]
         [--against out/other.csv] [--from-csv out/twin.csv] [--detail] [--travel] [--geometry]
-        [--detection] [--trajectory]
+        [--detection] [--trajectory] [--mixture]
 
 ``--travel`` gives each history its own prior, :class:`qfg.priors.TravelPrior`: the arena box
 joined with the odometry's first step length in metres (log error 0.07 with 10% at five times
@@ -66,7 +66,7 @@ from qfg.datasets import mrclam
 from qfg.geometry import bearing, motion_heading, wrap_angle
 from qfg.harness.studies import mrclam as study
 from qfg.metrics import expected_log_score, expected_truth_under, log_score, truth_under
-from qfg.priors import TrajectoryPrior, TravelPrior
+from qfg.priors import MixturePrior, TrajectoryPrior, TravelPrior
 from qfg.solvers import solve_triplet, solve_triplets
 from qfg.solvers._options import scaled_budget
 
@@ -161,7 +161,7 @@ DETECTION = (1.18, 6.27, 0.07, 0.40)
 
 
 def solve(prep, hs, seed, method="full", travel=None, detection=None, trajectory=False,
-          **options) -> np.ndarray:
+          mixture=False, **options) -> np.ndarray:
     """(T, m) the solver's state distributions, in chunks, seeded per chunk (``options`` on top
     of the run's); ``travel`` (T,) first step lengths (m): each history under its own
     :class:`TravelPrior`, one by one."""
@@ -180,10 +180,17 @@ def solve(prep, hs, seed, method="full", travel=None, detection=None, trajectory
     for i in range(0, len(hs), CHUNK):
         ss = np.random.SeedSequence(int(seed), spawn_key=(i // CHUNK,))
         est = solve_triplets(hs[i:i + CHUNK], method=method, partition=prep.partition, seed=ss,
-                             prior=TrajectoryPrior(prep.prior) if trajectory else prep.prior,
-                             **opts)
+                             prior=batch_prior(prep.prior, trajectory, mixture), **opts)
         out.extend(e.landmark for e in est)
     return np.array(out)
+
+
+def batch_prior(box, trajectory: bool = False, mixture: bool = False):
+    """The prior of a batched solve: the run's box, one robot's path over it
+    (``--trajectory``), or the equal mixture of the two (``--mixture``)."""
+    if mixture:
+        return MixturePrior([box, TrajectoryPrior(box)])
+    return TrajectoryPrior(box) if trajectory else box
 
 
 def clustered_se(d, cluster) -> float:
@@ -232,6 +239,10 @@ def main(argv=None):
                     help="the cameras after the box's first (after --travel's first two) reached "
                          "by scale-free steps (qfg.priors.TrajectoryPrior) instead of each "
                          "uniform in the box")
+    ap.add_argument("--mixture", action="store_true",
+                    help="the equal mixture of the box and --trajectory's path over it "
+                         "(qfg.priors.MixturePrior): each history's answer averages the two by "
+                         "their evidence")
     ap.add_argument("--detection", action="store_true",
                     help="with --travel: the prior also weighs every camera-landmark range by "
                          "the camera's detection range (DETECTION, fitted on dataset 6)")
@@ -249,6 +260,11 @@ def main(argv=None):
     ap.add_argument("--from-csv", type=Path, default=None,
                     help="report a recorded run's --csv instead of solving")
     a = ap.parse_args(argv)
+    if a.mixture and a.prior == "arena-logscale":
+        ap.error("--mixture: over the arena box (the log-scale box is not normalized, so a "
+                 "mixture would weigh it arbitrarily)")
+    if a.mixture and a.travel:
+        ap.error("--mixture: not with --travel")
     if a.detection and not a.travel:
         ap.error("--detection: only with --travel (the ranges need the step's metres)")
     if a.budget != 1.0 and a.method != "full":
@@ -300,7 +316,7 @@ def main(argv=None):
             P = solve(prep, hs, a.seed if a.solver_seed is None else a.solver_seed,
                       a.method, travel=travel,
                       detection=DETECTION if a.detection else None,
-                      trajectory=a.trajectory, **extra)
+                      trajectory=a.trajectory, mixture=a.mixture, **extra)
             g = np.array([h.truth.state for h in hs])
             ls, under = log_score(P, g), truth_under(P, g)
             print(f"k={k} {v}: {len(hs)} histories, log p(truth) {ls.mean():.3f}, "
