@@ -521,8 +521,9 @@ class TravelPrior(Prior):
     consecutive step lengths (the solvers' ``distances``) carry no scale; this is the scale.
     Where the box's metric scale does not describe the robot's world, neither does this prior.
 
-    ``detection = (near, far, near_width, far_width)`` (metres; None: off) also weighs every camera's range r
-    to each of A, B and C by the chance that the camera detects a landmark there,
+    ``detection = (near, far, near_width, far_width)`` (metres; None: off) also weighs every
+    camera's range r to each of A, B and C by the chance that the camera detects a landmark
+    there,
 
         D(r) = sigmoid((r - near) / near_width) sigmoid((far - r) / far_width),
 
@@ -667,9 +668,9 @@ class TrajectoryPrior(Prior):
                           (2 π b_j^2 log(hi / lo)),   b_j = |X_j - X_(j-1)|.
 
     A box prior (:class:`WorldBoxPrior`) makes every camera an independent point of the box, so
-    with k cameras on a trajectory of one shape its density grows as λ^(2k - 2) with the
-    trajectory's scale λ: the more views, the longer it expects the robot's path, however short
-    it was. Scale-free steps add views without that pull; the odometry's ratios and headings
+    for k cameras on a path of one shape, the first fixed, the density of the path's scale λ
+    grows as λ^(2k - 3) (the later cameras' area element) until the path nears the box's size:
+    the more views, the longer it expects the robot's path, however short it was. Scale-free steps add views without that pull; the odometry's ratios and headings
     (the solvers' likelihood) give the path its shape. With ``first`` a :class:`TravelPrior`
     (``n_first=2``: its step 0 joins the box with the first step's metres) the path has a
     scale too.
@@ -677,7 +678,7 @@ class TrajectoryPrior(Prior):
     >>> box = WorldBoxPrior(width=6.0, height=11.0)
     >>> p = TrajectoryPrior(box)
     >>> q = np.array([[0.5, 0.5], [2.0, 0.5], [2.0, 0.6], [2.0, 0.8]])  # C, X_1, X_2, X_3
-    >>> step = -np.log(2 * np.pi * np.log(1e6))                          # a step of 1 |AB|
+    >>> step = -np.log(2 * np.pi * np.log(1e6))                # each step's normalizer
     >>> want = box.log_density(q[:2]) + step - 2 * np.log(0.1) + step - 2 * np.log(0.2)
     >>> bool(np.isclose(p.log_density(q), want))
     True
