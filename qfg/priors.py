@@ -670,8 +670,9 @@ class TrajectoryPrior(Prior):
     A box prior (:class:`WorldBoxPrior`) makes every camera an independent point of the box, so
     for k cameras on a path of one shape, the first fixed, the density of the path's scale λ
     grows as λ^(2k - 3) (the later cameras' area element) until the path nears the box's size:
-    the more views, the longer it expects the robot's path, however short it was. Scale-free steps add views without that pull; the odometry's ratios and headings
-    (the solvers' likelihood) give the path its shape. With ``first`` a :class:`TravelPrior`
+    the more views, the longer it expects the robot's path, however short it was. Scale-free
+    steps add views without that pull; the odometry's ratios and headings (the solvers'
+    likelihood) give the path its shape. With ``first`` a :class:`TravelPrior`
     (``n_first=2``: its step 0 joins the box with the first step's metres) the path has a
     scale too.
 
