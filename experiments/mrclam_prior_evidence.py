@@ -17,13 +17,12 @@ expectation, and two answers that choose without ground truth:
   likelihood with the histories taken as independent, which they are not: landmark sets share
   images).
 
-Priors (all normalized densities of the same configurations, so their Z compare):
+Priors (normalized densities of the same configurations, so their Z compare; the log-scale
+box is known only up to a constant and is left out):
 
 * ``box``: the arena box (``qfg mrclam``'s default);
-* ``logscale``: the arena box with every scale of the pair AB equally likely;
 * ``path``: :class:`qfg.priors.TrajectoryPrior` over the arena box (C and the first camera from
-  the box, every later camera a scale-free step);
-* ``logscale-path``: the same over the log-scale box.
+  the box, every later camera a scale-free step).
 
 The reference solver takes the simple model (normal bearings and headings), without the
 odometry's distances.
@@ -54,13 +53,12 @@ from qfg.solvers import solve_triplet
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from mrclam_synthetic_twin import clustered_se, select, twin  # noqa: E402
 
-PRIORS = ("box", "logscale", "path", "logscale-path")
+PRIORS = ("box", "path")
 CLIP = 1e-4
 
 
-def make_prior(name: str, box, logscale_box):
-    base = logscale_box if name.startswith("logscale") else box
-    return TrajectoryPrior(base) if name.endswith("path") else base
+def make_prior(name: str, box):
+    return TrajectoryPrior(box) if name == "path" else box
 
 
 def solve_all(hs, priors: dict, seed: int) -> dict:
@@ -174,8 +172,7 @@ def main(argv=None):
         meas = joint.mrclam_runs(ds, min_move=0.0, min_turn_deg=0.0)
         ds = joint.mrclam_reference(ds, joint.solve(meas, seed=0), meas, align=True)
     box = study.make_prior(ds, "arena")
-    logscale = study.make_prior(ds, "arena-logscale")
-    priors = {n: make_prior(n, box, logscale) for n in a.priors}
+    priors = {n: make_prior(n, box) for n in a.priors}
     rows = []
     for k in a.views:
         prep = study.prepare_run(path, dataset=ds, robots=a.robots, spread_views=k)
