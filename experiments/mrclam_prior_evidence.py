@@ -51,7 +51,7 @@ from qfg.priors import TrajectoryPrior
 from qfg.solvers import solve_triplet
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from mrclam_synthetic_twin import clustered_se, select, twin  # noqa: E402
+from mrclam_synthetic_twin import clustered_se, select, twin, write_rows  # noqa: E402
 
 PRIORS = ("box", "path")
 CLIP = 1e-4
@@ -203,11 +203,7 @@ def main(argv=None):
                     row[f"logz_{n}"] = float(sol[n][1][i])
                 rows.append(row)
     if a.csv:
-        a.csv.parent.mkdir(parents=True, exist_ok=True)
-        with open(a.csv, "w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-            w.writeheader()
-            w.writerows(rows)
+        write_rows(a.csv, rows)
     report(rows, a.priors)
     if "box" in a.priors:
         report_paired(rows, a.priors)

@@ -335,11 +335,7 @@ def main(argv=None):
                                  log_score=float(s), under=bool(u),
                                  expected_log_score=float(es), expected_under=float(eu)))
     if a.csv:
-        a.csv.parent.mkdir(parents=True, exist_ok=True)
-        with open(a.csv, "w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-            w.writeheader()
-            w.writerows(rows)
+        write_rows(a.csv, rows)
     report(rows, a.views)
     if a.against is not None:
         report_against(rows, other, a.against)
@@ -373,6 +369,15 @@ def report_geometry(prep, sel, k, draws: int = 200_000) -> None:
         pct = 100.0 * np.searchsorted(G[:, j], F[:, j]) / draws
         print(f"| {name} | {np.median(F[:, j]):.3g} | {np.median(G[:, j]):.3g} | "
               f"{np.median(pct):.0f} ({np.percentile(pct, 10):.0f}-{np.percentile(pct, 90):.0f}) |")
+
+
+def write_rows(path: Path, rows: list[dict]) -> None:
+    """A run's rows as the csv ``--from-csv`` reads (the first row's keys are the columns)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
 
 
 def read_rows(path: Path) -> list[dict]:
