@@ -43,15 +43,13 @@ from pathlib import Path
 
 import numpy as np
 
-from qfg import joint
-from qfg.datasets import mrclam
 from qfg.harness.studies import mrclam as study
 from qfg.metrics import expected_log_score, log_score, truth_under
 from qfg.priors import TrajectoryPrior
 from qfg.solvers import solve_triplet
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from mrclam_synthetic_twin import clustered_se, select, twin, write_rows  # noqa: E402
+from mrclam_synthetic_twin import clustered_se, reference_dataset, select, twin, write_rows  # noqa: E402
 
 PRIORS = ("box", "path")
 CLIP = 1e-4
@@ -166,11 +164,7 @@ def main(argv=None):
         if "box" in names:
             report_paired(rows, names)
         return
-    path = mrclam.data_root() / f"MRCLAM_Dataset{a.dataset}"
-    ds = study.prepare(path)[0]
-    if a.reference == "joint":
-        meas = joint.mrclam_runs(ds, min_move=0.0, min_turn_deg=0.0)
-        ds = joint.mrclam_reference(ds, joint.solve(meas, seed=0), meas, align=True)
+    path, ds = reference_dataset(a.dataset, a.reference)
     box = study.make_prior(ds, "arena")
     priors = {n: make_prior(n, box) for n in a.priors}
     rows = []

@@ -286,11 +286,7 @@ def main(argv=None):
         if other is not None:
             report_against(rows, other, a.against)
         return
-    path = mrclam.data_root() / f"MRCLAM_Dataset{a.dataset}"
-    ds = study.prepare(path)[0]
-    if a.reference == "joint":
-        meas = joint.mrclam_runs(ds, min_move=0.0, min_turn_deg=0.0)
-        ds = joint.mrclam_reference(ds, joint.solve(meas, seed=0), meas, align=True)
+    path, ds = reference_dataset(a.dataset, a.reference)
     rows = []
     for k in a.views:
         model = {k: v for k, v in MODEL_PARTS.items() if k in a.model}
@@ -369,6 +365,18 @@ def report_geometry(prep, sel, k, draws: int = 200_000) -> None:
         pct = 100.0 * np.searchsorted(G[:, j], F[:, j]) / draws
         print(f"| {name} | {np.median(F[:, j]):.3g} | {np.median(G[:, j]):.3g} | "
               f"{np.median(pct):.0f} ({np.percentile(pct, 10):.0f}-{np.percentile(pct, 90):.0f}) |")
+
+
+def reference_dataset(number: int, reference: str = "capture"):
+    """(path, dataset): MRCLAM dataset ``number`` as ``qfg mrclam`` prepares it, its ground
+    truth the motion capture (``"capture"``) or the joint map of every robot's views aligned
+    onto the landmarks' ground truth (``"joint"``; module docstring)."""
+    path = mrclam.data_root() / f"MRCLAM_Dataset{number}"
+    ds = study.prepare(path)[0]
+    if reference == "joint":
+        meas = joint.mrclam_runs(ds, min_move=0.0, min_turn_deg=0.0)
+        ds = joint.mrclam_reference(ds, joint.solve(meas, seed=0), meas, align=True)
+    return path, ds
 
 
 def write_rows(path: Path, rows: list[dict]) -> None:
