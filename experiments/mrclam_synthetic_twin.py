@@ -47,8 +47,9 @@ that: dataset 6's steps against motion capture, robust sigma 0.064-0.072, 7-9% b
 scale the ratios of step lengths do not carry. Histories are then solved one by one.
 ``--detection`` adds the camera's detection range to that prior (``DETECTION``);
 ``--trajectory`` reaches every camera after the first (after ``--travel``'s first two) by a
-scale-free step (:class:`qfg.priors.TrajectoryPrior`). docs/mrclam.md ("Held out: the misfit is
-in the geometry, not in the errors") reports both.
+scale-free step (:class:`qfg.priors.TrajectoryPrior`); ``--mixture`` takes the equal mixture of
+the box and that path (:class:`qfg.priors.MixturePrior`). docs/mrclam.md ("Held out: the misfit
+is in the geometry, not in the errors", "Can the measurements choose the prior?") reports them.
 """
 
 from __future__ import annotations
