@@ -82,7 +82,7 @@ def dataset_row(seen_run: Path, map_run: Path) -> str:
         gain = (_scores(unseen, "log_score", map_run)
                 - _scores(unseen, "prior_log_score", map_run))
         u = (f"{_mean(unseen, map_run, 'prior_log_score')} | {_cell(unseen, map_run)} | "
-             f"{gain.mean():+.2f} ± {clustered_se(gain, _sets(unseen)):.2f}")
+             f"{round(gain.mean(), 2) + 0.0:+.2f} ± {clustered_se(gain, _sets(unseen)):.2f}")
     else:
         u = "- | - | -"
     n_hist = sum(1 for line in open(seen_run / "records.jsonl")
