@@ -6,27 +6,22 @@ combined it (no temper: the same histories, the same rule)."""
 from __future__ import annotations
 
 import csv
-import importlib.util
 from pathlib import Path
 
 import numpy as np
 import pytest
+from _experiments import load_experiment
 from test_mrclam import write_dataset
 
 from qfg.harness.cli import main
 from qfg.harness.studies import mrclam as study
 
-ROOT = Path(__file__).resolve().parents[1]
 FAST = ["--method", "fast", "--no-figures", "--no-progress", "--max-gap", "10", "--spread-views",
         "0", "--map", "seen", "--piece-size", "8", "--seed", "4"]
 
 
 def _merge_module():
-    spec = importlib.util.spec_from_file_location("mrclam_merge_runs",
-                                                  ROOT / "experiments" / "mrclam_merge_runs.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_experiment("mrclam_merge_runs")
 
 
 @pytest.fixture(scope="module")

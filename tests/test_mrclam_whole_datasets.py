@@ -4,27 +4,21 @@ pairs of runs that are not one run's solving are refused by name."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import shutil
-from pathlib import Path
 
 import pytest
+from _experiments import load_experiment
 from test_mrclam import write_dataset
 
 from qfg.harness.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
 FAST = ["--method", "fast", "--no-figures", "--no-progress", "--max-gap", "10", "--spread-views",
         "0", "--piece-size", "8", "--seed", "4"]
 
 
 def _module():
-    spec = importlib.util.spec_from_file_location(
-        "mrclam_whole_datasets", ROOT / "experiments" / "mrclam_whole_datasets.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_experiment("mrclam_whole_datasets")
 
 
 @pytest.fixture(scope="module")

@@ -5,23 +5,16 @@ over short and longer stretches; a model whose steps are noisier than it says is
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
+from _experiments import load_experiment
 
 from qfg import joint
 
-ROOT = Path(__file__).resolve().parents[1]
 CHI2_3_MEDIAN = 2.366
 
 
 def _module():
-    spec = importlib.util.spec_from_file_location(
-        "joint_odometry_stretches", ROOT / "experiments" / "joint_odometry_stretches.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_experiment("joint_odometry_stretches")
 
 
 def _run(rng, n=300, sigma=(0.004, 0.002, 0.01)):

@@ -1,0 +1,17 @@
+"""Load a script of ``experiments/`` as a module (the scripts are not a package), for the tests
+that check them."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
+
+
+def load_experiment(name: str):
+    """The module of ``experiments/<name>.py``."""
+    spec = importlib.util.spec_from_file_location(name, EXPERIMENTS / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
