@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from qfg.harness.studies.mrclam import clustered_se
+from qfg.metrics import clustered_se
 
 
 def read(run: Path) -> dict:

@@ -44,12 +44,12 @@ from pathlib import Path
 import numpy as np
 
 from qfg.harness.studies import mrclam as study
-from qfg.metrics import expected_log_score, log_score, truth_under
+from qfg.metrics import clustered_se, expected_log_score, log_score, truth_under
 from qfg.priors import TrajectoryPrior
 from qfg.solvers import solve_triplet
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from mrclam_synthetic_twin import clustered_se, reference_dataset, select, twin, write_rows  # noqa: E402
+from mrclam_synthetic_twin import reference_dataset, select, twin, write_rows  # noqa: E402
 
 PRIORS = ("box", "path")
 CLIP = 1e-4

@@ -66,7 +66,13 @@ from qfg import joint
 from qfg.datasets import mrclam
 from qfg.geometry import bearing, motion_heading, wrap_angle
 from qfg.harness.studies import mrclam as study
-from qfg.metrics import expected_log_score, expected_truth_under, log_score, truth_under
+from qfg.metrics import (
+    clustered_se,
+    expected_log_score,
+    expected_truth_under,
+    log_score,
+    truth_under,
+)
 from qfg.priors import MixturePrior, TrajectoryPrior, TravelPrior
 from qfg.solvers import solve_triplet, solve_triplets
 from qfg.solvers._options import scaled_budget
@@ -192,11 +198,6 @@ def batch_prior(box, trajectory: bool = False, mixture: bool = False):
     if mixture:
         return MixturePrior([box, TrajectoryPrior(box)])
     return TrajectoryPrior(box) if trajectory else box
-
-
-def clustered_se(d, cluster) -> float:
-    """Standard error of the mean of ``d`` with observations clustered by ``cluster``."""
-    return study.clustered_se(d, np.unique(np.asarray(cluster), return_inverse=True)[1])
 
 
 def main(argv=None):

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from qfg.harness.studies.mrclam import clustered_se
+from qfg.metrics import clustered_se
 
 
 def _rows(run: Path) -> tuple[dict, list[dict]]:

@@ -31,6 +31,7 @@ __all__ = [
     "truth_under",
     "expected_log_score",
     "expected_truth_under",
+    "clustered_se",
     "Reliability",
     "reliability",
     "expected_calibration_error",
@@ -223,6 +224,28 @@ class Reliability:
     all_confidence: np.ndarray
     all_frequency: np.ndarray
     all_count: np.ndarray
+
+
+def clustered_se(values, cluster) -> float:
+    """Standard error of the mean of ``values`` (n,) whose members sharing a ``cluster`` label
+    (n,) are dependent (the orderings of one landmark set, the triplets of one graph):
+    ``sqrt(sum_c (sum_{i in c} (v_i - mean))^2) / n``, the cluster-robust sandwich estimate.
+    With one value per cluster it is the plain ``std(ddof=0) / sqrt(n)``; 0 for fewer than two
+    values. Labels may be any hashable values (ints, strings, tuples as strings).
+
+    >>> v = np.array([1.0, 1.0, -1.0, -1.0])
+    >>> round(clustered_se(v, [0, 0, 1, 1]), 3), round(clustered_se(v, ["a", "b", "c", "d"]), 3)
+    (0.707, 0.5)
+    """
+    v = np.asarray(values, dtype=float).ravel()
+    c = np.asarray(cluster).ravel()
+    if c.size != v.size:
+        raise ValueError(f"clustered_se: {v.size} values but {c.size} cluster labels")
+    if v.size < 2:
+        return 0.0
+    ids = np.unique(c, return_inverse=True)[1].ravel()
+    res = np.bincount(ids, weights=v - v.mean())
+    return float(np.sqrt(np.sum(res ** 2)) / v.size)
 
 
 def _binned(conf, hit, edges):

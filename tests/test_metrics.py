@@ -214,3 +214,19 @@ def test_calibrated_forecaster_has_small_ece():
     assert metrics.expected_calibration_error(S, g) > 0.05
     with pytest.raises(ValueError, match="kind"):
         metrics.expected_calibration_error(P, g, kind="nope")
+
+
+def test_clustered_se_takes_any_labels_and_refuses_a_length_mismatch():
+    from qfg.metrics import clustered_se
+
+    rng = np.random.default_rng(5)
+    v = rng.standard_normal(60)
+    ints = np.repeat(np.arange(20), 3)
+    names = [f"set-{i}" for i in ints]
+    assert clustered_se(v, names) == pytest.approx(clustered_se(v, ints))
+    # one cluster's members moved together: the sum of residuals per cluster, by hand
+    res = np.array([np.sum(v[ints == c] - v.mean()) for c in range(20)])
+    assert clustered_se(v, ints) == pytest.approx(np.sqrt(np.sum(res ** 2)) / v.size)
+    assert clustered_se([1.0], [0]) == 0.0
+    with pytest.raises(ValueError, match="60 values but 59 cluster labels"):
+        clustered_se(v, ints[:-1])

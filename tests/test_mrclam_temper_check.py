@@ -4,7 +4,8 @@ are exact (it must keep them, power 1) or sharpened (it must widen them)."""
 
 import numpy as np
 
-from qfg.harness.studies.mrclam import AUTO_TEMPERS, choose_power, clustered_se, cross_pass_agreement
+from qfg.harness.studies.mrclam import AUTO_TEMPERS, choose_power, cross_pass_agreement
+from qfg.metrics import clustered_se
 
 
 def _posteriors(rng, sharpen, n_triplets=600, passes=3, m=5, right=0.6):

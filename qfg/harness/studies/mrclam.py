@@ -675,21 +675,6 @@ def cross_pass_agreement(P, groups: dict, q, tau: float) -> tuple[float, int]:
     return float(np.mean(_pair_agreements(P, a, b, q, tau))), int(a.size)
 
 
-def clustered_se(values, cluster) -> float:
-    """Standard error of the mean of ``values`` whose members of one ``cluster`` are dependent:
-    ``sqrt(sum_c (sum_{i in c} (v_i - mean))^2) / n`` (the cluster-robust sandwich estimate).
-
-    >>> v = np.array([1.0, 1.0, -1.0, -1.0])
-    >>> round(clustered_se(v, np.array([0, 0, 1, 1])), 3), round(clustered_se(v, np.arange(4)), 3)
-    (0.707, 0.5)
-    """
-    v = np.asarray(values, dtype=float)
-    if v.size < 2:
-        return 0.0
-    res = np.bincount(np.asarray(cluster), weights=v - v.mean())
-    return float(np.sqrt(np.sum(res ** 2)) / v.size)
-
-
 #: ``--temper`` rules of the check over histories: ``auto`` the power with the best agreement;
 #: ``auto-1se`` the smallest power whose agreement is within one (cluster-robust) standard error
 #: of the best, the one-standard-error rule: among powers the passes cannot tell apart, the most
@@ -703,7 +688,7 @@ def choose_temper(prep: Prepared, ests: list[_Light], taus=AUTO_TEMPERS,
     histories of each ordered triplet agree best (:func:`cross_pass_agreement`). Passes that
     contradict each other under the model (each confident, on different states) choose a power
     below 1, which widens every estimate toward the prior; where they agree it stays 1. With
-    ``rule="auto-1se"`` the smallest power within one standard error (:func:`clustered_se`, by
+    ``rule="auto-1se"`` the smallest power within one standard error (:func:`qfg.metrics.clustered_se`, by
     unordered landmark set) of the best. Returns (the power, [(tau, agreement, pairs, se),
     ...]); 1 when no triplet has two histories."""
     P = np.array([e.landmark for e in ests], dtype=float)
@@ -721,7 +706,7 @@ def choose_power(P, groups: dict, q, taus=AUTO_TEMPERS, rule: str = "auto") -> t
     table = []
     for t in taus:
         ag = _pair_agreements(P, a, b, q, t)
-        table.append((float(t), float(np.mean(ag)), int(ag.size), clustered_se(ag, cid)))
+        table.append((float(t), float(np.mean(ag)), int(ag.size), metrics.clustered_se(ag, cid)))
     if not table:
         return 1.0, table
     best = max(table, key=lambda r: (r[1], r[0]))
