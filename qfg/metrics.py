@@ -231,7 +231,7 @@ def clustered_se(values, cluster) -> float:
     (n,) are dependent (the orderings of one landmark set, the triplets of one graph):
     ``sqrt(sum_c (sum_{i in c} (v_i - mean))^2) / n``, the cluster-robust sandwich estimate.
     With one value per cluster it is the plain ``std(ddof=0) / sqrt(n)``; 0 for fewer than two
-    values. Labels may be any hashable values (ints, strings, tuples as strings).
+    values. Labels may be any values numpy can sort (ints, strings).
 
     >>> v = np.array([1.0, 1.0, -1.0, -1.0])
     >>> round(clustered_se(v, [0, 0, 1, 1]), 3), round(clustered_se(v, ["a", "b", "c", "d"]), 3)
