@@ -62,6 +62,12 @@ def _sets(rows: list[dict]) -> np.ndarray:
     return np.unique(names, return_inverse=True)[1]
 
 
+def _n_histories(run: Path) -> int:
+    """How many histories the run solved (one row of ``records.jsonl`` each)."""
+    with open(run / "records.jsonl") as fh:
+        return sum(len(json.loads(line)["rows"]) for line in fh)
+
+
 def dataset_row(seen_run: Path, map_run: Path) -> str:
     """One markdown row (see :data:`HEADER`) for a dataset's pair of runs."""
     s_summ, s_rows = _rows(seen_run)
@@ -85,9 +91,8 @@ def dataset_row(seen_run: Path, map_run: Path) -> str:
              f"{round(gain.mean(), 2) + 0.0:+.2f} ± {clustered_se(gain, _sets(unseen)):.2f}")
     else:
         u = "- | - | -"
-    n_hist = sum(1 for line in open(seen_run / "records.jsonl")
-                 for _ in json.loads(line)["rows"]) if (seen_run / "records.jsonl").is_file() else 0
-    return (f"| {names.pop()} | {n_hist} | {'/'.join(str(t) for t in sorted(taus, key=str))} | "
+    tau = "/".join(str(t) for t in sorted(taus, key=str))
+    return (f"| {names.pop()} | {_n_histories(seen_run)} | {tau} | "
             f"{len(solved)} | {_mean(solved, seen_run, 'prior_log_score')} | {_cell(solved, seen_run)} | "
             f"{_cell(m_seen, map_run)} | {len(unseen)} | {u} |")
 

@@ -217,8 +217,7 @@ def test_calibrated_forecaster_has_small_ece():
 
 
 def test_clustered_se_takes_any_labels_and_refuses_a_length_mismatch():
-    from qfg.metrics import clustered_se
-
+    clustered_se = metrics.clustered_se
     rng = np.random.default_rng(5)
     v = rng.standard_normal(60)
     ints = np.repeat(np.arange(20), 3)
