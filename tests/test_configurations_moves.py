@@ -8,7 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from qfg.configurations import _landmark_blocks, infer_configurations, prior_states
+from qfg.configurations import infer_configurations, prior_states
+from qfg.configurations.sampler import _landmark_blocks
 from qfg.priors import WorldBoxPrior
 
 M = 20
