@@ -278,7 +278,7 @@ def _family_rows(name, res):
 
 
 def bench_bp_full_maps(T, sizes=(10, 15, 20, 25), max_iters=200):
-    from qfg.propagation import loopy_bp
+    from qfg.inference import loopy_bp
 
     rows = []
     for n in sizes:
@@ -298,7 +298,7 @@ def bench_bp_full_maps(T, sizes=(10, 15, 20, 25), max_iters=200):
 def bench_message_step(T, n=15):
     """One factor-to-variable message step, all roles: einsum (before) vs matrix products."""
     from benchmarks import median_time
-    from qfg.propagation import _role_matrices
+    from qfg.inference.loopy import _role_matrices
 
     g = full_map(n, tensor=T)
     F, m = g.n_factors, g.m

@@ -28,8 +28,7 @@ def main(base: int, n: int):
     from qfg import composition
     from qfg.graph import factor_overlap, map_from_triplets, truth_states
     from qfg.harness.runner import scenario_rng
-    from qfg.inference import exact_marginals
-    from qfg.propagation import BP_DEGREE_WARN, BP_OVERLAP_WARN, loopy_bp
+    from qfg.inference import BP_DEGREE_WARN, BP_OVERLAP_WARN, exact_marginals, loopy_bp
     from qfg.random_graphs import propagation_graph
 
     T = composition.tensor("edc")

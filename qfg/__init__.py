@@ -41,7 +41,7 @@ _NAMES = {
     "propagate": "propagation",
     "topology_scores": "propagation",
     "composition_levels": "propagation",
-    "loopy_bp": "propagation",
+    "loopy_bp": "inference",
     "compare_unseen": "propagation",
     "GraphTooLargeError": "propagation",
     "ZeroMassError": "propagation",

@@ -11,7 +11,7 @@ the composition tensor). Factors:
 The joint is the normalized product of all factors. Inference is a layer above this module (the
 graph imports none of it): :func:`qfg.inference.exact_marginals` (one junction-tree calibration),
 :func:`qfg.inference.map_assignment`, :func:`qfg.propagation.propagate` (the paper's
-label-correcting Algorithm 2), :func:`qfg.propagation.loopy_bp` (sum-product).
+label-correcting Algorithm 2), :func:`qfg.inference.loopy_bp` (sum-product).
 
 Key scheme. Triplet ``(i, j, k)`` is the GTSAM DiscreteKey ``(triplet_key(i, j, k), m)`` with
 ``triplet_key(i, j, k) = (i << 40) | (j << 20) | k`` (:data:`KEY_BITS` = 20 bits per landmark id,

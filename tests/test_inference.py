@@ -17,10 +17,11 @@ from qfg.inference import (
     ZeroMassError,
     exact_marginals,
     k_best,
+    loopy_bp,
     map_assignment,
     size_estimate,
 )
-from qfg.propagation import loopy_bp, propagate
+from qfg.propagation import propagate
 
 
 def factor_graph(rng, T, n_land=5, n_fc=3, seen_frac=0.5, prior_scale=1.0):
@@ -436,7 +437,7 @@ def test_loopy_bp_argument_types_are_value_errors(kw):
 
 
 def test_loopy_bp_warns_when_not_converged_and_on_dense_maps():
-    from qfg.propagation import DenseMapWarning, NotConvergedWarning
+    from qfg.inference import DenseMapWarning, NotConvergedWarning
 
     rng = np.random.default_rng(0)
     g = full_map(5, partition=None, tensor=rng.random((3, 3, 3)))
@@ -496,7 +497,7 @@ def test_memory_estimate_bounds_what_numpy_allocates(seed):
 _REFUSE = """
 import resource, sys, numpy as np
 from qfg.inference import FactorModel, JunctionTree, MemoryBudgetError, exact_marginals, map_assignment
-from qfg.propagation import loopy_bp
+from qfg.inference import loopy_bp
 sys.path.insert(0, {tests!r})
 from test_inference import _band
 budget = {budget}

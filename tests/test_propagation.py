@@ -10,12 +10,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from qfg.graph import QualitativeFactorGraph, full_map
+from qfg.inference import loopy_bp
 from qfg.metrics import information_score
 from qfg.propagation import (
     GraphTooLargeError,
     composition_levels,
     exact_marginals,
-    loopy_bp,
     propagate,
     topology_scores,
 )
@@ -441,7 +441,7 @@ def test_unchecked_information_score_is_the_metric():
 def test_loopy_bp_memory_estimate_bounds_its_allocations():
     import tracemalloc
 
-    from qfg.propagation import loopy_bp_memory
+    from qfg.inference import loopy_bp_memory
 
     rng = np.random.default_rng(0)
     for L, m in ((9, 20), (8, 6)):

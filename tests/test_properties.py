@@ -26,7 +26,8 @@ from hypothesis import strategies as st
 from qfg import composition as qc
 from qfg import metrics, solvers
 from qfg.graph import QualitativeFactorGraph, full_map
-from qfg.propagation import compare_unseen, exact_marginals, loopy_bp, propagate
+from qfg.inference import loopy_bp
+from qfg.propagation import compare_unseen, exact_marginals, propagate
 
 #: Tolerance on the row sums of returned distributions.
 SUM_TOL = 1e-9

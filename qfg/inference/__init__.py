@@ -1,8 +1,9 @@
 """Inference on qualitative factor graphs: exact marginals (one junction-tree calibration), MAP and
-K-best joint assignments, the labelled result types, and the UAI model format.
+K-best joint assignments, loopy BP (:mod:`qfg.inference.loopy`), the labelled result types, and
+the UAI model format.
 
-Label-correcting propagation (Algorithms 2 and 3) and loopy BP live in :mod:`qfg.propagation`
-and return the same :class:`Marginals` type.
+Label-correcting propagation (Algorithms 2 and 3) lives in :mod:`qfg.propagation` and returns the
+same :class:`Marginals` type.
 
 >>> import numpy as np
 >>> from qfg.graph import full_map
@@ -14,6 +15,14 @@ and return the same :class:`Marginals` type.
 from .evidence import clamp, read_evid
 from .exact import ENGINES, elimination_estimate, exact_marginals, k_best, map_assignment
 from .junction import MAX_TABLE, FactorModel, JunctionTree, SizeEstimate, size_estimate
+from .loopy import (
+    BP_DEGREE_WARN,
+    BP_OVERLAP_WARN,
+    DenseMapWarning,
+    NotConvergedWarning,
+    loopy_bp,
+    loopy_bp_memory,
+)
 from .memory import MemoryBudgetError, MemoryEstimate, memory_budget
 from .results import Assignment, GraphTooLargeError, Marginals, MissingKeyError, ZeroMassError
 from .tasks import TaskResult, query, read_result, solve_task, write_result
@@ -24,4 +33,5 @@ __all__ = ["exact_marginals", "map_assignment", "k_best", "elimination_estimate"
            "Marginals", "Assignment", "GraphTooLargeError", "ZeroMassError", "MissingKeyError",
            "write_uai", "read_uai", "read_uai_graph", "read_evid", "clamp", "MemoryBudgetError",
            "MemoryEstimate", "memory_budget", "query", "solve_task", "write_result",
-           "read_result", "TaskResult"]
+           "read_result", "TaskResult", "loopy_bp", "loopy_bp_memory", "NotConvergedWarning",
+           "DenseMapWarning", "BP_OVERLAP_WARN", "BP_DEGREE_WARN"]

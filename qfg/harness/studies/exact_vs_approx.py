@@ -47,9 +47,9 @@ from qfg.graph import truth_states
 from qfg.harness.runner import Study, param_spec, print_table, save_figure, write_table
 from qfg.harness.studies import _map_methods as mm
 from qfg.harness.studies.propagation import GRAPH_KEYS as _GRAPH_KEYS
-from qfg.inference import ZeroMassError, exact_marginals
+from qfg.inference import ZeroMassError, exact_marginals, loopy_bp
 from qfg.metrics import dmse, information_score
-from qfg.propagation import loopy_bp, propagate, topology_scores
+from qfg.propagation import propagate, topology_scores
 from qfg.random_graphs import propagation_graph
 
 #: approximate methods: name -> label
