@@ -1,5 +1,7 @@
 """The labelled result types: one indexing rule (a triplet or a variable index), KeyError when
-absent, ``in`` consistent with indexing, pickling keeps the rule."""
+absent, ``in`` consistent with indexing, pickling keeps the rule. The results index
+(``docs/results.md``, :mod:`qfg.harness.results_doc`): each page's lead, rebuilt
+deterministically, and the repository's copy up to date."""
 
 import pickle
 
@@ -67,3 +69,43 @@ def test_assignment_follows_the_same_rule():
         a[(3, 2, 1)]
     with pytest.raises(KeyError, match="variable: 5"):
         a[5]
+
+
+# ------------------------------------------------------------ the results index (docs/results.md)
+def test_results_index_takes_each_pages_lead_and_links_the_page(tmp_path):
+    from qfg.harness import results_doc
+
+    secs = tmp_path / "results"
+    secs.mkdir()
+    (secs / "propagation.md").write_text(
+        "## Propagation\n\n    qfg experiment propagation\n\n| a | b |\n|---|---|\n| 1 | 2 |\n\n"
+        "![f](../figures/propagation/x.png) [other](exact_vs_approx.md) [g](../joint.md)\n\n"
+        "### Details\n\nnot in the index\n")
+    (secs / "single_triplet.md").write_text(
+        "## Single triplet\n\n```bash\n# a comment, not a heading\nqfg experiment single-triplet\n```\n\n"
+        "### More\n\nnot either\n")
+    doc = results_doc.write(tmp_path / "results.md", results_dir=secs)
+    text = doc.read_text()
+    # paper order, each page linked, its lead kept, its details left on the page
+    assert text.index("## Single triplet") < text.index("## Propagation")
+    assert "[results/propagation.md](results/propagation.md)" in text
+    assert "| 1 | 2 |" in text and "# a comment, not a heading" in text
+    assert "not in the index" not in text and "not either" not in text
+    # links rebased from docs/results/ to docs/
+    assert "](figures/propagation/x.png)" in text and "](results/exact_vs_approx.md)" in text
+    assert "](joint.md)" in text
+    # the same pages give the same document
+    assert results_doc.build_text(results_doc.sections(secs)) == text
+
+
+def test_the_repositorys_results_index_is_up_to_date():
+    from pathlib import Path
+
+    from qfg.harness import results_doc
+
+    docs = Path(__file__).resolve().parents[1] / "docs"
+    if not (docs / "results").is_dir():
+        pytest.skip("not a checkout")
+    built = results_doc.build_text(results_doc.sections(docs / "results"))
+    assert (docs / "results.md").read_text() == built, (
+        "docs/results.md is stale: run `qfg experiment all --doc-only`")

@@ -1,10 +1,14 @@
-"""Assemble ``docs/results.md`` from the per-study sections ``docs/results/<study>.md``.
+"""Assemble ``docs/results.md``, the index of the results pages ``docs/results/<study>.md``.
 
-Each study owner writes its section (tables, figures, the paper's numbers next to ours, and the
-exact command that made them) in ``docs/results/<study>.md``; this module only concatenates them
-in a fixed order and, when given the runs ``qfg experiment all`` just made, appends a run record:
-per study its command, seed, output directory and the scalar entries of its ``summary.json``.
-Sections without a ``qfg`` command line are listed in a warning (every number needs its command).
+Each study owner writes its page (tables, figures, the paper's numbers next to ours, and the
+exact command that made them) in ``docs/results/<study>.md``. A page opens with its title
+heading and a lead: the commands that regenerate it, the data it came from, one paragraph and
+its key table or headline number; its details follow under subheadings. This module takes each
+page's lead (:func:`lead`: the text up to the first subheading), in a fixed order, links the
+full page, and, when given the runs ``qfg experiment all`` just made, appends a run record: per
+study its command, seed, output directory and the scalar entries of its ``summary.json``. The
+output depends on the page files (and the runs) alone. Pages without a ``qfg`` command line are
+listed in a warning (every number needs its command).
 
 >>> from pathlib import Path
 >>> text = build_text({"propagation": "## Propagation\\n\\n    qfg experiment propagation\\n"})
@@ -18,12 +22,16 @@ import json
 import re
 from pathlib import Path
 
-__all__ = ["ORDER", "sections", "build_text", "write", "missing_commands"]
+__all__ = ["ORDER", "sections", "lead", "build_text", "write", "missing_commands"]
 
 #: Section order (paper order); any other section follows, alphabetically.
 ORDER = ("single_triplet", "composition", "exact_vs_approx", "propagation", "mrclam")
 
 _COMMAND = re.compile(r"(^|\s|`)(\.venv/bin/)?qfg \w", re.MULTILINE)
+_HEADING = re.compile(r"^#{1,6} ", re.MULTILINE)
+_FENCE = re.compile(r"^(```|~~~)", re.MULTILINE)
+# a relative markdown link target (not a URL, not an anchor, not an absolute path)
+_LINK = re.compile(r"\]\((?![a-z][a-z0-9+.-]*:|#|/)([^)\s]+)\)")
 
 
 def sections(results_dir) -> dict[str, str]:
@@ -34,6 +42,36 @@ def sections(results_dir) -> dict[str, str]:
     return {k: found[k] for k in order}
 
 
+def lead(text: str) -> str:
+    """The lead of a results page: its title heading and the text up to the next heading (of
+    any level) outside code fences; the whole text when there is none.
+
+    >>> lead("## T\\n\\nrun `qfg x`\\n\\n### Details\\n\\nmore\\n")
+    '## T\\n\\nrun `qfg x`'
+    """
+    lines = text.splitlines()
+    out, fenced, titled = [], False, False
+    for line in lines:
+        if _FENCE.match(line):
+            fenced = not fenced
+        elif not fenced and _HEADING.match(line):
+            if titled:
+                break
+            titled = True
+        out.append(line)
+    return "\n".join(out).strip("\n")
+
+
+def _rebase(text: str) -> str:
+    """Links of ``docs/results/<stem>.md`` made relative to ``docs/`` (where the index lives)."""
+    def fix(m):
+        target = m.group(1)
+        if target.startswith("../"):
+            return f"]({target[3:]})"
+        return f"](results/{target})"
+    return _LINK.sub(fix, text)
+
+
 def missing_commands(secs: dict[str, str]) -> list[str]:
     """Sections that name no ``qfg ...`` command."""
     return [k for k, text in secs.items() if not _COMMAND.search(text)]
@@ -42,8 +80,7 @@ def missing_commands(secs: dict[str, str]) -> list[str]:
 def _run_record(runs: list[dict]) -> list[str]:
     out = ["## Run record of `qfg experiment all`", "",
            "Written by `qfg experiment all`: what each study's run produced (scalar entries of its "
-           "`summary.json`). The sections above interpret the runs their commands name; where a "
-           "number here differs from a section, the section was made by another run.", ""]
+           "`summary.json`). The pages above report the runs their own commands name.", ""]
     for r in runs:
         out.append(f"### {r['study']}")
         out.append("")
@@ -74,18 +111,25 @@ def _run_record(runs: list[dict]) -> list[str]:
 
 
 def build_text(secs: dict[str, str], runs: list[dict] | None = None) -> str:
-    """The text of ``docs/results.md`` from section texts (and a run record)."""
+    """The text of ``docs/results.md``: each page's lead (:func:`lead`) with a link to the full
+    page, in the order of ``secs``, then the run record of ``runs`` (if any)."""
     out = ["# Results", "",
-           "Assembled by `qfg experiment all --update-docs` (`qfg/harness/results_doc.py`) from "
-           "`docs/results/<study>.md`; do not edit by hand: edit the section files. Each section "
-           "names the command that made its numbers and figures.", ""]
+           "The index of the results pages in `docs/results/`: each entry is the opening of its "
+           "page (the commands that regenerate it, the data, the key table or number); the full "
+           "page has the details. Rebuilt by `qfg experiment all --doc-only` (or after the runs, "
+           "`--update-docs`) from the pages (`qfg/harness/results_doc.py`); edit the pages, not "
+           "this file.", ""]
     if secs:
-        out.append("Contents: " + ", ".join(f"[{k}](results/{k}.md)" for k in secs))
+        out.append("Pages: " + ", ".join(f"[{k}](results/{k}.md)" for k in secs))
         out.append("")
-    for text in secs.values():
-        # figures are referenced relative to docs/results/; this file lives in docs/
-        text = re.sub(r"\]\((?:\.\./)(figures/)", r"](\1", text)
-        out.append(text.rstrip("\n"))
+    for stem, text in secs.items():
+        head, _, rest = lead(text).partition("\n")
+        out.append(head)
+        out.append("")
+        out.append(f"Full page: [results/{stem}.md](results/{stem}.md).")
+        body = _rebase(rest).strip("\n")
+        if body:
+            out += ["", body]
         out.append("")
     if runs:
         out += _run_record(runs)
