@@ -35,9 +35,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import nonlinear as _nl
-from ._validate import non_negative, positive_int
-from .geometry import wrap_angle
+from .. import nonlinear as _nl
+from .._validate import non_negative, positive_int
+from ..geometry import wrap_angle
 
 __all__ = ["KinematicPrior", "KINEMATIC", "AGREE", "kinematic_run", "visual_steps",
            "odometry_start", "kinematic_start", "similarity", "apply_similarity", "shape_misfit",
@@ -397,7 +397,7 @@ def kinematic_start(r, lm_index, *, chunk: int = 50, min_rays: int = 5,
     """
     if r.odometry is None:
         raise ValueError(f"robot {r.robot}: expected the kinematic prior as its odometry "
-                         "(qfg.joint_start.kinematic_run)")
+                         "(qfg.joint.start.kinematic_run)")
     chunk = positive_int("chunk", chunk, minimum=2)
     min_rays = positive_int("min_rays", min_rays, minimum=2)
     min_parallax_deg = non_negative("min_parallax_deg", min_parallax_deg)
@@ -486,6 +486,18 @@ def apply_similarity(points, sim) -> np.ndarray:
     X = np.asarray(points, float)
     return (np.asarray(s, float)[..., None, None] * X @ np.swapaxes(R, -1, -2)
             + np.asarray(t, float)[..., None, :])
+
+
+def _apply(sc, R, t, poses=None, points=None):
+    """Poses and points moved by the similarity ``x -> sc R x + t`` (headings turned by R)."""
+    out = []
+    if poses is not None:
+        xy = apply_similarity(poses[:, :2], (sc, R, t))
+        out.append(np.column_stack([xy, wrap_angle(poses[:, 2] + np.arctan2(R[1, 0], R[0, 0]))]))
+    if points is not None:
+        out.append(apply_similarity(points, (sc, R, t)))
+    return out
+
 
 
 def shape_misfit(a, b) -> float:
