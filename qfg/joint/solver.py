@@ -27,18 +27,19 @@ from .start import _apply
 
 __all__ = ["solve", "OUTLIER", "OUTLIER_SHARE", "KINEMATIC_INFLATE", "OVERDISPERSED"]
 
-#: Bearings beyond this many sigmas at a fit are gross errors (MRCLAM dataset 6: dropping them
-#: takes robots 3 and 5's maps from 15-17 cm to 5-6 cm median error, docs/joint.md).
+#: Bearings beyond this many sigmas at a fit are gross errors (misread barcodes and the like):
+#: the Huber kernel bounds their pull but does not remove it, so they are left out and the fit
+#: redone (docs/joint.md, "Outlier rejection").
 OUTLIER = 4.0
 #: A run with more than this share of its bearings beyond :data:`OUTLIER` disagrees with the
-#: map (MRCLAM dataset 6: at most 1.4 % of the bearings are gross errors, docs/mrclam.md).
+#: map: gross errors are rare in the data (docs/mrclam.md), so a run with many of them sits in
+#: a wrong minimum rather than being unlucky in its bearings.
 OUTLIER_SHARE = 0.1
 #: Factor on the covariance of a map that holds a run solved with the kinematic prior (no
 #: odometry), or ``"auto"``: the robots' own maps' scatter about the joint map
-#: (:func:`overdispersion`) when above 1. Such maps' relative landmark positions are more
-#: certain than their errors (the truth's C in the AB frame a median squared Mahalanobis
-#: distance of 1.5-5.1 from the posterior's even after the widening, against chi-square's
-#: 1.39); chosen on MRCLAM datasets 1-3 with their odometry withheld, reported on 5 and 6
+#: (:func:`overdispersion`) when above 1. The kinematic prior is a guess at the motion, and
+#: the Laplace approximation of such a map is more certain of its relative landmark positions
+#: than their errors warrant; the robots' own maps measure how much more without ground truth
 #: (docs/joint.md, "Without odometry").
 KINEMATIC_INFLATE = "auto"
 #: A map whose robots' own maps scatter about it by more than this factor (in variance) over

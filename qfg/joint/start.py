@@ -15,9 +15,9 @@ landmarks begin before Levenberg-Marquardt, with odometry and without it.
   without the landmarks it placed, and dropped when that fails too. Which minimum this reaches
   depends on ``chunk``: :func:`qfg.joint.solve` tries several sizes and keeps the least cost.
 * **Robots checked against each other** (:func:`agreeing_group`): a fit without odometry can
-  pass every residual check in a wrong minimum (MRCLAM: 11 of 16 wrong fits did, docs/joint.md),
-  so the robots whose maps agree in shape (:func:`shape_misfit`, similarity-invariant like the
-  qualitative states) are the ones kept.
+  pass every residual check in a wrong minimum (docs/joint.md counts how often), so the robots
+  whose maps agree in shape (:func:`shape_misfit`, similarity-invariant like the qualitative
+  states) are the ones kept.
 
 The measurements behind each number are in docs/joint.md ("Without odometry").
 
@@ -46,8 +46,9 @@ __all__ = ["KinematicPrior", "KINEMATIC", "AGREE", "kinematic_run", "visual_step
 
 #: Two robots' maps agree when, on their common landmarks, the median misfit after the best
 #: similarity (each onto the other) is at most this share of the configuration's rms radius.
-#: Chosen on MRCLAM datasets 1-4 and 6 with the odometry withheld as the largest of 0.02, 0.05
-#: and 0.1 that lets no robot more than 0.25 m off into a group (docs/joint.md).
+#: Loose enough that maps with ordinary noise agree, tight enough that a robot fitted in a wrong
+#: minimum joins no group; chosen with the odometry withheld from runs whose ground truth shows
+#: which fits are wrong (docs/joint.md, "Without odometry").
 AGREE = 0.05
 
 

@@ -25,8 +25,9 @@ if TYPE_CHECKING:
 
 __all__ = ["triplet_marginals", "camera_marginals", "FLOOR"]
 
-#: Weight of the prior's state distribution mixed into every row (chosen on MRCLAM dataset 6
-#: and development simulations: docs/joint.md).
+#: Weight of the prior's state distribution mixed into every row: insurance against a confident
+#: wrong set of samples (it bounds what one triplet can lose) at a cost too small to matter where
+#: the map is right (docs/joint.md, "Covariance scale and floor").
 FLOOR = 1e-3
 
 

@@ -72,9 +72,10 @@ def mrclam_runs(dataset, robots=None, *, min_move: float = 0.02, min_turn_deg: f
     between keyframes from the dead-reckoned poses (:func:`qfg.joint.odometry_steps`, noise
     ``odometry_noise``, default :data:`qfg.joint.ODOMETRY_NOISE`; with ``noise_by_path`` its
     ``d`` and ``|dtheta|`` are the path length and turning the odometry covered between the
-    keyframes, not the net step: they differ only where keyframes are far apart, and there the
-    option helped dataset 6 and hurt datasets 1 and 3, docs/joint.md); bearings with
-    ``sigma_bearing`` (default the loader's ``DEFAULT_SIGMA_BEARING``)."""
+    keyframes, not the net step: they differ only where keyframes are far apart, where the path
+    is the better model of a long step but did not hold up on held-out datasets, so it is off
+    by default, docs/joint.md); bearings with ``sigma_bearing`` (default the loader's
+    ``DEFAULT_SIGMA_BEARING``)."""
     sb = DEFAULT_SIGMA_BEARING if sigma_bearing is None else non_negative(
         "sigma_bearing", sigma_bearing)
     lead = DEFAULT_ODOMETRY_LEAD if odometry_lead is None else float(odometry_lead)
