@@ -64,11 +64,12 @@ def run():
     root = os.environ.get("QFG_MRCLAM_DIR")
     if root and os.path.isdir(os.path.join(root, "MRCLAM_Dataset6")):
         from qfg.datasets import mrclam
+        from qfg.datasets.mrclam.joint_map import mrclam_marginals
 
         load = _load()
         ds = mrclam.load(os.path.join(root, "MRCLAM_Dataset6"))
         t0 = time.perf_counter()
-        res = joint.mrclam_marginals(ds, samples=2000, seed=0)
+        res = mrclam_marginals(ds, samples=2000, seed=0)
         t = time.perf_counter() - t0
         p = res.posterior
         rows.append({"name": "MRCLAM dataset 6, 5 robots, end to end", "value": t, "unit": "s",

@@ -28,9 +28,9 @@ import numpy as np
 
 from qfg import metrics
 from qfg.combine import prior_state_distribution
+from qfg.datasets.mrclam.joint_map import mrclam_marginals, mrclam_runs
 from qfg.graph import truth_states
 from qfg.harness.studies import mrclam as study
-from qfg.joint import mrclam_marginals
 from qfg.partitions import get as get_partition
 
 
@@ -194,7 +194,7 @@ def sweep(path, *, seed=0, samples=2000, inflates=(1, 2, 4, 9), floors=(0.0, 1e-
     keys = [tuple(int(ids[i]) for i in t) for t in trip.tolist()]
     seen = np.array([tuple(t) in seen_idx for t in trip.tolist()])
     g = truth_states(trip, ds.landmark_xy, "edc")
-    post = joint.solve(joint.mrclam_runs(ds, min_interval=min_interval), seed=seed)
+    post = joint.solve(mrclam_runs(ds, min_interval=min_interval), seed=seed)
     kappa = float(post.info.get("overdispersion", np.nan))   # measured by solve, its robots
     print(f"{ds.name} (keyframes {min_interval:g} s apart or more): flags {post.flags}, robots "
           f"{post.robot_flags}, bearings dropped {post.info['outliers_dropped']}, the robots' "

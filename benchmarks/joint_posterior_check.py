@@ -16,6 +16,7 @@ import time
 import numpy as np
 
 from qfg import joint
+from qfg.joint import states as joint_states
 from qfg.partitions import get as get_partition
 from qfg.simulation import random_trajectory_run
 
@@ -43,10 +44,10 @@ def main(argv=None):
         pg = joint.solve(meas, sir_rays=0)
         ps = joint.solve(meas)
         ok = pg.constrained
-        tri = np.array([t for t in joint._all_triplets(len(ok)) if ok[list(t)].all()])
+        tri = np.array([t for t in joint_states._all_triplets(len(ok)) if ok[list(t)].all()])
 
         def st(S, tri=tri):
-            return joint._state_counts(S, tri, edc) / len(S)
+            return joint_states._state_counts(S, tri, edc) / len(S)
 
         t0 = time.perf_counter()
         R = st(joint.reference_samples(pg, a.chains, steps=a.steps, seed=10))

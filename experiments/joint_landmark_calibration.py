@@ -1,7 +1,7 @@
 """Are the joint map's landmark positions calibrated? (docs/joint.md, "The landmarks' positions")
 
 For each MRCLAM dataset (ground truth fixed as the mrclam study fixes it), the default joint map
-(`joint.mrclam_runs`, `joint.solve`, seed 0), its landmarks' gauge-free means and covariances
+(`joint_map.mrclam_runs`, `joint.solve`, seed 0), its landmarks' gauge-free means and covariances
 (`joint.landmark_moments`, 2,000 samples), mapped onto the landmarks' ground truth by the best
 similarity (`joint.aligned_errors`); per landmark the squared Mahalanobis distance z^2 of the
 truth (chi-square with 2 dof for a calibrated map: median 1.39, 95 % under 5.99). Printed as
@@ -24,6 +24,7 @@ import numpy as np
 
 from qfg import joint
 from qfg.datasets import mrclam as data
+from qfg.datasets.mrclam.joint_map import mrclam_runs
 from qfg.harness.studies.mrclam import prepare
 
 CHI2_95 = 5.991464547107979
@@ -42,7 +43,7 @@ def main(argv=None):
         ds, _ = prepare(f"{a.root}/MRCLAM_Dataset{d}")
         if a.calibrated:
             ds = data.calibrate_bearings(ds, data.DEFAULT_BEARING_CALIBRATION)
-        post = joint.solve(joint.mrclam_runs(ds), seed=0)
+        post = joint.solve(mrclam_runs(ds), seed=0)
         mu, cov = joint.landmark_moments(post, 2000, 0)
         truth = ds.landmark_position(list(post.landmark_ids))
         ok = np.isfinite(mu).all(axis=1)

@@ -31,9 +31,10 @@ import numpy as np
 
 from qfg import joint
 from qfg.combine import prior_state_distribution
+from qfg.datasets.mrclam.joint_map import mrclam_runs
 from qfg.geometry import to_frame
 from qfg.harness.studies import mrclam as study
-from qfg.joint_start import apply_similarity, similarity
+from qfg.joint.start import apply_similarity, similarity
 from qfg.partitions import get as get_partition
 
 PX = 1_000_000  # keys: poses k, drift rates PX + k, landmarks 2 PX + j
@@ -127,7 +128,7 @@ def main(argv=None):
                          min_travel=0.02, max_gap=120.0)
     hs = [h for _, h in rh]
     keep = {a.robot: {float(t) for h in hs for t in h.views}}
-    meas = joint.mrclam_runs(ds, keep_times=keep)
+    meas = mrclam_runs(ds, keep_times=keep)
     post = joint.solve(meas, seed=0)
     run = meas.run(a.robot)
     P = post.modes[0].points

@@ -28,7 +28,7 @@ import argparse
 import gtsam
 import numpy as np
 
-from qfg import joint
+from qfg.datasets.mrclam.joint_map import mrclam_runs
 from qfg.harness.studies.mrclam import dataset_dirs, prepare
 
 CHI2_3_99 = 11.345  # chi-square, 3 dof, 99th percentile
@@ -77,7 +77,7 @@ def main(argv=None):
     print("|---|---|---|---|---|---|---|---|---|---|")
     for d in dataset_dirs(a.data, a.datasets):
         ds, _ = prepare(d)
-        runs = [r for r in joint.mrclam_runs(ds).runs
+        runs = [r for r in mrclam_runs(ds).runs
                 if r.odometry is not None and ds.robot(r.robot).groundtruth is not None]
         if not runs:
             print(f"| {ds.name[14:]} | (no robot with odometry and ground truth) | | | | | | | | |")

@@ -21,7 +21,7 @@ import numpy as np
 
 from qfg import joint
 from qfg.geometry import to_frame
-from qfg.joint_start import KinematicPrior
+from qfg.joint.start import KinematicPrior
 from qfg.metrics import log_score, truth_under
 from qfg.partitions import get
 from qfg.simulation import random_trajectory_run

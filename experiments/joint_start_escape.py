@@ -3,8 +3,8 @@ they were fitted onto (docs/joint.md, "A pose fitted onto a landmark is moved of
 
 For each robot of the given MRCLAM datasets (odometry withheld, every image a pose, as
 ``experiments/joint_without_odometry.py``) and each batch size of
-:func:`qfg.joint_start.kinematic_start` (25, 50, 100 images), the start's final fit, then
-:func:`qfg.joint_start.escape_close` on it; printed per start: the fit's robust cost before and
+:func:`qfg.joint.start.kinematic_start` (25, 50, 100 images), the start's final fit, then
+:func:`qfg.joint.start.escape_close` on it; printed per start: the fit's robust cost before and
 after, the bearings found too close and those left out, the robot's own map's median landmark
 error (m, after the best similarity onto the ground truth) before and after, and the robot
 check of :func:`qfg.joint.solve` (median |whitened bearing residual|, share beyond the outlier
@@ -24,15 +24,17 @@ import numpy as np
 from joint_without_odometry import _error_m
 
 from qfg import joint as J
-from qfg import joint_start as S
 from qfg import nonlinear as nl
 from qfg.datasets import mrclam
+from qfg.datasets.mrclam.joint_map import mrclam_runs
 from qfg.harness.studies.mrclam import prepare
+from qfg.joint import start as S
+from qfg.joint.solver import _robot_checks
 
 
 def starts(d: int, chunks=(25, 50, 100)) -> list[dict]:
     ds, _ = prepare(mrclam.data_root() / f"MRCLAM_Dataset{d}")
-    meas = J.mrclam_runs(ds, min_move=0.0, min_turn_deg=0.0)
+    meas = mrclam_runs(ds, min_move=0.0, min_turn_deg=0.0)
     lm_index = {lid: i for i, lid in enumerate(meas.landmark_ids)}
     truth = np.asarray(ds.landmark_xy)
     out = []
@@ -50,8 +52,8 @@ def starts(d: int, chunks=(25, 50, 100)) -> list[dict]:
                 _, f1, dropped, close = S.escape_close(pr, f0, S.TOO_CLOSE, 200)
                 before, after = np.full_like(truth, np.nan), np.full_like(truth, np.nan)
                 before[ok], after[ok] = f0.points, f1.points
-                c0 = J._robot_checks(pr, f0, offs, [r], J.OUTLIER)[r.robot]
-                c1 = J._robot_checks(pr, f1, offs, [r], J.OUTLIER)[r.robot]
+                c0 = _robot_checks(pr, f0, offs, [r], J.OUTLIER)[r.robot]
+                c1 = _robot_checks(pr, f1, offs, [r], J.OUTLIER)[r.robot]
                 row.update(cost=(f0.cost, f1.cost), close=close, dropped=dropped,
                            error_m=(_error_m(before, truth), _error_m(after, truth)),
                            check=(tuple(map(float, c0)), tuple(map(float, c1))))

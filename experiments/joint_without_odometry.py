@@ -2,7 +2,7 @@
 
 Dataset 5 has no odometry; on datasets 1-4 and 6 (development) the odometry is withheld. Each
 dataset's robots are solved by :func:`qfg.joint.solve` with the kinematic motion prior in place
-of the odometry (:mod:`qfg.joint_start`: starts at batches of 25, 50 and 100 images, the least
+of the odometry (:mod:`qfg.joint.start`: starts at batches of 25, 50 and 100 images, the least
 cost kept per robot, robots kept when their maps agree in shape), every image a pose
 (``mrclam_runs(min_move=0, min_turn_deg=0)``). Printed per dataset:
 
@@ -23,7 +23,7 @@ cost kept per robot, robots kept when their maps agree in shape), every image a 
   default rule, :data:`qfg.joint.KINEMATIC_INFLATE`).
 
 Ground truth is used for these scores only. ``--measure-prior`` prints the odometry's speeds on
-the datasets that have it, from which :class:`qfg.joint_start.KinematicPrior`'s defaults were
+the datasets that have it, from which :class:`qfg.joint.start.KinematicPrior`'s defaults were
 set (datasets 1-4 and 6; dataset 5 never used for them). The diagnostics of the prototype
 (starts from the ground truth and from the arena, the per-robot tables at each batch size) are
 in this file at commit 4c7311c.
@@ -47,9 +47,10 @@ from qfg import joint as J
 from qfg import partitions
 from qfg.configurations import prior_states
 from qfg.datasets import mrclam
+from qfg.datasets.mrclam.joint_map import mrclam_runs
 from qfg.geometry import to_frame
 from qfg.harness.studies.mrclam import make_prior, prepare
-from qfg.joint_start import apply_similarity, similarity
+from qfg.joint.start import apply_similarity, similarity
 from qfg.metrics import brier, expected_calibration_error, log_score, truth_under
 
 
@@ -108,7 +109,7 @@ def joint_map(d: int, samples: int = 2000, save=None, factors=(1.0, 2.0, 4.0, 8.
     root = mrclam.data_root()
     ds, _ = prepare(root / f"MRCLAM_Dataset{d}")
     t0 = time.perf_counter()
-    meas = J.mrclam_runs(ds, min_move=0.0, min_turn_deg=0.0)
+    meas = mrclam_runs(ds, min_move=0.0, min_turn_deg=0.0)
     runs = tuple(dataclasses.replace(r, odometry=None, odometry_sigma=None) for r in meas.runs)
     post = J.solve(J.JointMeasurements(runs, meas.landmark_ids), seed=0, inflate_kinematic=1.0)
     wall = time.perf_counter() - t0
@@ -161,7 +162,7 @@ def _zs(z) -> str:
 def measure_prior():
     for p in mrclam.find_datasets(mrclam.data_root()):
         ds, _ = prepare(p)
-        meas = J.mrclam_runs(ds, min_move=0.0, min_turn_deg=0.0)
+        meas = mrclam_runs(ds, min_move=0.0, min_turn_deg=0.0)
         z = [np.column_stack([r.odometry, np.diff(r.times)]) for r in meas.runs
              if r.has_odometry]
         if not z:

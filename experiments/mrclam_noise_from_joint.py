@@ -3,7 +3,8 @@
 Datasets 1-5 have no motion capture, so the noise the single-triplet solvers assume (measured on
 dataset 6, docs/mrclam.md) could not be checked there. The joint map (`qfg.joint.solve`, every
 usable view a pose: ``min_move=0``, ``min_turn_deg=0``) fits every robot's bearings and odometry
-at once; its poses and landmarks stand in for the capture (`qfg.joint.mrclam_reference`), and
+at once; its poses and landmarks stand in for the capture
+(`qfg.datasets.mrclam.joint_map.mrclam_reference`), and
 `qfg.datasets.mrclam.measure_noise` measures against them exactly as it measures against motion
 capture. The fit absorbs part of the noise (each pose is fitted to the bearings it explains), so
 the stand-in is checked on dataset 6, where both references exist: rows ``capture`` and
@@ -35,6 +36,7 @@ from scipy.special import expit, logit
 from qfg import joint
 from qfg.datasets import mrclam
 from qfg.datasets.mrclam._noise import _bearing_residuals, _landmark_rows
+from qfg.datasets.mrclam.joint_map import mrclam_reference, mrclam_runs
 from qfg.harness.studies.mrclam import prepare
 from qfg.solvers._likelihood import BearingTail, log_bearing
 
@@ -132,9 +134,9 @@ def main(argv=None):
         if any(rd.groundtruth is not None for rd in ds.robots.values()):
             m = mrclam.measure_noise(ds)
             refs.append(("capture", m, bearing_residuals(ds, m.measurement_offset), ""))
-        meas = joint.mrclam_runs(ds, min_move=0.0, min_turn_deg=0.0)
+        meas = mrclam_runs(ds, min_move=0.0, min_turn_deg=0.0)
         post = joint.solve(meas, seed=0)
-        pseudo = joint.mrclam_reference(ds, post, meas)
+        pseudo = mrclam_reference(ds, post, meas)
         m = mrclam.measure_noise(pseudo, offsets=[0.0])
         flags = ",".join(f"{k}:{v}" for k, v in sorted(post.robot_flags.items()) if v != "ok")
         refs.append(("joint", m, bearing_residuals(pseudo, 0.0),

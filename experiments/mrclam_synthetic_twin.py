@@ -18,7 +18,7 @@ normal bearings and headings and a normal ratio, the model the reference solver 
 * ``clean``: the twin without noise (the captured geometry's exact values).
 
 On datasets 1-5, which have no motion capture, ``--reference joint`` makes the twin from the
-joint map of every robot's views instead (`qfg.joint.mrclam_reference`: its poses at every
+joint map of every robot's views instead (`qfg.datasets.mrclam.joint_map.mrclam_reference`: its poses at every
 usable view and its landmarks, aligned onto the landmarks' ground truth) and scores every variant
 against the states that map gives; on dataset 6 the two references can be compared.
 
@@ -64,6 +64,7 @@ import numpy as np
 
 from qfg import joint
 from qfg.datasets import mrclam
+from qfg.datasets.mrclam.joint_map import mrclam_reference, mrclam_runs
 from qfg.geometry import bearing, motion_heading, wrap_angle
 from qfg.harness.studies import mrclam as study
 from qfg.metrics import (
@@ -207,7 +208,8 @@ def main(argv=None):
     ap.add_argument("--reference", default="capture", choices=("capture", "joint"),
                     help="the geometry the twin is made from and scored against: motion capture "
                          "(dataset 6) or the joint map of every robot's views "
-                         "(qfg.joint.mrclam_reference, aligned onto the landmarks' ground truth; "
+                         "(qfg.datasets.mrclam.joint_map.mrclam_reference, aligned onto the "
+                         "landmarks' ground truth; "
                          "datasets 1-5)")
     ap.add_argument("--views", type=int, nargs="+", default=[3, 5])
     ap.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=VARIANTS)
@@ -376,8 +378,8 @@ def reference_dataset(number: int, reference: str = "capture"):
     path = mrclam.data_root() / f"MRCLAM_Dataset{number}"
     ds = study.prepare(path)[0]
     if reference == "joint":
-        meas = joint.mrclam_runs(ds, min_move=0.0, min_turn_deg=0.0)
-        ds = joint.mrclam_reference(ds, joint.solve(meas, seed=0), meas, align=True)
+        meas = mrclam_runs(ds, min_move=0.0, min_turn_deg=0.0)
+        ds = mrclam_reference(ds, joint.solve(meas, seed=0), meas, align=True)
     return path, ds
 
 

@@ -11,9 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from qfg import joint, joint_start
+from qfg import joint
 from qfg import nonlinear as nl
+from qfg.datasets.mrclam.joint_map import mrclam_marginals, mrclam_reference, mrclam_runs
+from qfg.geometry import wrap_angle
 from qfg.inference.results import Marginals
+from qfg.joint import start as joint_start
+from qfg.joint import states as joint_states
 from qfg.partitions import get as get_partition
 from qfg.simulation import random_trajectory_run
 
@@ -23,7 +27,7 @@ EDC = get_partition("edc")
 def _truth(run, triplets):
     t = np.array(triplets)
     L = run.landmarks
-    return joint._safe_frame(L[t[:, 2]], L[t[:, 0]], L[t[:, 1]])
+    return joint_states._safe_frame(L[t[:, 2]], L[t[:, 0]], L[t[:, 1]])
 
 
 def _run(seed, **kw):
@@ -40,7 +44,7 @@ def test_intersect_rays_is_the_exact_intersection_and_measures_parallax():
     ang = np.arctan2(p[1] - o[:, 1], p[0] - o[:, 0])
     q, ok, par = nl.intersect_rays(o, ang, 0.01)
     assert ok and np.allclose(q, p, atol=1e-9)
-    d = np.abs(joint.wrap_angle(ang[:, None] - ang[None, :]))
+    d = np.abs(wrap_angle(ang[:, None] - ang[None, :]))
     assert par == pytest.approx(np.max(np.minimum(d, np.pi - d)))
     _, ok, par = nl.intersect_rays([[0, 0], [1, 0]], [0.0, 0.0], 0.01)  # collinear rays
     assert not ok
@@ -199,7 +203,7 @@ def test_trajectory_run_noise_free_odometry_is_the_true_motion():
                               fov_deg=90)
     rel = nl._relative(r.poses[:-1], r.poses[1:])
     assert np.allclose(r.odometry, rel, atol=1e-12)
-    true = joint.wrap_angle(np.arctan2(r.landmarks[None, :, 1] - r.poses[:, None, 1],
+    true = wrap_angle(np.arctan2(r.landmarks[None, :, 1] - r.poses[:, None, 1],
                                        r.landmarks[None, :, 0] - r.poses[:, None, 0])
                             - r.poses[:, None, 2])
     assert np.all(np.abs(true[r.visible]) <= np.deg2rad(45) + 1e-12)
@@ -238,11 +242,11 @@ def test_joint_matches_long_run_sampling_of_the_exact_posterior():
     post = joint.solve(meas)
     ok = post.constrained
     assert ok.all() and set(post.landmark_flags) == {"weak"}
-    tri = np.array(joint._all_triplets(5))
+    tri = np.array(joint_states._all_triplets(5))
     n = 300
 
     def states(S):
-        return joint._state_counts(S, tri, EDC) / len(S)
+        return joint_states._state_counts(S, tri, EDC) / len(S)
 
     def tv(a, b):
         return 0.5 * np.abs(a - b).sum(1).mean()
@@ -269,7 +273,7 @@ def test_a_robot_in_a_wrong_minimum_is_flagged_and_dropped():
         r = random_trajectory_run(np.random.default_rng(60 + k), n_landmarks=6, n_poses=16,
                                   fov_deg=360)
         # same landmarks for every robot: recompute the bearings
-        phi = joint.wrap_angle(np.arctan2(L[None, :, 1] - r.poses[:, None, 1],
+        phi = wrap_angle(np.arctan2(L[None, :, 1] - r.poses[:, None, 1],
                                           L[None, :, 0] - r.poses[:, None, 0])
                                - r.poses[:, None, 2])
         phi = phi + np.random.default_rng(70 + k).normal(0, r.sigma_bearing, phi.shape)
@@ -282,7 +286,7 @@ def test_a_robot_in_a_wrong_minimum_is_flagged_and_dropped():
     assert "local_minimum" in post.flags
     assert post.robot_flags[0] == post.robot_flags[1] == "ok"
     res = joint.triplet_marginals(post, samples=400, seed=0)
-    g = EDC.state_of(joint._safe_frame(*(L[np.array(res.triplets)[:, i]] for i in (2, 0, 1))))
+    g = EDC.state_of(joint_states._safe_frame(*(L[np.array(res.triplets)[:, i]] for i in (2, 0, 1))))
     assert np.mean(res.probabilities[np.arange(len(g)), g] > 0.5) > 0.8
 
 
@@ -401,7 +405,7 @@ def test_camera_states_of_a_known_configuration():
     tri = [(0, 1, 2)] * run.n_poses
     P = joint.camera_marginals(post, 0, np.arange(run.n_poses), tri, samples=200, seed=0)
     A, B = run.landmarks[0], run.landmarks[1]
-    g = EDC.state_of(joint._safe_frame(run.poses[:, :2], A, B))
+    g = EDC.state_of(joint_states._safe_frame(run.poses[:, :2], A, B))
     assert np.mean(P.argmax(1) == g) >= 0.9
 
 
@@ -420,7 +424,7 @@ def test_mrclam_runs_keep_requested_views_and_odometry_matches_dead_reckoning():
     ds = mrclam.load(_mrclam_dir())
     rd = ds.robot(2)
     want = rd.view_times[np.flatnonzero(rd.visible.any(1))[[10, 11, 12]]]
-    meas = joint.mrclam_runs(ds, [2, 3], keep_times={2: set(want.tolist())})
+    meas = mrclam_runs(ds, [2, 3], keep_times={2: set(want.tolist())})
     run = meas.run(2)
     assert set(want.tolist()) <= set(run.times.tolist())
     P, _ = mrclam.view_poses(rd)
@@ -437,8 +441,8 @@ def test_mrclam_runs_min_interval_thins_the_images_in_time():
     from qfg.datasets import mrclam
 
     ds = mrclam.load(_mrclam_dir())
-    full = joint.mrclam_runs(ds, [2]).run(2)
-    thin = joint.mrclam_runs(ds, [2], min_interval=24.0).run(2)
+    full = mrclam_runs(ds, [2]).run(2)
+    thin = mrclam_runs(ds, [2], min_interval=24.0).run(2)
     assert np.diff(thin.times).min() >= 24.0
     assert set(thin.times.tolist()) <= set(ds.robot(2).view_times.tolist())
     # about one image per 24 s of the run, far fewer than the motion keyframes
@@ -450,10 +454,10 @@ def test_mrclam_runs_min_interval_thins_the_images_in_time():
     assert np.allclose(joint_start.chain(P[idx[0]], thin.odometry)[:, :2], P[idx, :2], atol=1e-9)
     # a view to be scored is kept however close it is
     want = float(full.times[5])
-    kept = joint.mrclam_runs(ds, [2], min_interval=24.0, keep_times={2: {want}}).run(2)
+    kept = mrclam_runs(ds, [2], min_interval=24.0, keep_times={2: {want}}).run(2)
     assert want in set(kept.times.tolist())
     with pytest.raises(ValueError, match="min_interval"):
-        joint.mrclam_runs(ds, [2], min_interval=-1)
+        mrclam_runs(ds, [2], min_interval=-1)
 
 
 @pytest.mark.skipif(_mrclam_dir() is None or not (_mrclam_dir().parent / "MRCLAM_Dataset5").is_dir(),
@@ -463,7 +467,7 @@ def test_mrclam_dataset_without_odometry_skipped_says_the_pipeline_must_answer()
 
     ds = mrclam.load(_mrclam_dir().parent / "MRCLAM_Dataset5")
     q = np.full(20, 0.05)
-    res = joint.mrclam_marginals(ds, [(6, 7, 8)], prior_states=q, samples=50,
+    res = mrclam_marginals(ds, [(6, 7, 8)], prior_states=q, samples=50,
                                  without_odometry="skip")
     assert res.method == "none" and "no_odometry" in res.posterior.flags
     assert set(res.posterior.robot_flags.values()) == {"no_odometry"}
@@ -476,8 +480,8 @@ def test_mrclam_runs_min_interval_without_odometry():
     from qfg.datasets import mrclam
 
     ds = mrclam.load(_mrclam_dir().parent / "MRCLAM_Dataset5")
-    every = joint.mrclam_runs(ds, [1]).run(1)
-    thin = joint.mrclam_runs(ds, [1], min_interval=10.0).run(1)
+    every = mrclam_runs(ds, [1]).run(1)
+    thin = mrclam_runs(ds, [1], min_interval=10.0).run(1)
     assert thin.odometry is None and np.diff(thin.times).min() >= 10.0
     assert set(thin.times.tolist()) <= set(every.times.tolist())
     # greedy in time: the next image of the full set 10 s or more after a kept one is kept
@@ -494,8 +498,8 @@ def test_mrclam_runs_odometry_noise_grows_with_the_path_between_keyframes():
     rd = ds.robot(3)
     ratio = {}
     for gap in (0.0, 40.0):
-        net = joint.mrclam_runs(ds, [3], min_interval=gap).run(3)
-        path = joint.mrclam_runs(ds, [3], min_interval=gap, noise_by_path=True).run(3)
+        net = mrclam_runs(ds, [3], min_interval=gap).run(3)
+        path = mrclam_runs(ds, [3], min_interval=gap, noise_by_path=True).run(3)
         assert np.array_equal(net.times, path.times) and np.allclose(net.odometry, path.odometry)
         # the net-step model is what odometry_steps gives without the path
         P, _ = mrclam.view_poses(rd)
@@ -536,11 +540,11 @@ def test_mrclam_reference_puts_the_ground_truth_at_the_maps_poses_and_points():
     from qfg.geometry import bearing, wrap_angle
 
     ds = mrclam.load(_mrclam_dir())
-    meas = joint.mrclam_runs(ds, [2, 3], min_interval=24.0)
+    meas = mrclam_runs(ds, [2, 3], min_interval=24.0)
     post = joint.solve(meas, seed=0)
-    ref = joint.mrclam_reference(ds, post, meas)
+    ref = mrclam_reference(ds, post, meas)
     with pytest.raises(ValueError, match="robot 2 has .* poses"):
-        joint.mrclam_reference(ds, post, joint.mrclam_runs(ds, [2, 3]))
+        mrclam_reference(ds, post, mrclam_runs(ds, [2, 3]))
     assert ref.robot(1).groundtruth is None and ds.robot(1).groundtruth is not None
     placed = np.isfinite(post.points).all(1)
     cols = ds.landmark_index(np.array(post.landmark_ids)[placed])
@@ -568,7 +572,7 @@ def test_mrclam_reference_puts_the_ground_truth_at_the_maps_poses_and_points():
     # equations hold (errors sum to zero, and are orthogonal to the centred map points and to
     # their quarter-turns: translation, scale and rotation optimal); the same bearing
     # residuals (a similarity keeps every angle)
-    al = joint.mrclam_reference(ds, post, meas, align=True)
+    al = mrclam_reference(ds, post, meas, align=True)
     X = al.landmark_xy[cols]
     e, X0 = X - ds.landmark_xy[cols], X - X.mean(0)
     assert np.allclose(e.sum(0), 0, atol=1e-9) and abs(np.sum(X0 * e)) < 1e-9

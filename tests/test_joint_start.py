@@ -1,4 +1,4 @@
-"""qfg.joint_start: the starts of the joint solve, and runs without odometry solved with the
+"""qfg.joint.start: the starts of the joint solve, and runs without odometry solved with the
 kinematic prior and checked against each other (against loops, closed forms and the truth of
 simulated worlds)."""
 
@@ -10,8 +10,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from qfg import joint, joint_start
+from qfg import joint
 from qfg.geometry import to_frame, wrap_angle
+from qfg.joint import start as joint_start
 from qfg.metrics import log_score
 from qfg.partitions import get as get_partition
 from qfg.simulation import random_trajectory_run

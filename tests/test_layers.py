@@ -138,3 +138,15 @@ def test_the_harness_is_above_the_library():
     g = _graph()
     assert not [(a, b) for a, b in g.edges if a in LIBRARY and b not in LIBRARY]
     assert any(a.startswith(HARNESS) and b in LIBRARY for a, b in g.edges)  # one way
+
+
+def test_the_joint_map_reads_no_dataset_and_the_loader_needs_no_solver():
+    # the MRCLAM adapter (qfg.datasets.mrclam.joint_map) sits above both the joint map and the
+    # loader: the joint map takes measurements, not files, and loading data solves nothing
+    g = _graph()
+    joint = [m for m in LIBRARY if m == "qfg.joint" or m.startswith("qfg.joint.")]
+    assert "qfg.joint.start" in joint
+    below = {b for a in joint for b in nx.descendants(g, a)}
+    assert not [m for m in below if m.startswith("qfg.datasets")]
+    assert g.has_edge("qfg.datasets.mrclam.joint_map", "qfg.joint")
+    assert not nx.has_path(g, "qfg.datasets.mrclam", "qfg.joint")

@@ -117,17 +117,17 @@ def test_without_odometry_the_joint_map_is_solved_first_and_once(root, tmp_path,
     same answer (one joint solve per run)."""
     import dataclasses
 
-    import qfg.joint
+    from qfg.datasets.mrclam import joint_map
 
     d = root / "MRCLAM_Dataset3"        # no robot has odometry; the joint solve cannot answer
-    real = qfg.joint.mrclam_marginals
+    real = joint_map.mrclam_marginals
     calls = []
 
     def counted(*a, **k):
         calls.append(1)
         return real(*a, **k)
 
-    monkeypatch.setattr(qfg.joint, "mrclam_marginals", counted)
+    monkeypatch.setattr(joint_map, "mrclam_marginals", counted)
     out = tmp_path / "fallback"
     assert main(["mrclam", str(d), "--robots", "2", "--output", str(out),
                  *FAST[:1], *FAST[2:]]) == 0
@@ -144,7 +144,7 @@ def test_without_odometry_the_joint_map_is_solved_first_and_once(root, tmp_path,
         calls.append(1)
         return dataclasses.replace(real(*a, **k), method="joint")
 
-    monkeypatch.setattr(qfg.joint, "mrclam_marginals", answering)
+    monkeypatch.setattr(joint_map, "mrclam_marginals", answering)
     calls.clear()
     out = tmp_path / "answers"
     assert main(["mrclam", str(d), "--robots", "2", "--output", str(out), *FAST]) == 0

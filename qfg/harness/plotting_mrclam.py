@@ -267,7 +267,7 @@ def joint_map_figure(geometry: dict, dataset, *, magnify: float | None = None):
     from matplotlib.patches import Ellipse
 
     from qfg.joint import aligned_errors
-    from qfg.joint_start import apply_similarity
+    from qfg.joint.start import apply_similarity
 
     ids = [int(x) for x in geometry["landmark_ids"]]
     mu = np.asarray(geometry["mean"], dtype=float).reshape(-1, 2)
@@ -354,7 +354,7 @@ def configuration_map_figure(geometry: dict, dataset):
     its + is a landmark the map places wrongly and confidently. Landmarks outside the largest
     group are drawn aligned the same way (only the prior places them relative to it) and named
     in the note, with each landmark's median distance from its truth. Returns the figure."""
-    from qfg.joint_start import apply_similarity, similarity
+    from qfg.joint.start import apply_similarity, similarity
 
     ids = [int(x) for x in geometry["landmark_ids"]]
     X = np.asarray(geometry["samples"], dtype=float).reshape(-1, len(ids), 2)

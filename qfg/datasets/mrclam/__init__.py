@@ -40,7 +40,9 @@ Data flows one way: this package reads files and produces measurements (historie
 import solvers or plotting (figures are in ``qfg.harness.plotting_mrclam``). Modules, by concern:
 ``_io`` (bytes, text, tables, errors), ``_data`` (types and the load report), ``_load``,
 ``_odometry``, ``_checks`` (the data against itself), ``_histories``, ``_noise``,
-``_calibration``, ``_cli``.
+``_calibration``, ``_cli``. The joint map's adapter, :mod:`qfg.datasets.mrclam.joint_map`
+(a dataset as :class:`qfg.joint.JointMeasurements`, the joint method end to end), sits above
+both this package and :mod:`qfg.joint` and is not imported here: import it by its name.
 
 Run ``python -m qfg.datasets.mrclam [DIR ...] [--quirks] [--check] [--noise] [--calibration]``
 for summaries.

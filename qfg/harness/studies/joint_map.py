@@ -112,7 +112,7 @@ def seen_histories(run, odometry: bool):
     the noise the solver is told (bearings: the run's; directions: the run's direction noise plus
     the accumulated turn noise over the steps between the views)."""
     from qfg.geometry import motion_heading
-    from qfg.joint_start import chain as _chain
+    from qfg.joint.start import chain as _chain
     from qfg.simulation import TripletHistory
 
     P = _chain(np.zeros(3), run.odometry)

@@ -379,12 +379,13 @@ _JOINT_MEMO: dict = {}
 
 def joint_answer(dataset, histories, *, prior_states, camera_prior_states, partition: str,
                  seed: int, progress=None):
-    """:func:`qfg.joint.mrclam_marginals` of every ordered triplet of ``dataset``'s landmarks and
-    the cameras of ``histories``, remembered for the last inputs: ``qfg mrclam`` solves the
-    joint map first on a dataset without odometry (to know whether the solvers must run for
-    its fallback), and the map step then uses the same answer instead of solving again.
+    """:func:`qfg.datasets.mrclam.joint_map.mrclam_marginals` of every ordered triplet of
+    ``dataset``'s landmarks and the cameras of ``histories``, remembered for the last inputs:
+    ``qfg mrclam`` solves the joint map first on a dataset without odometry (to know whether
+    the solvers must run for its fallback), and the map step then uses the same answer instead
+    of solving again.
     ``progress``: told each phase of the solve (not part of the inputs remembered)."""
-    from qfg.joint import mrclam_marginals
+    from qfg.datasets.mrclam.joint_map import mrclam_marginals
 
     h = hashlib.sha256()
     for x in histories:
@@ -426,12 +427,13 @@ def joint_why(j) -> str:
 def map_joint(seen: SeenEstimates) -> MapResult:
     """Every ordered triplet and every history's cameras from one joint posterior over the
     landmark positions and robot poses, fitted on GTSAM to every bearing and the odometry of
-    every robot of the dataset (:func:`qfg.joint.mrclam_marginals`; robots without odometry by
-    the kinematic prior, :mod:`qfg.joint_start`); the seen estimates are not used, and the
-    histories chosen (``--robots``) only set which triplets count as seen and which cameras are
-    scored. When the joint solve cannot answer (e.g. a lone robot without odometry, or robots
-    without odometry whose maps disagree) the map is :data:`JOINT_FALLBACK` over the solvers'
-    estimates, and ``info["answered_by"]`` and ``info["why"]`` say so."""
+    every robot of the dataset (:func:`qfg.datasets.mrclam.joint_map.mrclam_marginals`;
+    robots without odometry by the kinematic prior, :mod:`qfg.joint.start`); the seen
+    estimates are not used, and the histories chosen (``--robots``) only set which triplets
+    count as seen and which cameras are scored. When the joint solve cannot answer (e.g. a
+    lone robot without odometry, or robots without odometry whose maps disagree) the map is
+    :data:`JOINT_FALLBACK` over the solvers' estimates, and ``info["answered_by"]`` and
+    ``info["why"]`` say so."""
     ds = seen.dataset
     ids = np.asarray(ds.landmark_ids)
     wanted = _all_ordered_triplets(ids.size)

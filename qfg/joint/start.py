@@ -15,9 +15,9 @@ landmarks begin before Levenberg-Marquardt, with odometry and without it.
   without the landmarks it placed, and dropped when that fails too. Which minimum this reaches
   depends on ``chunk``: :func:`qfg.joint.solve` tries several sizes and keeps the least cost.
 * **Robots checked against each other** (:func:`agreeing_group`): a fit without odometry can
-  pass every residual check in a wrong minimum (MRCLAM: 11 of 16 wrong fits did, docs/joint.md),
-  so the robots whose maps agree in shape (:func:`shape_misfit`, similarity-invariant like the
-  qualitative states) are the ones kept.
+  pass every residual check in a wrong minimum (docs/joint.md counts how often), so the robots
+  whose maps agree in shape (:func:`shape_misfit`, similarity-invariant like the qualitative
+  states) are the ones kept.
 
 The measurements behind each number are in docs/joint.md ("Without odometry").
 
@@ -35,9 +35,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import nonlinear as _nl
-from ._validate import non_negative, positive_int
-from .geometry import wrap_angle
+from .. import nonlinear as _nl
+from .._validate import non_negative, positive_int
+from ..geometry import wrap_angle
 
 __all__ = ["KinematicPrior", "KINEMATIC", "AGREE", "kinematic_run", "visual_steps",
            "odometry_start", "kinematic_start", "similarity", "apply_similarity", "shape_misfit",
@@ -46,8 +46,9 @@ __all__ = ["KinematicPrior", "KINEMATIC", "AGREE", "kinematic_run", "visual_step
 
 #: Two robots' maps agree when, on their common landmarks, the median misfit after the best
 #: similarity (each onto the other) is at most this share of the configuration's rms radius.
-#: Chosen on MRCLAM datasets 1-4 and 6 with the odometry withheld as the largest of 0.02, 0.05
-#: and 0.1 that lets no robot more than 0.25 m off into a group (docs/joint.md).
+#: Loose enough that maps with ordinary noise agree, tight enough that a robot fitted in a wrong
+#: minimum joins no group; chosen with the odometry withheld from runs whose ground truth shows
+#: which fits are wrong (docs/joint.md, "Without odometry").
 AGREE = 0.05
 
 
@@ -397,7 +398,7 @@ def kinematic_start(r, lm_index, *, chunk: int = 50, min_rays: int = 5,
     """
     if r.odometry is None:
         raise ValueError(f"robot {r.robot}: expected the kinematic prior as its odometry "
-                         "(qfg.joint_start.kinematic_run)")
+                         "(qfg.joint.start.kinematic_run)")
     chunk = positive_int("chunk", chunk, minimum=2)
     min_rays = positive_int("min_rays", min_rays, minimum=2)
     min_parallax_deg = non_negative("min_parallax_deg", min_parallax_deg)
@@ -486,6 +487,18 @@ def apply_similarity(points, sim) -> np.ndarray:
     X = np.asarray(points, float)
     return (np.asarray(s, float)[..., None, None] * X @ np.swapaxes(R, -1, -2)
             + np.asarray(t, float)[..., None, :])
+
+
+def _apply(sc, R, t, poses=None, points=None):
+    """Poses and points moved by the similarity ``x -> sc R x + t`` (headings turned by R)."""
+    out = []
+    if poses is not None:
+        xy = apply_similarity(poses[:, :2], (sc, R, t))
+        out.append(np.column_stack([xy, wrap_angle(poses[:, 2] + np.arctan2(R[1, 0], R[0, 0]))]))
+    if points is not None:
+        out.append(apply_similarity(points, (sc, R, t)))
+    return out
+
 
 
 def shape_misfit(a, b) -> float:
