@@ -7,12 +7,12 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.qfg-installed
 
-.PHONY: demo test lint bench bench-update clean
+.PHONY: demo test lint docs bench bench-update clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --upgrade pip
-	$(BIN)/python -m pip install -e ".[test,dask]"
+	$(BIN)/python -m pip install -e ".[test,dask,docs]"
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -23,6 +23,10 @@ test: $(STAMP)
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
+
+# the API reference, generated from the docstrings (docs/api/conf.py), into out/docs
+docs: $(STAMP)
+	$(BIN)/python -m sphinx -b html -q docs/api out/docs
 
 # results and their page in out/benchmarks; the tracked record is left alone
 bench: $(STAMP)
