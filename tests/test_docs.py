@@ -51,7 +51,8 @@ BLOCKS = _blocks()
 def test_the_docs_have_python_blocks():
     # the extraction itself: a fence pattern that found nothing would make this file pass empty
     names = {p.values[0].name for p in BLOCKS}
-    assert {"README.md", "composition.md", "graph.md", "solvers.md"} <= names
+    assert {"README.md", "composition.md", "graph.md", "solvers.md", "own_robot.md",
+            "paper_pipeline.md"} <= names
 
 
 @pytest.mark.parametrize("path, blocks", BLOCKS)
