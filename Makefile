@@ -24,9 +24,12 @@ test: $(STAMP)
 lint: $(STAMP)
 	$(BIN)/ruff check .
 
-# the API reference, generated from the docstrings (docs/api/conf.py), into out/docs
+# the API reference, generated from the docstrings (docs/api/conf.py), into out/docs; built from
+# a copy of docs/api so that autosummary's generated stubs stay out of the checkout
 docs: $(STAMP)
-	$(BIN)/python -m sphinx -b html -q docs/api out/docs
+	rm -rf out/docs-src out/docs && mkdir -p out && cp -r docs/api out/docs-src
+	$(BIN)/python -m sphinx -b html -q out/docs-src out/docs
+	@echo "API reference: out/docs/index.html"
 
 # results and their page in out/benchmarks; the tracked record is left alone
 bench: $(STAMP)
