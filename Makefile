@@ -7,12 +7,12 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.qfg-installed
 
-.PHONY: demo test lint bench bench-update clean
+.PHONY: demo test lint docs bench bench-update clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --upgrade pip
-	$(BIN)/python -m pip install -e ".[test,dask]"
+	$(BIN)/python -m pip install -e ".[test,dask,docs]"
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -23,6 +23,13 @@ test: $(STAMP)
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
+
+# the API reference, generated from the docstrings (docs/api/conf.py), into out/docs; built from
+# a copy of docs/api so that autosummary's generated stubs stay out of the checkout
+docs: $(STAMP)
+	rm -rf out/docs-src out/docs && mkdir -p out && cp -r docs/api out/docs-src
+	$(BIN)/python -m sphinx -b html -q out/docs-src out/docs
+	@echo "API reference: out/docs/index.html"
 
 # results and their page in out/benchmarks; the tracked record is left alone
 bench: $(STAMP)
