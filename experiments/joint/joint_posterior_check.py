@@ -14,6 +14,7 @@ repository root as above (simulated data only).
 from __future__ import annotations
 
 import argparse
+import itertools
 import time
 
 import numpy as np
@@ -46,7 +47,7 @@ def main(argv=None):
         pg = joint.solve(meas, sir_rays=0)
         ps = joint.solve(meas)
         ok = pg.constrained
-        tri = np.array([t for t in joint._all_triplets(len(ok)) if ok[list(t)].all()])
+        tri = np.array([t for t in itertools.permutations(range(len(ok)), 3) if ok[list(t)].all()])
 
         def st(S, tri=tri):
             return joint._state_counts(S, tri, edc) / len(S)
