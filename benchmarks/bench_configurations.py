@@ -1,4 +1,4 @@
-"""Configuration inference (qfg.configurations, issue 21): tempered SMC over landmark
+"""Configuration inference (qfg.configurations): tempered SMC over landmark
 configurations, 2000 particles, state likelihoods. Maps drawn in the world box with synthetic
 seen estimates (each seen triplet: 0.6 on its true state plus 0.4 times the prior's state
 distribution), so that only the sampler is timed: 15 landmarks with 1000 seen triplets (MRCLAM

@@ -5,7 +5,7 @@ median over graphs of each ratio). Families (shipped EDC tensor, m = 20, seen tr
 Dirichlet(0.5) priors): chains and trees of composition factors, loopy graphs (random factor sets
 on 5 landmarks with a cycle), and the propagation study's graphs (qfg.random_graphs.
 propagation_graph, scenario streams 0.. of seed 0: its paper preset). pgmpy gets factors rescaled
-to max 1 (without it its BP is wrong on some graphs, issue 13) and runs only where its own
+to max 1 (without it its BP is wrong on some graphs) and runs only where its own
 triangulation keeps tables <= 20^5 entries. GTSAM and VE run on the first 3 graphs of each family
 whose junction tree has at most 4 triplets per clique (seconds to minutes each). Also: loopy BP
 to convergence on full maps of 10, 15, 20 and 25 landmarks (a third of the triplets seen), and its

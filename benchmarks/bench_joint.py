@@ -76,4 +76,7 @@ def run():
                      "target": "<= 120",
                      "note": f"{len(res.triplets.triplets)} triplets; {p.info['n_bearings']} "
                              f"bearings, {p.info['n_poses']} poses; load {load:.1f}"})
+    else:
+        print("   MRCLAM dataset 6 row skipped: set QFG_MRCLAM_DIR to the directory holding "
+              "MRCLAM_Dataset6", flush=True)
     return rows

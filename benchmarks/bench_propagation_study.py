@@ -3,7 +3,7 @@ the `paper` preset's parameters in one process, and the time of the whole `paper
 graphs): measured from `results/propagation-paper` (run.json written at the start, the last record
 appended to records.jsonl at the end) when that run exists, and extrapolated from the rate.
 Uses the EDC tensor `qfg.composition.tensor("edc")` (`$QFG_TENSORS` to point elsewhere, e.g.
-`QFG_TENSORS=/tmp/qfg_tensors_D python -m benchmarks propagation_study` while tensors/edc.npz
+`QFG_TENSORS=DIR python -m benchmarks propagation_study` while tensors/edc.npz
 does not exist): the tensor used is named in the notes."""
 
 from __future__ import annotations

@@ -3,15 +3,14 @@
 ``run()`` (the benchmark suite's entry) times 3-view triplets at sigma_v = 2 deg, sigma_w = 5 deg.
 Run as a script for the full table (ESS per noise level and view count, calibration):
 
-    .venv/bin/python -m benchmarks.bench_reference --triplets 40 --views 3 5 10 --seed 7
+    python -m benchmarks.bench_reference --triplets 40 --views 3 5 10 --seed 7
 
-Views (issue 20), on development histories ``random_triplet_history(default_rng(700000 + i),
+Views, on development histories ``random_triplet_history(default_rng(700000 + i),
 n, 2 deg, 5 deg)``: median ESS, share flagged ESS < 50, Pareto k and time per sampler, the time
 also in units of a fixed numpy workload run in the same process (:func:`yardstick`), so that runs
 under different loads compare:
 
-    .venv/bin/python -m benchmarks.bench_reference --views-dev 3 5 10 20 --triplets 8 \
-        --samplers auto staged conditional
+    python -m benchmarks.bench_reference --views-dev 3 5 10 20 --triplets 8 --samplers auto staged conditional
 
 and the conditional sampler against the staged one on the same triplets (``--agreement 3 4 5``):
 per state z = difference / combined reported error, total variation, log evidence difference.

@@ -22,9 +22,8 @@ the fixed workload); ``--set JSON`` gives the working tree other options (the ol
 defaults otherwise), ``--both JSON`` options to both trees, ``--views N`` other numbers of
 views than 3.
 
-``python -m benchmarks.bench_solvers --logsumexp`` times the solvers' ``logsumexp``
-(:mod:`qfg.solvers._likelihood`) against ``scipy.special.logsumexp`` on the shapes the solvers
-use (why the solvers keep their own)."""
+``python -m benchmarks.bench_solvers --logsumexp`` times the solvers' own ``logsumexp`` against
+``scipy.special.logsumexp`` on the shapes the solvers use (why the solvers keep their own)."""
 
 import os
 import time
@@ -67,7 +66,7 @@ def _single(method, hs):
 def _workload(repeats=5):
     """Seconds of a fixed numpy computation (best of ``repeats``): the machine's speed now."""
     # single-threaded element-wise work and a sort, like the solvers' (a BLAS product would
-    # take the second core when it is free and measure the other sessions' load instead)
+    # take the second core when it is free and measure the other processes' load instead)
     a = np.linspace(0.0, 50.0, 400_000)
     b = np.random.default_rng(0).standard_normal(200_000)
     best = np.inf
@@ -148,7 +147,7 @@ def run():
     return rows + views_scaling()
 
 
-def _load_tree(src, name="qfg_before"):
+def load_tree(src, name="qfg_before"):
     """The ``qfg`` package found in directory ``src`` (e.g. ``git archive <commit> qfg | tar -x
     -C src``), imported under ``name`` so that it runs next to the working tree's."""
     import importlib.util
@@ -176,7 +175,7 @@ def compare(src, method="full", T=50, repeats=5, seed=2024, extra=None, views=3,
     medians (ms) and the largest difference of the landmark distributions between the trees."""
     import importlib
 
-    old = _load_tree(src)
+    old = load_tree(src)
     old_solvers = importlib.import_module(old.__name__ + ".solvers")
     old_sim = importlib.import_module(old.__name__ + ".simulation")
     old_opts = {**old_solvers.DEFAULTS[method], **(both or {})}

@@ -1,8 +1,9 @@
-"""qfg's exact engine beside pgmpy and GTSAM on public UAI 2014 instances (issue 19).
+"""qfg's exact engine beside pgmpy and GTSAM on public UAI 2014 instances.
 
-Every instance of ``../shared/data/uai2014`` (PR/ and MAR/, one row per model; see its README)
-whose exact answer fits: the evidence is clamped into the model first (the same clamped model is
-given to every engine), then each engine computes every variable's marginal:
+Every instance of the UAI 2014 directory (``--data DIR``, else ``$QFG_UAI_DIR``: its PR/ and MAR/,
+one row per model; see its README) whose exact answer fits: the evidence is clamped into the model
+first (the same clamped model is given to every engine), then each engine computes every
+variable's marginal:
 
 * ``qfg``: :class:`qfg.inference.JunctionTree` (one calibration; also log Z);
 * ``pgmpy``: ``VariableElimination``, one query per variable (its default "greedy" order; its
@@ -14,11 +15,12 @@ given to every engine), then each engine computes every variable's marginal:
 Each (instance, engine) runs in its own process with a time limit, engines interleaved per
 instance (qfg, pgmpy, gtsam, then the next instance), each with one BLAS/OpenMP thread. Times
 are the process's CPU seconds (reading the file excluded): on the shared 2-core machine wall
-time mostly measures the other sessions' load; wall seconds are kept in the JSON. Errors: the
+time mostly measures the other processes' load; wall seconds are kept in the JSON. Errors: the
 largest absolute difference to the competition's reference marginals (6 significant digits:
 5e-7 is agreement), else to qfg; ``log10 Z`` against the ``.PR`` reference.
 
-Run: ``.venv/bin/python -m benchmarks.bench_uai [--data DIR] [--timeout S] [--out FILE]``.
+Run: ``python -m benchmarks.bench_uai [--data DIR] [--timeout S] [--out FILE]``; ``python -m
+benchmarks uai`` skips it when ``$QFG_UAI_DIR`` is not set.
 """
 
 from __future__ import annotations
@@ -34,6 +36,9 @@ from pathlib import Path
 import numpy as np
 
 ENGINES = ("qfg", "pgmpy", "gtsam")
+
+#: The environment variable naming the UAI 2014 directory (its PR/ and MAR/ folders).
+DATA_ENV = "QFG_UAI_DIR"
 
 _CHILD = r"""
 import json, sys, time, warnings, numpy as np
@@ -163,11 +168,15 @@ def _maxerr(P, ref):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", default=str(Path(__file__).resolve().parents[2] / "shared" / "data"
-                                          / "uai2014"))
+    ap.add_argument("--data", default=os.environ.get(DATA_ENV) or None,
+                    help=f"the UAI 2014 directory holding PR/ and MAR/ (default: ${DATA_ENV})")
     ap.add_argument("--timeout", type=float, default=300.0)
     ap.add_argument("--out", default=None, help="JSON file for the rows")
     args = ap.parse_args(argv)
+    if not args.data:
+        ap.error(f"--data: no UAI 2014 directory; pass --data DIR or set {DATA_ENV}")
+    if not Path(args.data).is_dir():
+        ap.error(f"--data: {args.data} is not a directory")
     from qfg.inference import read_evid, read_uai
 
     load = Path("/proc/loadavg").read_text().split()[:3] if Path("/proc/loadavg").exists() else []
@@ -249,12 +258,15 @@ def rows_for_doc(rows, load_before="", load_after="") -> list[dict]:
 
 
 def run():
-    """``python -m benchmarks uai``: skipped (no rows) without the shared UAI data."""
-    data = Path(__file__).resolve().parents[2] / "shared" / "data" / "uai2014"
-    if not data.exists():
-        return []
+    """``python -m benchmarks uai``: skipped (:class:`benchmarks.Skip`) unless ``$QFG_UAI_DIR``
+    names the UAI 2014 directory."""
+    from benchmarks import Skip
+
+    data = os.environ.get(DATA_ENV)
+    if not data or not Path(data).is_dir():
+        raise Skip(f"no UAI 2014 data: set {DATA_ENV} to the directory holding PR/ and MAR/")
     before = " ".join(Path("/proc/loadavg").read_text().split()[:3])
-    rows = main([])
+    rows = main(["--data", data])
     after = " ".join(Path("/proc/loadavg").read_text().split()[:3])
     return rows_for_doc(rows, before, after)
 

@@ -9,9 +9,11 @@ from pathlib import Path
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 
 
-def load_experiment(name: str):
-    """The module of ``experiments/<name>.py``."""
-    spec = importlib.util.spec_from_file_location(name, EXPERIMENTS / f"{name}.py")
+def load_experiment(path: str):
+    """The module of ``experiments/<path>.py``, ``path`` naming its topic folder and script, e.g.
+    ``"mrclam/mrclam_merge_runs"``."""
+    file = EXPERIMENTS / f"{path}.py"
+    spec = importlib.util.spec_from_file_location(file.stem, file)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod

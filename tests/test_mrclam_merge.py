@@ -1,4 +1,4 @@
-"""experiments/mrclam_merge_runs.py: runs of different robots merged as one run of all of them.
+"""experiments/mrclam/mrclam_merge_runs.py: runs of different robots merged as one run of all of them.
 Checked against the runs themselves: every history of the merged robots gets its own run's
 recorded estimate, and a triplet seen by one robot only is combined exactly as that robot's run
 combined it (no temper: the same histories, the same rule)."""
@@ -21,7 +21,7 @@ FAST = ["--method", "fast", "--no-figures", "--no-progress", "--max-gap", "10", 
 
 
 def _merge_module():
-    return load_experiment("mrclam_merge_runs")
+    return load_experiment("mrclam/mrclam_merge_runs")
 
 
 @pytest.fixture(scope="module")

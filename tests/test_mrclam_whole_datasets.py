@@ -1,4 +1,4 @@
-"""experiments/mrclam_whole_datasets.py: the row it prints for a dataset agrees with what
+"""experiments/mrclam/mrclam_whole_datasets.py: the row it prints for a dataset agrees with what
 ``qfg mrclam`` itself summarised (``summary.json``, computed by the study from the same rows), and
 pairs of runs that are not one run's solving are refused by name."""
 
@@ -18,7 +18,7 @@ FAST = ["--method", "fast", "--no-figures", "--no-progress", "--max-gap", "10", 
 
 
 def _module():
-    return load_experiment("mrclam_whole_datasets")
+    return load_experiment("mrclam/mrclam_whole_datasets")
 
 
 @pytest.fixture(scope="module")

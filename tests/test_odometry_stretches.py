@@ -1,4 +1,4 @@
-"""experiments/joint_odometry_stretches.py: the stretch statistic z^2 is checked against its own
+"""experiments/joint/joint_odometry_stretches.py: the stretch statistic z^2 is checked against its own
 distribution. On poses drawn from the odometry model with small noise the first-order covariance
 is exact enough that z^2 is chi-square with 3 degrees of freedom (median 2.366, 1 % beyond 11.34)
 over short and longer stretches; a model whose steps are noisier than it says is seen."""
@@ -14,7 +14,7 @@ CHI2_3_MEDIAN = 2.366
 
 
 def _module():
-    return load_experiment("joint_odometry_stretches")
+    return load_experiment("joint/joint_odometry_stretches")
 
 
 def _run(rng, n=300, sigma=(0.004, 0.002, 0.01)):

@@ -66,8 +66,10 @@ def test_wheel_carries_tensors_presets_and_licence(wheel):
     names = zipfile.ZipFile(wheel).namelist()
     for part in ("edc", "fdc", "lr", "tpcc"):
         assert f"qfg/_tensors/{part}.npz" in names
-    shipped = sorted(p.name for p in (REPO / "experiments").glob("*.toml"))
+    shipped = sorted(p.name for p in (REPO / "experiments" / "presets").glob("*.toml"))
     assert shipped and all(f"qfg/_presets/{n}" in names for n in shipped)
+    # the presets only: the investigation scripts of experiments/ are no package code
+    assert not any(n.startswith("qfg/_presets/") and not n.endswith(".toml") for n in names)
     # setuptools >= 69 files it under licenses/
     assert any(re.search(r"\.dist-info/(licenses/)?LICENSE$", n) for n in names)
     assert not any(n.startswith(("tests/", "benchmarks/", "tensors/", "experiments/")) for n in names)
@@ -108,4 +110,6 @@ def test_editable_install_of_a_clone_named_qfg_works_from_its_parent(tmp_path):
                cwd=clone.parent)
     f, t, p = out.split()
     assert Path(f) == clone / "qfg" / "__init__.py"
-    assert Path(t) == (clone / "tensors").resolve() and Path(p) == (clone / "experiments").resolve()
+    assert Path(t) == (clone / "tensors").resolve()
+    assert Path(p) == (clone / "experiments" / "presets").resolve()
+    assert not list(Path(p).rglob("*.py"))  # no script reachable as qfg._presets.<name>
