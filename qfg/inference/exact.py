@@ -108,7 +108,7 @@ def exact_marginals(g, engine: str = "junction", max_table: int | None = None,
 
 #: Bytes GTSAM's DecisionTreeFactor takes per table entry (a leaf and its share of the choice
 #: nodes, shared pointers included): 98-145 measured by peak RSS on band graphs of 5-20 states
-#: (docs/uai.md, "Memory"; benchmarks/gtsam_memory.py), with a margin.
+#: (docs/uai.md, "Memory"; experiments/inference/gtsam_memory.py), with a margin.
 GTSAM_BYTES_PER_ENTRY = 160
 
 
