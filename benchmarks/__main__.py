@@ -96,8 +96,8 @@ def render(results: Path = RESULTS) -> str:
         out += [f"## {res['topic']}", ""]
         if res.get("doc"):
             out += [res["doc"], ""]
-        out += [f"Command: `{res['command']}`; measured {m['date']} on {m['cpu']} "
-                f"({m['cores']} cores), Python {m['python']}, numpy {m['numpy']}.", "",
+        out += [f"Measured at {m['date']} on {m['cpu']} ({m['cores']} cores), Python "
+                f"{m['python']}, numpy {m['numpy']}, by `{res['command']}`.", "",
                 "| benchmark | value | unit | target | note |", "|---|---|---|---|---|"]
         for r in res["rows"]:
             out.append(f"| {r['name']} | {r['value']:.4g} | {r['unit']} | {r.get('target', '')} | "
