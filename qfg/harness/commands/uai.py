@@ -21,7 +21,8 @@ def register(sub):
                    help="result file (default: the model's file name plus .TASK in the "
                         "current directory, as the competition's solvers write it)")
     p.add_argument("--memory", default=None,
-                   help="memory budget, bytes or e.g. 2G (default $QFG_MEMORY_BUDGET, else half "
+                   help="memory budget: bytes, a size (512M, 2G, 2GiB), a percentage of the "
+                        "machine's memory (50%%) or inf (default $QFG_MEMORY_BUDGET, else half "
                         "of the machine's memory); refused before any work when over")
     p.set_defaults(func=_main)
 
@@ -29,7 +30,7 @@ def register(sub):
 def _main(args):
     from pathlib import Path
 
-    from qfg.inference.memory import parse_bytes
+    from qfg.budget import memory_budget
     from qfg.inference.tasks import solve_task, write_result
     from qfg.inference.uai import read_uai
 
@@ -40,7 +41,7 @@ def _main(args):
     if evid is None and not args.no_evid:
         default = model_path.with_name(model_path.name + ".evid")
         evid = default if default.exists() else None
-    memory = parse_bytes(args.memory) if args.memory is not None else None
+    memory = memory_budget(args.memory, name="--memory") if args.memory is not None else None
     model = read_uai(model_path)
     task = "MAP" if args.task == "MPE" else args.task
     res = solve_task(model, task, evidence=evid, memory=memory)
