@@ -25,6 +25,7 @@ MAR
 
 from __future__ import annotations
 
+import errno
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -32,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..files import atomic_write_text
 from .junction import FactorModel, JunctionTree
 
 __all__ = ["TASKS", "TaskResult", "solve_task", "write_result", "read_result", "query"]
@@ -144,10 +146,18 @@ def solve_task(model, task: str, evidence=None, *, memory=None) -> TaskResult:
 
 
 def write_result(result: TaskResult, path) -> Path:
-    """Write ``result.to_text()`` to ``path`` (folders created); returns the path."""
+    """Write ``result.to_text()`` to ``path`` (folders created); returns the path.
+
+    The file is replaced whole (:func:`qfg.files.atomic_write_text`): a write that fails (no
+    space, a file size limit) leaves an existing result as it was. Errors are OSError naming the
+    file: ``path`` a folder, its folder a file, no permission, no space."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(result.to_text())
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:   # mkdir says "File exists" of the folder that is a file
+        raise NotADirectoryError(errno.ENOTDIR, f"its folder {path.parent} is a file",
+                                 str(path)) from None
+    atomic_write_text(path, result.to_text())
     return path
 
 

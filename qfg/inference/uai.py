@@ -39,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..files import atomic_write_text
 from .junction import FactorModel
 
 __all__ = ["write_uai", "read_uai", "read_uai_graph", "sidecar_path"]
@@ -59,7 +60,8 @@ def _fmt(x: float) -> str:
 def write_uai(g, path, *, sidecar: bool = True) -> None:
     """Write a :class:`~qfg.graph.QualitativeFactorGraph` (or a
     :class:`~qfg.inference.junction.FactorModel`) as a UAI MARKOV file, and the sidecar JSON with
-    the triplets (``sidecar=False``: the ``.uai`` only)."""
+    the triplets (``sidecar=False``: the ``.uai`` only). Each file is replaced whole
+    (:func:`qfg.files.atomic_write_text`): a failed write leaves the old one as it was."""
     path = Path(path)
     if isinstance(g, FactorModel):
         model, roles, partition, names = g, None, g.partition, list(g.names)
@@ -77,11 +79,11 @@ def write_uai(g, path, *, sidecar: bool = True) -> None:
         if id(t) not in cache:  # the shared composition tensor is formatted once
             cache[id(t)] = " ".join(_fmt(x) for x in np.asarray(t, dtype=float).ravel())
         lines += [str(t.size), cache[id(t)], ""]
-    path.write_text("\n".join(lines))
+    atomic_write_text(path, "\n".join(lines))
     if sidecar:
         meta = {"format": _SIDECAR, "version": 1, "uai": path.name, "partition": partition,
                 "triplets": [list(t) for t in names] if names else None, "factors": roles}
-        sidecar_path(path).write_text(json.dumps(meta, indent=1) + "\n")
+        atomic_write_text(sidecar_path(path), json.dumps(meta, indent=1) + "\n")
 
 
 def _is_int(x) -> bool:
