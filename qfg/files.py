@@ -14,10 +14,12 @@ What the target is decides how it is written:
 * a regular file, or nothing yet: replaced as above. The new file keeps an existing file's
   permission bits; a new one gets the usual ``0o666`` less the umask (not the ``0o600`` of
   :func:`tempfile.mkstemp`).
-* a symbolic link: the file it points to is replaced, the link kept.
-* an existing device, pipe or socket (``/dev/null``, ``/dev/stdout``, ``/dev/full``, a FIFO): it
-  is written in place, since replacing it would swap the device for a regular file rather than
-  send it the data; a failing write (``/dev/full``: no space left) raises as usual.
+* a symbolic link to a regular file, or to nothing: the link itself is replaced by the new file,
+  its target untouched. Nothing is written through a link planted in an output folder.
+* a character device or a pipe, named directly or through a link (``/dev/null``,
+  ``/dev/stdout``, ``/dev/full``, a FIFO): written to in place, since replacing it would swap
+  the device for a regular file rather than send it the data; a failing write (``/dev/full``: no
+  space left) raises as usual. A block device is refused (``OSError``, EINVAL).
 
 Errors are :class:`OSError` with the path: the target is a folder (``IsADirectoryError``), its
 folder is missing or is a file, no permission, no space. The folder is never created here.
@@ -38,6 +40,7 @@ folder is missing or is a file, no permission, no space. The folder is never cre
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import secrets
 import stat
@@ -68,15 +71,15 @@ def atomic_writer(path, mode: str = "w", *, encoding: str | None = "utf-8",
     if mode not in ("w", "wb"):
         raise ValueError(f"mode: expected 'w' or 'wb', got {mode!r}")
     kw = {} if mode == "wb" else {"encoding": encoding, "newline": newline}
-    target = Path(os.path.realpath(path)) if os.path.islink(path) else Path(path)
-    try:
-        st = os.stat(target)
-    except FileNotFoundError:
-        st = None
+    target = Path(path)
+    own = _stat(target, follow=False)           # the name itself (a link is not followed)
+    st = _stat(target, follow=True) if own is not None and stat.S_ISLNK(own.st_mode) else own
     if st is not None and stat.S_ISDIR(st.st_mode):
-        raise IsADirectoryError(21, "Is a directory", str(path))
-    if st is not None and not stat.S_ISREG(st.st_mode):
-        # a device, pipe or socket: the data goes to it (see the module docstring)
+        raise IsADirectoryError(errno.EISDIR, "Is a directory", str(path))
+    if st is not None and stat.S_ISBLK(st.st_mode):
+        raise OSError(errno.EINVAL, "a block device: not written to", str(path))
+    if st is not None and (stat.S_ISCHR(st.st_mode) or stat.S_ISFIFO(st.st_mode)):
+        # a device or a pipe: the data goes to it (see the module docstring)
         try:
             with open(target, mode, **kw) as f:
                 yield f
@@ -87,7 +90,9 @@ def atomic_writer(path, mode: str = "w", *, encoding: str | None = "utf-8",
                 raise
             raise named from exc
         return
-    fd, tmp = _create_beside(target, st)
+    # a regular file keeps its permission bits; a replaced link does not pass on its target's
+    fd, tmp = _create_beside(target, own if own is not None and stat.S_ISREG(own.st_mode)
+                             else None)
     try:
         with os.fdopen(fd, mode, **kw) as f:
             yield f
@@ -102,6 +107,15 @@ def atomic_writer(path, mode: str = "w", *, encoding: str | None = "utf-8",
             raise
         raise named from exc
     _fsync_folder(target.parent)
+
+
+def _stat(path: Path, *, follow: bool):
+    """``os.stat`` / ``os.lstat`` of ``path``, None when there is nothing (or a dangling link)
+    there."""
+    try:
+        return os.stat(path) if follow else os.lstat(path)
+    except FileNotFoundError:
+        return None
 
 
 def _named(exc: OSError, target: Path) -> OSError:
@@ -132,7 +146,7 @@ def _create_beside(target: Path, st) -> tuple[int, str]:
             except OSError:
                 pass  # a folder that keeps no modes (some network or FAT mounts): keep the default
         return fd, tmp
-    raise FileExistsError(17, "no free temporary name beside it", str(target))
+    raise FileExistsError(errno.EEXIST, "no free temporary name beside it", str(target))
 
 
 def _fsync_folder(folder: Path) -> None:

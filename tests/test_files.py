@@ -58,13 +58,34 @@ def test_permissions_follow_the_umask_or_the_old_file(tmp_path):
 
 
 @posix
-def test_a_symbolic_link_keeps_pointing_at_the_new_file(tmp_path):
-    real = tmp_path / "real.txt"
-    real.write_text("old")
-    link = tmp_path / "link.txt"
-    link.symlink_to(real)
-    atomic_write_text(link, "new")
-    assert link.is_symlink() and real.read_text() == "new"
+def test_a_link_is_replaced_never_written_through(tmp_path):
+    """A link planted where an output goes: the output replaces it, its target untouched (the
+    rule of the experiment runner's outputs)."""
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious\n")
+    victim.chmod(0o600)
+    link = tmp_path / "out.txt"
+    link.symlink_to(victim)
+    mask = os.umask(0o022)
+    try:
+        atomic_write_text(link, "new")
+    finally:
+        os.umask(mask)
+    assert not link.is_symlink() and link.read_text() == "new"
+    assert victim.read_text() == "precious\n"
+    assert stat.S_IMODE(link.stat().st_mode) == 0o644          # the target's mode not passed on
+    dangling = tmp_path / "dangling.txt"
+    dangling.symlink_to(tmp_path / "nowhere")
+    atomic_write_text(dangling, "x")
+    assert dangling.read_text() == "x" and not (tmp_path / "nowhere").exists()
+
+
+@posix
+def test_a_link_to_a_device_writes_to_the_device(tmp_path):
+    link = tmp_path / "null"
+    link.symlink_to(os.devnull)
+    atomic_write_text(link, "discarded")
+    assert link.is_symlink() and stat.S_ISCHR(os.stat(link).st_mode)
 
 
 @pytest.mark.parametrize("where, error", [
