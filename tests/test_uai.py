@@ -6,6 +6,7 @@ the query interface and the ``qfg uai`` command."""
 import itertools
 import json
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -430,3 +431,173 @@ def test_read_result_names_a_file_that_is_not_one(tmp_path):
         p.write_text(text)
         with pytest.raises(ValueError, match="bad.MAR"):
             read_result(p)
+
+
+# ------------------------------------------------------------------ the qfg uai command: defects
+def _cli(args, capsys):
+    from qfg.harness.cli import main
+
+    rc = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+def _hand(tmp_path, text=HAND, name="hand.uai"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_cli_evidence_on_a_variable_the_model_lacks(tmp_path, capsys):
+    """Was a KeyError traceback, exit 1."""
+    model = _hand(tmp_path)
+    evid = tmp_path / "e.evid"
+    evid.write_text("2\n0 1\n5 1\n")
+    rc, _, err = _cli(["uai", model, "--task", "PR", "--evid", evid,
+                       "--output", tmp_path / "x.PR"], capsys)
+    assert rc == 2 and err.count("\n") == 1
+    assert f"{evid}, line 3" in err and "variable 5 is not in the model" in err
+    assert "3 variables" in err and not (tmp_path / "x.PR").exists()
+    # the library: a KeyError (as for a mapping) that is also a ValueError, naming the file
+    with pytest.raises(KeyError, match="line 3"):
+        solve_task(model, "PR", evidence=evid)
+    with pytest.raises(ValueError, match="e.evid, line 1: state 7 of variable 2"):
+        evid.write_text("1 2 7")
+        query(model, None, evidence=evid)
+
+
+def test_cli_zero_probability_evidence_is_said_of_the_evidence(tmp_path, capsys):
+    """Was 'the priors contradict the tensor's support', qualitative-map wording."""
+    model = _hand(tmp_path)
+    evid = tmp_path / "z.evid"
+    evid.write_text("2 1 1 2 1")           # phi(x1 = 1, x2 = 1) = 0.000
+    for task in ("PR", "MAR", "MAP"):
+        rc, _, err = _cli(["uai", model, "--task", task, "--evid", evid,
+                           "--output", tmp_path / f"x.{task}"], capsys)
+        assert rc == 2 and err.count("\n") == 1
+        assert "z.evid" in err and "probability zero under the model" in err
+        assert "prior" not in err and "tensor" not in err
+    from qfg.inference import ZeroMassError
+
+    with pytest.raises(ZeroMassError, match="probability zero"):
+        solve_task(read_uai(model), "MAR", evidence={1: 1, 2: 1})
+    # a plain model with no mass at all, no evidence: said of the model
+    with pytest.raises(ZeroMassError, match="model: the product of the factors is 0") as info:
+        solve_task(FactorModel([2], [(0,)], [np.zeros(2)]), "PR")
+    assert "prior" not in str(info.value)
+
+
+def test_cli_map_prints_the_assignment_probability(tmp_path, capsys):
+    model = _hand(tmp_path)
+    rc, out, _ = _cli(["uai", model, "--task", "MAP", "--output", tmp_path / "x.MAP"], capsys)
+    r = solve_task(model, "MAP")
+    assert rc == 0 and f"log10 p(MAP | e) = {r.log10_p:.6f}" in out
+    X, w = brute_joint(read_uai(model))                 # the best joint by enumeration
+    assert r.log10_p == pytest.approx(math.log10(w.max() / w.sum()), abs=1e-12)
+    assert list(r.assignment) == X[np.argmax(w)].tolist() == [0, 1, 0]
+
+
+def test_a_short_cardinality_line_is_reported_at_that_line(tmp_path, capsys):
+    """Was 'factor 0 declares 2 entries, its scope needs 1', further down the file."""
+    model = _hand(tmp_path, HAND.replace("2 2 3\n", "2 2\n"))
+    with pytest.raises(ValueError, match=r"hand.uai, line 3: the cardinality line lists 2 "
+                                         r"cardinalities, but line 2 declares 3 variables"):
+        read_uai(model)
+    rc, _, err = _cli(["uai", model, "--task", "PR", "--output", tmp_path / "x.PR"], capsys)
+    assert rc == 2 and err.count("\n") == 1 and "line 3" in err
+    long = _hand(tmp_path, HAND.replace("2 2 3\n", "2 2 3 2\n"), "long.uai")
+    with pytest.raises(ValueError, match="long.uai, line 3: the cardinality line lists 4"):
+        read_uai(long)
+    # cardinalities wrapped over lines, or a file on one line, still read
+    assert read_uai(_hand(tmp_path, HAND.replace("2 2 3\n", "2\n2 3\n"), "w.uai")).cards == (2, 2, 3)
+    assert read_uai(_hand(tmp_path, " ".join(HAND.split()), "one.uai")).cards == (2, 2, 3)
+
+
+@pytest.mark.parametrize("args, option", [
+    (["--task", "XYZ"], "--task"),
+    ([], "--task"),
+    (["--task", "PR", "--memory"], "--memory"),
+])
+def test_cli_bad_option_is_one_line(tmp_path, capsys, args, option):
+    """Was argparse's usage and message, four lines."""
+    from qfg.harness.cli import main
+
+    with pytest.raises(SystemExit) as info:
+        main(["uai", str(_hand(tmp_path)), *args])
+    err = capsys.readouterr().err
+    assert info.value.code == 2 and err.count("\n") == 1
+    assert err.startswith("qfg uai: error: ") and option in err
+    if "XYZ" in args:
+        assert all(t in err for t in TASKS)
+
+
+from qfg.inference.tasks import TASKS  # noqa: E402
+
+
+# ------------------------------------------------------------------ the result file
+def _result_cases(tmp_path):
+    (tmp_path / "file").write_text("x")
+    return {"a folder": (tmp_path, "folder"),
+            "under a file": (tmp_path / "file" / "r.PR", "is a file"),
+            "on a full disk": (Path("/dev/full"), "No space left")}
+
+
+@pytest.mark.parametrize("case", ["a folder", "under a file", "on a full disk"])
+def test_cli_output_that_cannot_be_written(tmp_path, capsys, case):
+    """Each was a traceback with exit 1."""
+    out, reason = _result_cases(tmp_path)[case]
+    if case == "on a full disk" and not out.exists():
+        pytest.skip("no /dev/full")
+    rc, _, err = _cli(["uai", _hand(tmp_path), "--task", "PR", "--output", out], capsys)
+    assert rc == 2 and err.count("\n") == 1
+    assert f"--output: cannot write the result {out}" in err and reason in err
+
+
+def test_cli_default_output_in_a_deleted_directory(tmp_path, capsys, monkeypatch):
+    if os.name != "posix":
+        pytest.skip("a working directory cannot be removed while in use")
+    model = _hand(tmp_path)
+    gone = tmp_path / "gone"
+    gone.mkdir()
+    monkeypatch.chdir(gone)
+    gone.rmdir()
+    rc, _, err = _cli(["uai", model, "--task", "PR"], capsys)
+    assert rc == 2 and err.count("\n") == 1
+    assert "hand.uai.PR" in err and "current directory no longer exists" in err
+
+
+def test_cli_rewrites_a_result_whole(tmp_path, capsys):
+    out = tmp_path / "r.PR"
+    out.write_text("PR\n-1.5\n")
+    inode = out.stat().st_ino
+    assert _cli(["uai", _hand(tmp_path), "--task", "PR", "--output", out], capsys)[0] == 0
+    assert out.read_text().startswith("PR\n") and out.stat().st_ino != inode
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["hand.uai", "r.PR"]
+
+
+CHILD_FSIZE = """
+import resource, sys
+from qfg.harness.cli import main
+resource.setrlimit(resource.RLIMIT_FSIZE, (20, resource.getrlimit(resource.RLIMIT_FSIZE)[1]))
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.skipif(os.name != "posix", reason="RLIMIT_FSIZE")
+def test_cli_write_failing_after_20_bytes_keeps_the_old_result(tmp_path):
+    """Was a 20-byte fragment where the old result had been, and an OSError traceback."""
+    import subprocess
+    import sys
+
+    model = tmp_path / "m.uai"
+    write_uai(random_model(np.random.default_rng(0), n=8, n_f=8), model, sidecar=False)
+    out = tmp_path / "m.MAR"
+    old = "MAR\n1 2 0.25 0.75\n" + "# an old result longer than twenty bytes\n"
+    out.write_text(old)
+    r = subprocess.run([sys.executable, "-c", CHILD_FSIZE, "uai", str(model), "--task", "MAR",
+                        "--output", str(out)], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.count("\n") == 1 and f"cannot write the result {out}" in r.stderr
+    assert "File too large" in r.stderr and "Traceback" not in r.stderr
+    assert out.read_text() == old
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.MAR", "m.uai"]

@@ -25,13 +25,17 @@ MAR
 
 from __future__ import annotations
 
+import errno
 import math
+import time
 from collections.abc import Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from ..files import atomic_write_text
 from .junction import FactorModel, JunctionTree
 
 __all__ = ["TASKS", "TaskResult", "solve_task", "write_result", "read_result", "query"]
@@ -114,18 +118,26 @@ def solve_task(model, task: str, evidence=None, *, memory=None) -> TaskResult:
         model: a :class:`~qfg.inference.junction.FactorModel`, a ``.uai`` path, or a factor graph.
         task: ``"PR"``, ``"MAR"`` or ``"MAP"`` (``"MPE"``).
         evidence: ``{variable: state}``, a ``.evid`` path (either layout), or None.
-        memory: the memory budget in bytes (default :func:`~qfg.inference.memory.memory_budget`).
+        memory: the memory budget: bytes, a size (``"2G"``), a share of the machine's memory
+            (``"50%"``) or unlimited (``math.inf``, ``"inf"``); default
+            :func:`~qfg.inference.memory.memory_budget` (:mod:`qfg.budget`).
 
     Raises :class:`~qfg.inference.memory.MemoryBudgetError` before any work when the estimate
     exceeds the budget, :class:`~qfg.inference.results.ZeroMassError` when the evidence has
-    probability zero.
+    probability zero. An evidence file whose variable the model does not have ->
+    :class:`~qfg.inference.results.MissingKeyError` (a KeyError and a ValueError) naming the file
+    and line.
     """
-    import time
-
     task = _task(task)
     model = _model(model)
+    evidence, source = _evidence(model, evidence)
     t0 = time.perf_counter()
     jt = JunctionTree(model, evidence=evidence, memory=memory)
+    with _zero_mass_named(jt, source):
+        return _solve(jt, model, task, t0)
+
+
+def _solve(jt, model, task, t0) -> TaskResult:
     ln10 = math.log(10)
     if task == "MAP":
         X, lp = jt.k_best(1)
@@ -143,11 +155,80 @@ def solve_task(model, task: str, evidence=None, *, memory=None) -> TaskResult:
                       seconds=time.perf_counter() - t0)
 
 
+def _evidence(model, evidence):
+    """(evidence for the junction tree, where it came from for messages). A ``.evid`` file is
+    read here and checked against the model, so that a variable or state the model does not
+    have is named with the file and line: a :class:`~qfg.inference.results.MissingKeyError`
+    (a KeyError and a ValueError) or a ValueError."""
+    if not isinstance(evidence, (str, Path)):
+        return evidence, None
+    from .evidence import read_evid
+    from .results import MissingKeyError
+
+    path = Path(evidence)
+    ev = read_evid(path)
+    lines = None
+    for v, x in ev.items():
+        if v < model.n and x < model.cards[v]:
+            continue
+        lines = lines or _evid_lines(path)
+        where = f"evidence: {path}, line {lines.get(v, '?')}"
+        if v >= model.n:
+            raise MissingKeyError(f"{where}: variable {v} is not in the model (it has "
+                                  f"{model.n} variable{'s' if model.n != 1 else ''}, numbered "
+                                  f"from 0)")
+        raise ValueError(f"{where}: state {x} of variable {v} is outside 0..{model.cards[v] - 1}")
+    return ev, path
+
+
+def _evid_lines(path: Path) -> dict[int, int]:
+    """``{variable: line number from 1}`` of an evidence file that
+    :func:`~qfg.inference.evidence.read_evid` accepted (the same layouts)."""
+    toks = [(int(t), number) for number, line in enumerate(path.read_text().splitlines(), 1)
+            for t in line.split()]
+    vals = [t for t, _ in toks]
+    start = 1 if len(vals) == 1 + 2 * vals[0] else 2
+    return {vals[i]: toks[i][1] for i in range(start, len(vals) - 1, 2)}
+
+
+@contextmanager
+def _zero_mass_named(jt, source):
+    """A ZeroMassError of a model given evidence said in the words of evidence (the
+    qualitative-map wording, priors against a tensor's support, is for factor graphs with no
+    evidence); of a plain model without evidence, in the words of a model."""
+    from .results import ZeroMassError
+
+    try:
+        yield
+    except ZeroMassError as exc:
+        named = bool(jt.source.names) and all(len(t) == 3 for t in jt.source.names)
+        if jt.evidence:
+            where = f"{source}: " if source is not None else ""
+            msg = (f"evidence: {where}the evidence ({len(jt.evidence)} observed "
+                   f"variable{'s' if len(jt.evidence) != 1 else ''}) has probability zero under "
+                   f"the model: every assignment that agrees with it has a factor of value 0, "
+                   f"so Z(e) = 0 and nothing given it is defined")
+        elif not named:
+            msg = ("model: the product of the factors is 0 for every assignment (Z = 0): the "
+                   "model defines no distribution")
+        else:
+            raise
+        raise ZeroMassError(msg, triplets=exc.triplets, local_factors=exc.local_factors) from None
+
+
 def write_result(result: TaskResult, path) -> Path:
-    """Write ``result.to_text()`` to ``path`` (folders created); returns the path."""
+    """Write ``result.to_text()`` to ``path`` (folders created); returns the path.
+
+    The file is replaced whole (:func:`qfg.files.atomic_write_text`): a write that fails (no
+    space, a file size limit) leaves an existing result as it was. Errors are OSError naming the
+    file: ``path`` a folder, its folder a file, no permission, no space."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(result.to_text())
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:   # mkdir says "File exists" of the folder that is a file
+        raise NotADirectoryError(errno.ENOTDIR, f"its folder {path.parent} is a file",
+                                 str(path)) from None
+    atomic_write_text(path, result.to_text())
     return path
 
 
@@ -188,7 +269,7 @@ def query(g_or_model, variables=None, evidence=None, *, memory=None):
             :class:`~qfg.inference.junction.FactorModel` or a ``.uai`` path.
         variables: triplets ``(i, j, k)`` (graph) or variable indices (model); None: all.
         evidence: ``{triplet or variable: state}`` or a ``.evid`` path.
-        memory: the memory budget in bytes.
+        memory: the memory budget, as for :func:`solve_task`.
 
     Returns, for a graph (or a model whose variables are named by triplets): a
     :class:`~qfg.inference.results.Marginals` over the queried triplets, in the order asked
@@ -211,9 +292,11 @@ def query(g_or_model, variables=None, evidence=None, *, memory=None):
     if not isinstance(g_or_model, (FactorModel, str, Path)):
         graph = g_or_model
     model = _model(g_or_model)
+    evidence, source = _evidence(model, evidence)
     jt = JunctionTree(model, evidence=evidence, memory=memory)
     rows = _rows(model, variables)
-    P, logz, _ = jt.calibrate()
+    with _zero_mass_named(jt, source):
+        P, logz, _ = jt.calibrate()
     named = bool(model.names) and all(len(t) == 3 for t in model.names)
     if named:
         m = max(model.cards) if model.n else 0

@@ -39,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..files import atomic_write_text
 from .junction import FactorModel
 
 __all__ = ["write_uai", "read_uai", "read_uai_graph", "sidecar_path"]
@@ -59,7 +60,8 @@ def _fmt(x: float) -> str:
 def write_uai(g, path, *, sidecar: bool = True) -> None:
     """Write a :class:`~qfg.graph.QualitativeFactorGraph` (or a
     :class:`~qfg.inference.junction.FactorModel`) as a UAI MARKOV file, and the sidecar JSON with
-    the triplets (``sidecar=False``: the ``.uai`` only)."""
+    the triplets (``sidecar=False``: the ``.uai`` only). Each file is replaced whole
+    (:func:`qfg.files.atomic_write_text`): a failed write leaves the old one as it was."""
     path = Path(path)
     if isinstance(g, FactorModel):
         model, roles, partition, names = g, None, g.partition, list(g.names)
@@ -77,30 +79,56 @@ def write_uai(g, path, *, sidecar: bool = True) -> None:
         if id(t) not in cache:  # the shared composition tensor is formatted once
             cache[id(t)] = " ".join(_fmt(x) for x in np.asarray(t, dtype=float).ravel())
         lines += [str(t.size), cache[id(t)], ""]
-    path.write_text("\n".join(lines))
+    atomic_write_text(path, "\n".join(lines))
     if sidecar:
         meta = {"format": _SIDECAR, "version": 1, "uai": path.name, "partition": partition,
                 "triplets": [list(t) for t in names] if names else None, "factors": roles}
-        sidecar_path(path).write_text(json.dumps(meta, indent=1) + "\n")
+        atomic_write_text(sidecar_path(path), json.dumps(meta, indent=1) + "\n")
 
 
 def _is_int(x) -> bool:
     return isinstance(x, int) and not isinstance(x, bool)
 
 
-def _tokens(path: Path) -> list[str]:
+def _read_text(path: Path) -> str:
     try:
-        text = path.read_text()
+        return path.read_text()
     except (OSError, UnicodeDecodeError) as exc:
         raise ValueError(f"path: cannot read {path}: {exc}") from None
-    return text.split()
+
+
+def _line_of_token(text: str, index: int) -> tuple[int, int, int]:
+    """(line number from 1, tokens on that line, position of the token on it) of the
+    whitespace-separated token ``index`` of ``text``."""
+    seen = 0
+    for number, line in enumerate(text.splitlines(), start=1):
+        k = len(line.split())
+        if seen + k > index:
+            return number, k, index - seen
+        seen += k
+    return 0, 0, 0
+
+
+def _card_line_error(path: Path, text: str, first: int, n: int, exc: ValueError):
+    """The cardinalities are one line in the format (every UAI competition file writes them so):
+    when reading failed after a cardinality line of the wrong length, that line is the error,
+    not the mismatch it causes further down. None when the line is not to blame."""
+    number, k, at = _line_of_token(text, first)
+    if number == 0 or at != 0 or k == n:
+        return None
+    header = _line_of_token(text, first - 1)[0]
+    return ValueError(f"path: {path}, line {number}: the cardinality line lists {k} "
+                      f"cardinalit{'y' if k == 1 else 'ies'}, but line {header} declares {n} "
+                      f"variable{'s' if n != 1 else ''} (read on as one stream of numbers, the "
+                      f"file then fails: {str(exc).removeprefix(f'path: {path}: ')})")
 
 
 def read_uai(path) -> FactorModel:
     """Read a UAI MARKOV/BAYES file as a :class:`~qfg.inference.junction.FactorModel` (names and
     partition from the sidecar when present). Malformed files -> ValueError naming the file."""
     path = Path(path)
-    tok = _tokens(path)
+    text = _read_text(path)
+    tok = text.split()
     pos = 0
 
     def take(what):
@@ -124,36 +152,50 @@ def read_uai(path) -> FactorModel:
     if kind not in ("MARKOV", "BAYES"):
         raise ValueError(f"path: {path}: expected MARKOV or BAYES, got {kind!r}")
     n = integer("the number of variables")
-    cards = [integer(f"the cardinality of variable {v}", 1) for v in range(n)]
-    F = integer("the number of factors")
-    scopes = []
-    for f in range(F):
-        k = integer(f"the scope size of factor {f}")
-        s = tuple(integer(f"a variable of factor {f}") for _ in range(k))
-        if any(v >= n for v in s) or len(set(s)) != k:
-            raise ValueError(f"path: {path}: factor {f} has scope {s} (expected distinct "
-                             f"variables below {n})")
-        scopes.append(s)
-    tables = []
-    for f, s in enumerate(scopes):
-        size = integer(f"the table size of factor {f}")
-        want = math.prod(cards[v] for v in s)       # Python ints: no int64 wrap-around
-        if size != want:
-            raise ValueError(f"path: {path}: factor {f} declares {size} entries, its scope needs "
-                             f"{want}")
-        if size > len(tok) - pos:
-            raise ValueError(f"path: {path}: file ends before entry {len(tok) - pos} of factor "
-                             f"{f} (it declares {size} entries)")
-        vals = [take(f"entry {i} of factor {f}") for i in range(size)]
-        try:
-            t = np.array(vals, dtype=float)
-        except ValueError:
-            raise ValueError(f"path: {path}: factor {f} has a non-numeric entry") from None
-        if not np.all(np.isfinite(t)) or np.any(t < 0):
-            raise ValueError(f"path: {path}: factor {f} has negative or non-finite entries")
-        tables.append(t.reshape([cards[v] for v in s]))
-    if pos != len(tok):
-        raise ValueError(f"path: {path}: {len(tok) - pos} unexpected token(s) after the tables")
+    first_card = pos
+
+    def tables_part():
+        cards = [integer(f"the cardinality of variable {v}", 1) for v in range(n)]
+        F = integer("the number of factors")
+        scopes = []
+        for f in range(F):
+            k = integer(f"the scope size of factor {f}")
+            s = tuple(integer(f"a variable of factor {f}") for _ in range(k))
+            if any(v >= n for v in s) or len(set(s)) != k:
+                raise ValueError(f"path: {path}: factor {f} has scope {s} (expected distinct "
+                                 f"variables below {n})")
+            scopes.append(s)
+        tables = []
+        for f, s in enumerate(scopes):
+            size = integer(f"the table size of factor {f}")
+            want = math.prod(cards[v] for v in s)       # Python ints: no int64 wrap-around
+            if size != want:
+                raise ValueError(f"path: {path}: factor {f} declares {size} entries, its scope "
+                                 f"needs {want}")
+            if size > len(tok) - pos:
+                raise ValueError(f"path: {path}: file ends before entry {len(tok) - pos} of "
+                                 f"factor {f} (it declares {size} entries)")
+            vals = [take(f"entry {i} of factor {f}") for i in range(size)]
+            try:
+                t = np.array(vals, dtype=float)
+            except ValueError:
+                raise ValueError(f"path: {path}: factor {f} has a non-numeric entry") from None
+            if not np.all(np.isfinite(t)) or np.any(t < 0):
+                raise ValueError(f"path: {path}: factor {f} has negative or non-finite "
+                                 f"entries")
+            tables.append(t.reshape([cards[v] for v in s]))
+        if pos != len(tok):
+            raise ValueError(f"path: {path}: {len(tok) - pos} unexpected token(s) after the "
+                             f"tables")
+        return cards, scopes, tables
+
+    try:
+        cards, scopes, tables = tables_part()
+    except ValueError as exc:
+        blame = _card_line_error(path, text, first_card, n, exc)
+        if blame is None:
+            raise
+        raise blame from None
     names, partition = (), None
     meta = _sidecar(path)
     if meta is not None:
