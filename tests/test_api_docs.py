@@ -57,10 +57,10 @@ def test_the_reference_has_its_main_pages(build):
         page = out / "generated" / f"{mod}.html"
         assert page.is_file(), f"no page for {mod}"
         assert f"generated/{mod}.html" in index, f"{mod} is not linked from the index"
-    joint = (out / "generated" / "qfg.joint.html").read_text(encoding="utf-8")
+    joint = (out / "generated" / ("qfg.joint" + ".html")).read_text(encoding="utf-8")
     for name in ("RobotRun", "JointMeasurements", "solve", "triplet_marginals",
                  "camera_marginals"):
         assert name in joint
     # a class page carries its docstring's fields (napoleon read the Attributes section)
-    run = (out / "generated" / "qfg.joint.RobotRun.html").read_text(encoding="utf-8")
+    run = (out / "generated" / ("qfg.joint.RobotRun" + ".html")).read_text(encoding="utf-8")
     assert "bearing_landmark" in run and "odometry_sigma" in run

@@ -37,7 +37,7 @@ ROUND = re.compile(r"\bsessions?\b|\b(?:this|last|previous|earlier|next)\s+round
 ABSOLUTE = re.compile(r"(?<![\w.~-])/(?:work|home|tmp|Users|root|mnt)/|\b[A-Za-z]:\\\\?\w"
                       r"|\.\./shared\b")
 RELATIVE = re.compile(r"(?:\.\./)+[\w.-]+")
-HASH = re.compile(r"(?<![.\w])(?=[0-9a-f]*[0-9])(?=[0-9a-f]*[a-f])[0-9a-f]{7,40}\b(?![-+.]?\d)")
+HASH = re.compile(r"(?<!sha256 `)(?<![.\w])(?=[0-9a-f]*[0-9])(?=[0-9a-f]*[a-f])[0-9a-f]{7,40}\b(?![-+.]?\d)")
 DATE = re.compile(r"\b20\d\d-[01]\d-[0-3]\d\b")
 PROVENANCE = re.compile(r"^[\s>*_\-+]*(?:Provenance:|Measured at\b)")
 TEXT_SUFFIXES = {".md", ".txt", ".csv", ".json", ".toml", ".py", ".rst", ".cfg", ".yaml",
@@ -150,7 +150,7 @@ def test_the_patterns_catch_what_they_should(text, rx):
     ("https://example.org/home/page", ABSOLUTE), ("out/tmp/x", ABSOLUTE),
     ("[cite](../CITATION.cff)", ABSOLUTE), ("1e-3 and 20000000", HASH),
     ("0.0217395611975026e-05", HASH), ("4824062008826203e+01", HASH),
-    ("deadline", HASH), ("2730 triplets", DATE)])
+    ("deadline", HASH), ("sha256 `aa2d4305…`", HASH), ("2730 triplets", DATE)])
 def test_the_patterns_pass_what_they_should(text, rx):
     assert not rx.search(text)
 
