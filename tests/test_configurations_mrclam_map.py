@@ -7,7 +7,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from qfg.harness.studies import mrclam_maps
+from qfg.harness.studies.mrclam import maps as mrclam_maps
 
 
 def test_recorded_configuration_maps_depend_on_their_options(monkeypatch):

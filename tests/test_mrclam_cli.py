@@ -277,7 +277,7 @@ def test_pieces_give_the_in_memory_run(root, tmp_path):
 # ------------------------------------------------------------------------------ the map step
 def test_map_method_is_pluggable_recorded_and_resume_reuses_the_pieces(root, tmp_path,
                                                                        monkeypatch, capsys):
-    from qfg.harness.studies import mrclam_maps
+    from qfg.harness.studies.mrclam import maps as mrclam_maps
 
     made = []
 

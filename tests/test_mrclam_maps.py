@@ -16,7 +16,8 @@ import pytest
 from test_mrclam import write_dataset
 
 from qfg.harness.cli import main
-from qfg.harness.studies import mrclam_compare, mrclam_maps
+from qfg.harness.studies.mrclam import compare as mrclam_compare
+from qfg.harness.studies.mrclam import maps as mrclam_maps
 
 FAST = ["--no-figures", "--no-progress", "--max-gap", "10", "--spread-views", "0"]
 TABLE = Path(__file__).resolve().parents[1] / "docs" / "results" / "mrclam_maps.csv"

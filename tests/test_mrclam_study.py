@@ -238,7 +238,7 @@ def test_runner_tasks_presets_and_environment(data, monkeypatch):
     presets = load_presets("mrclam")
     assert {"quick", "paper"} <= set(presets)
     for p in presets.values():
-        study._params(p)
+        study.checked_params(p)
         assert "data" not in p   # no machine path in the presets
     monkeypatch.setenv(mrclam.DATA_ENV, str(data))
     assert len(study.tasks({})) == 2

@@ -146,7 +146,7 @@ def test_a_second_run_on_a_running_output_is_refused(tmp_path):
 def test_stale_lock_of_a_dead_process_is_taken_over(tmp_path, capsys):
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()
-    (tmp_path / runner.LOCK_NAME).write_text(json.dumps({"pid": dead.pid, "host": runner._host()}))
+    (tmp_path / runner.LOCK_NAME).write_text(json.dumps({"pid": dead.pid, "host": runner.this_host()}))
     runner.run_study(toy_study.STUDY, {"n": 3}, tmp_path, progress=False)
     assert f"took over the lock of pid {dead.pid}" in capsys.readouterr().err
     # a lock naming another host is never broken automatically
@@ -157,7 +157,7 @@ def test_stale_lock_of_a_dead_process_is_taken_over(tmp_path, capsys):
 
 
 def test_lock_without_flock_uses_the_pid(tmp_path, monkeypatch):
-    monkeypatch.setattr(runner, "fcntl", None)
+    monkeypatch.setattr(runner.lock, "fcntl", None)
     with runner.OutputLock(tmp_path) as lk:
         assert json.loads(lk.path.read_text())["pid"] == os.getpid()
         with pytest.raises(runner.OutputInUse):
@@ -165,7 +165,7 @@ def test_lock_without_flock_uses_the_pid(tmp_path, monkeypatch):
     assert not (tmp_path / runner.LOCK_NAME).exists()
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()
-    (tmp_path / runner.LOCK_NAME).write_text(json.dumps({"pid": dead.pid, "host": runner._host()}))
+    (tmp_path / runner.LOCK_NAME).write_text(json.dumps({"pid": dead.pid, "host": runner.this_host()}))
     with runner.OutputLock(tmp_path) as lk:
         assert lk.took_over["pid"] == dead.pid
 

@@ -168,7 +168,7 @@ def curve_figure(recs):
 
 
 def maps_figure(rows, *, title: str = "every map of qfg mrclam on MRCLAM datasets 1-6"):
-    """The map comparison (rows of ``qfg.harness.studies.mrclam_compare``: dataset, map, kind,
+    """The map comparison (rows of ``qfg.harness.studies.mrclam.compare``: dataset, map, kind,
     log_score, truth_under_1pct, uniform_log_score, prior_log_score): one panel per kind (seen,
     unseen, cameras where scored), a bar per (dataset, map) from the prior alone's mean log
     p(truth) (a black segment over each dataset's group) to the map's (clip 1e-4): up is a gain
@@ -254,7 +254,7 @@ def _finish_map(fig, ax, title: str, note: str):
 
 
 def joint_map_figure(geometry: dict, dataset, *, magnify: float | None = None):
-    """A joint map (``geometry``: :func:`qfg.harness.studies.mrclam_maps.joint_geometry`)
+    """A joint map (``geometry``: :func:`qfg.harness.studies.mrclam.maps.joint_geometry`)
     against the dataset's ground truth. The map is drawn in the ground truth's frame by the
     landmarks' best similarity (a qualitative map has no scale, position or heading of its
     own). Each landmark's error and 95 % ellipse (its uncertainty relative to the other
@@ -344,7 +344,7 @@ def joint_map_figure(geometry: dict, dataset, *, magnify: float | None = None):
 
 
 def configuration_map_figure(geometry: dict, dataset):
-    """A configuration map (``geometry``: :func:`qfg.harness.studies.mrclam_maps.
+    """A configuration map (``geometry``: :func:`qfg.harness.studies.mrclam.maps.
     configuration_geometry`) against the dataset's ground truth. Each sampled configuration is
     scaled to the truth's rms radius and turned and moved onto it by least squares, over the
     landmarks of the largest linked group (a configuration's states do not change under

@@ -30,7 +30,7 @@ from pathlib import Path
 
 from qfg.harness.commands import add_format, seed_int
 
-#: The map methods ``--map`` accepts (the registry of :mod:`qfg.harness.studies.mrclam_maps`).
+#: The map methods ``--map`` accepts (the registry of :mod:`qfg.harness.studies.mrclam.maps`).
 _PROPAGATION_MAP = {"mean": "pooled", "best": "best"}
 
 
@@ -51,7 +51,7 @@ def _one_line_error(parser):
 
 
 def register(sub):
-    from qfg.harness.studies.mrclam_maps import MAP_METHODS
+    from qfg.harness.studies.mrclam.maps import MAP_METHODS
 
     p = sub.add_parser("mrclam", help="solve, map, propagate and score one MRCLAM dataset",
                        description="The qualitative map of one dataset (every ordered "
@@ -74,7 +74,7 @@ def register(sub):
                         "solver (for a map from the raw measurements). Default: none for such a "
                         "map (--map joint; on a dataset without odometry, full when the joint "
                         "solve, done first, cannot answer), else full")
-    from qfg.harness.studies.mrclam_maps import DEFAULT_MAP
+    from qfg.harness.studies.mrclam.maps import DEFAULT_MAP
 
     p.add_argument("--map", default=None, choices=tuple(MAP_METHODS),
                    help=f"map method (default {DEFAULT_MAP}: the best mean log score over the "
@@ -276,7 +276,7 @@ def check_options(args) -> dict:
             raise ValueError(f"--tensor: {t} is not a file")
         tensor = str(t.resolve())
     from qfg.harness.studies import mrclam as study
-    from qfg.harness.studies import mrclam_maps
+    from qfg.harness.studies.mrclam import maps as mrclam_maps
 
     map_name = map_name or mrclam_maps.DEFAULT_MAP
     if args.prior == "arena-logscale" and mrclam_maps.get(map_name).whole_configurations:
@@ -410,7 +410,7 @@ def _main(args):
 
     from qfg.harness import runner
     from qfg.harness.studies import mrclam as study
-    from qfg.harness.studies import mrclam_maps
+    from qfg.harness.studies.mrclam import maps as mrclam_maps
 
     # 1. options and the output folder: no file read, nothing written
     opts = check_options(args)
@@ -462,7 +462,7 @@ def _main(args):
     T = None
     if after["tensor"]:
         try:
-            T = study._load_tensor("edc", after["tensor"])
+            T = study.load_tensor("edc", after["tensor"])
         except (OSError, ValueError, KeyError) as exc:
             raise ValueError(f"--tensor: {after['tensor']}: {exc}") from None
     prep = study.prepare_run(path, dataset=ds, **{k: opts[k] for k in (

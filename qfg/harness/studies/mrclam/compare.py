@@ -1,5 +1,5 @@
 """Every map method of ``qfg mrclam`` on MRCLAM datasets 1-6, side by side, and the rule that picks
-``qfg mrclam``'s default map (:data:`qfg.harness.studies.mrclam_maps.DEFAULT_MAP`).
+``qfg mrclam``'s default map (:data:`qfg.harness.studies.mrclam.maps.DEFAULT_MAP`).
 
 Each (dataset, map) is one ``qfg mrclam`` run in ``<output>/<dataset>-<solver>``: the maps made
 from the single-triplet solvers' estimates share one solved run per dataset (``--resume`` with
@@ -18,11 +18,11 @@ The rule: the default map is the one with the best mean log score over every see
 Run (about 20 minutes on 2 cores; ``--update-docs`` writes docs/results/mrclam_maps.csv and
 docs/figures/mrclam/maps.png)::
 
-    python -m qfg.harness.studies.mrclam_compare $QFG_MRCLAM_DIR --output out/mrclam-maps
+    python -m qfg.harness.studies.mrclam.compare $QFG_MRCLAM_DIR --output out/mrclam-maps
 
 The table and figure again from a recorded table, without running anything::
 
-    python -m qfg.harness.studies.mrclam_compare --from-csv docs/results/mrclam_maps.csv --output out/maps
+    python -m qfg.harness.studies.mrclam.compare --from-csv docs/results/mrclam_maps.csv --output out/maps
 """
 
 from __future__ import annotations
@@ -231,7 +231,7 @@ def _figure(rows, paths) -> None:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m qfg.harness.studies.mrclam_compare",
+    p = argparse.ArgumentParser(prog="python -m qfg.harness.studies.mrclam.compare",
                                 description=__doc__.split("\n\n")[0])
     p.add_argument("root", nargs="?", help="the folder holding MRCLAM_Dataset1..6")
     p.add_argument("--from-csv", help="a recorded table (mrclam_maps.csv): print it and draw "

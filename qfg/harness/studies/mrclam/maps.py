@@ -202,7 +202,9 @@ def map_best(seen: SeenEstimates) -> MapResult:
     return _full_map_propagated(seen, "best")
 
 
-def _all_ordered_triplets(n: int) -> np.ndarray:
+def all_ordered_triplets(n: int) -> np.ndarray:
+    """(n (n - 1) (n - 2), 3) every ordered triplet of ``n`` landmarks (indices), in
+    :func:`itertools.permutations` order."""
     import itertools
 
     return np.array(list(itertools.permutations(range(n), 3)), dtype=np.intp).reshape(-1, 3)
@@ -285,7 +287,7 @@ def _configuration_map(seen: SeenEstimates, evidence: dict, likelihood: str) -> 
     from qfg.configurations import configuration_marginals
 
     seen_keys = {tuple(t) for t in seen.triplets.tolist()}
-    wanted = _all_ordered_triplets(seen.dataset.landmark_ids.size)
+    wanted = all_ordered_triplets(seen.dataset.landmark_ids.size)
     res = configuration_marginals(evidence, prior=seen.prior, triplets=[tuple(t) for t in
                                                                         wanted.tolist()],
                                   partition=seen.partition.name, likelihood=likelihood,
@@ -352,7 +354,7 @@ def map_seen_configurations(seen: SeenEstimates) -> MapResult:
 def map_seen_prior(seen: SeenEstimates) -> MapResult:
     """The seen triplets as the solvers' combined estimates, every other ordered triplet the
     prior's state distribution (no map: what is known without composing anything)."""
-    wanted = _all_ordered_triplets(seen.dataset.landmark_ids.size)
+    wanted = all_ordered_triplets(seen.dataset.landmark_ids.size)
     rows = {tuple(t): v for v, t in enumerate(wanted.tolist())}
     P = np.tile(np.asarray(seen.prior_states, dtype=float), (len(wanted), 1))
     idx = [rows[tuple(t)] for t in seen.triplets.tolist()]
@@ -399,7 +401,7 @@ def joint_answer(dataset, histories, *, prior_states, camera_prior_states, parti
     if _JOINT_MEMO.get("key") == key and _JOINT_MEMO.get("dataset") is dataset:
         return _JOINT_MEMO["answer"]
     ids = np.asarray(dataset.landmark_ids)
-    subjects = [tuple(int(x) for x in ids[t]) for t in _all_ordered_triplets(ids.size).tolist()]
+    subjects = [tuple(int(x) for x in ids[t]) for t in all_ordered_triplets(ids.size).tolist()]
     j = mrclam_marginals(dataset, triplets=subjects, histories=list(histories),
                          prior_states=prior_states, camera_prior_states=camera_prior_states,
                          partition=partition, seed=seed, progress=progress)
@@ -436,7 +438,7 @@ def map_joint(seen: SeenEstimates) -> MapResult:
     ``info["why"]`` say so."""
     ds = seen.dataset
     ids = np.asarray(ds.landmark_ids)
-    wanted = _all_ordered_triplets(ids.size)
+    wanted = all_ordered_triplets(ids.size)
     subjects = [tuple(int(x) for x in ids[t]) for t in wanted.tolist()]
     j = joint_of(seen)
     if j.method == "none":
