@@ -39,7 +39,7 @@ import numpy as np
 from qfg.configurations import configuration_marginals, one_ordering_per_set
 from qfg.graph import truth_states
 from qfg.harness.studies import mrclam as study
-from qfg.harness.studies import mrclam_maps as maps
+from qfg.harness.studies.mrclam import maps
 from qfg.metrics import log_score
 
 PREP_KEYS = tuple(k for k in study.SOLVE_KEYS if k not in ("path", "method", "piece"))

@@ -44,7 +44,7 @@ from qfg.configurations import (
 )
 from qfg.graph import truth_states
 from qfg.harness.studies import mrclam as study
-from qfg.harness.studies import mrclam_maps as maps
+from qfg.harness.studies.mrclam import maps
 from qfg.metrics import log_score
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))

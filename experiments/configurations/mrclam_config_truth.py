@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from qfg.configurations import infer_configurations
-from qfg.harness.studies import mrclam_maps as maps
+from qfg.harness.studies.mrclam import maps
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from mrclam_config_options import load_run  # noqa: E402

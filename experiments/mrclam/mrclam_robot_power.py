@@ -50,7 +50,7 @@ def main(argv=None) -> int:
     combine = opts.get("combine", "geometric")
     q = prep.prior_states
     P = np.array([e.landmark for e in ests])
-    groups = study._history_groups(prep)
+    groups = study.history_groups(prep)
     robot = np.array([r for r, _ in prep.histories])
     tau_all, _ = study.choose_power(P, groups, q, rule=rule)
     taus = {}
@@ -61,7 +61,7 @@ def main(argv=None) -> int:
     print(f"{out}: {rule}; the run's power {tau_all:g}; per robot {taus}")
 
     def tempered(power_of):
-        return [study._Light(temper(e.landmark, q, power_of(k)), e.cameras, e.method,
+        return [study.LightEstimate(temper(e.landmark, q, power_of(k)), e.cameras, e.method,
                              e.degenerate, e.model_check, e.position)
                 for k, e in enumerate(ests)]
 

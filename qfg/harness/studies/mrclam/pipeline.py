@@ -417,7 +417,7 @@ def choose_power(P, groups: dict, q, taus=AUTO_TEMPERS, rule: str = "auto") -> t
 def seen_estimates(prep: Prepared, ests: list[LightEstimate], *, combine: str = "geometric",
                    temper: float = 1.0, seed: int = 0, tensor=None) -> tuple:
     """Temper each history's estimate, combine those of each ordered triplet (module docstring,
-    step 5). Returns (:class:`~qfg.harness.studies.mrclam_maps.SeenEstimates`, the tempered
+    step 5). Returns (:class:`~qfg.harness.studies.mrclam.maps.SeenEstimates`, the tempered
     estimates, ``{triplet: Combined}``)."""
     from qfg.harness.studies.mrclam.maps import SeenEstimates
 
