@@ -7,8 +7,6 @@ point; a notebook keeps its own). Lengths in the AB frame are in units of ``|AB|
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import matplotlib.pyplot as plt
 import numpy as np
 import shapely
@@ -17,7 +15,7 @@ from matplotlib.path import Path as MplPath
 
 from qfg import partitions as _partitions
 
-__all__ = ["draw_partition", "draw_scenario", "draw_triplet", "partition_figure"]
+__all__ = ["draw_partition", "draw_scenario", "draw_triplet"]
 
 
 def _geom_patch(geom, **kw):
@@ -85,19 +83,6 @@ def draw_partition(partition="edc", ax=None, *, probabilities=None, highlight=No
     ax.set_ylabel("y in the AB frame [|AB|]")
     ax.set_title(f"{part.name.upper()} ({part.n_states} states)")
     return ax
-
-
-def partition_figure(partition, path, fmt: str | None = None):
-    """Write a partition with its labels to ``path`` (format from ``fmt`` or the suffix; the
-    folder is created); returns the path."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig, ax = plt.subplots(figsize=(5, 6))
-    draw_partition(partition, ax)
-    fig.tight_layout()
-    fig.savefig(path, dpi=130, format=fmt or path.suffix.lstrip(".") or "png")
-    plt.close(fig)
-    return path
 
 
 def draw_scenario(scenario, ax=None, *, triplet=None):

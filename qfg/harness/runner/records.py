@@ -5,16 +5,15 @@ the one table writer and formatter of every study (:func:`write_table`, :func:`f
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import io
 import json
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from qfg.files import atomic_write_text, atomic_writer
 from qfg.harness.runner.errors import RunnerError
 
 
@@ -112,39 +111,17 @@ def _dump(rec) -> str:
     return json.dumps(rec, default=_jsonable, separators=(",", ":")) + "\n"
 
 
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-@contextlib.contextmanager
 def _replacing(path):
-    """A binary file object whose content replaces ``path`` when the block ends without error.
-
-    Written to a new temporary file in the same folder (created exclusively, so a link planted
-    there is never followed), then renamed over ``path``: a symlink at ``path`` is replaced, its
-    target untouched, and a reader never sees half a file. On error the temporary file is
-    removed and ``path`` is as it was.
-    """
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        os.fchmod(fd, 0o666 & ~_umask())  # mkstemp's 0600 would hide outputs from others
-        with os.fdopen(fd, "wb") as fh:
-            yield fh
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
+    """A binary file object whose content replaces ``path`` when the block ends without error:
+    :func:`qfg.files.atomic_writer` (a temporary file in the same folder, fsynced, renamed over
+    ``path``; a link there is replaced, never written through; on error ``path`` is as it was)."""
+    return atomic_writer(path, "wb")
 
 
 def write_text(path, text: str) -> Path:
-    """Write ``text`` (UTF-8) to ``path`` atomically, replacing a link there instead of writing
-    through it (see :func:`_replacing`). Returns the path."""
-    with _replacing(path) as fh:
-        fh.write(text.encode("utf-8"))
+    """Write ``text`` (UTF-8) to ``path`` atomically (:func:`qfg.files.atomic_write_text`).
+    Returns the path."""
+    atomic_write_text(path, text)
     return Path(path)
 
 
