@@ -479,31 +479,6 @@ def laplace_marginal(L, prior, C, iters=40):
     return np.where(np.isfinite(out), out, -np.inf)
 
 
-@_quiet
-def draw_trajectories(L, prior, C, rng, iters=40):
-    """One trajectory per C (N, 2) from the conditional Laplace approximation in arc
-    coordinates, ``t = mode + L^-T z`` (P = L L^T the block Cholesky of the information, z
-    standard normal; the backward-sampling pass). Returns X (N, n, 2), alpha (N, n) and
-    ``log q(X, alpha | C)`` (N,) in position coordinates (the Gaussian's density minus
-    ``log |det dX/d(a, g)|``); -inf where t left the arc domain or a heading its window
-    ``(alpha* - pi, alpha* + pi]`` (a defective proposal: the estimator stays exact) or the fit
-    failed."""
-    N, n = C.shape[0], L.n
-    tm, _, (Ld, Lo), ok = fit_trajectories(L, C, iters)
-    Ld = np.where(ok[:, None, None, None], Ld, np.eye(3))
-    Lo = np.where(ok[:, None, None, None], Lo, 0.0) if Lo.size else Lo
-    z = rng.standard_normal((N, n, 3))
-    dt = back_substitute(Ld, Lo, z)
-    t = tm + dt
-    X, _, _, logdet, valid = _pose(L, t[..., 0], t[..., 1])
-    lq = (-0.5 * np.sum(z * z, axis=(1, 2)) - 1.5 * n * _LOG2PI + _log_det_half(Ld)
-          - np.sum(np.where(valid, logdet, 0.0), axis=1))
-    inside = np.all(valid, axis=1) & np.all(np.abs(dt[..., 2]) < np.pi, axis=1)
-    lq = np.where(ok & inside & np.isfinite(lq), lq, -np.inf)
-    X = np.where(np.isfinite(X), X, 0.0)
-    return X, t[..., 2], lq
-
-
 # ---------------------------------------------------------------------------------------------
 # C's proposal: a 2-D t mixture
 

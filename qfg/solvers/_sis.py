@@ -346,7 +346,7 @@ def _log_intermediate_c(state_like, tid, poses, bearings_c, gens):
     elsewhere. ``poses``: (N, n, 3), or a function of a row selection returning those rows (the
     motion step's children are then never gathered all at once). Returns (log integral (N,),
     summaries (N, 7)): the Laplace fit's :func:`._laplace.summary_from_parts` where it is used
-    (the next view updates it, :func:`_update_c`), NaN where C was sampled."""
+    (the next view updates it, :func:`_child_c`), NaN where C was sampled."""
     get = poses if callable(poses) else poses.__getitem__
     prior = state_like.opts["prior"]
     tail = state_like.opts.get("bearing_tail")
@@ -359,7 +359,10 @@ def _log_intermediate_c(state_like, tid, poses, bearings_c, gens):
         P = get(sl)
         lz, Ls, spread, parts = _laplace.laplace_landmark(P, bearings_c[tid[sl]], sig[sl],
                                                           parts=True)
-        if _REFIT_AT_MODE and state_like.opts.get("c_anchors", False):
+        if state_like.opts.get("c_anchors", False):
+            # with the option c_anchors refits take the Laplace approximation about C's mode in
+            # the bearing residuals (_at_mode) rather than about the lines' least-squares point
+            # (a bearing tail's correction is then taken at the mode too)
             lz, Ls, spread, parts = _at_mode(P, bearings_c[tid[sl]], sig[sl], lz, spread, parts)
         out[sl] = lz + _prior.point_log_prior(prior, Ls)
         if tail is not None:
@@ -386,12 +389,6 @@ def _log_intermediate_c(state_like, tid, poses, bearings_c, gens):
 #: instead of growing with the views. Only the intermediate weights see the window (the final
 #: weights use every view); with up to this many views nothing changes.
 REFIT_VIEWS = 20
-
-#: Whether refits take the Laplace approximation about C's mode in the bearing residuals
-#: (:func:`_at_mode`) rather than about the lines' least-squares point, with the option
-#: ``c_anchors`` (a bearing tail's correction is then taken at the mode too).
-_REFIT_AT_MODE = True
-
 
 def _at_mode(P, phi_c, sig, lz, spread, parts):
     """:func:`._laplace.laplace_landmark`'s outputs moved to C's mode over the views of ``P``
@@ -420,22 +417,18 @@ def _at_mode(P, phi_c, sig, lz, spread, parts):
 
 
 #: Whether the motion step updates the parents' C summaries with the new view
-#: (:func:`_update_c`, O(1) per child) instead of refitting C over all views (O(views)); a
+#: (:func:`_child_c`, O(1) per child) instead of refitting C over all views (O(views)); a
 #: switch for the tests, which compare both.
 _INCREMENTAL_C = True
 
 
-#: With the option ``c_anchors``: views at which every child's C is refitted over the (latest
-#: REFIT_VIEWS) views about C's mode (:func:`_at_mode`) instead of updated, so that the
-#: summaries' frozen early gradients do not persist: 4, 8, 16, then every 16th view (the refits
-#: then cost at most about 2 x REFIT_VIEWS / 16 pose-views per child and view on average: time
-#: stays linear). False: never (a switch for the tests).
-_ANCHORS = True
-
-
 def _anchor(view: int) -> bool:
-    """Whether ``view`` (1-based) refits every child's C (:data:`_ANCHORS`)."""
-    return bool(_ANCHORS) and view >= 4 and (view in (4, 8) or view % 16 == 0)
+    """Whether ``view`` (1-based) refits every child's C, with the option ``c_anchors``: over the
+    (latest REFIT_VIEWS) views about C's mode (:func:`_at_mode`) instead of updated, so that the
+    summaries' frozen early gradients do not persist: 4, 8, 16, then every 16th view (the refits
+    then cost at most about 2 x REFIT_VIEWS / 16 pose-views per child and view on average: time
+    stays linear)."""
+    return view >= 4 and (view in (4, 8) or view % 16 == 0)
 
 
 def _child_c(st, state, parent, pose, phi_c, has_sum):
@@ -712,9 +705,6 @@ def _moves(st: SISState, which, mean_log) -> SISState:
 
 #: Proposals of a rejuvenation sweep (:func:`._rejuvenation.sweeps`).
 _KINDS = ("walk", "ridge", "noise")
-#: Diagnostics: a list to which each rejuvenation proposal appends (views, proposal, share of
-#: proposals inside the chart, share accepted); None: nothing recorded.
-_TRACE = None
 
 
 #: Quadrature points in rho of the world prior inside the rejuvenation's target (the final
@@ -812,7 +802,7 @@ def _rejuvenate(st: SISState, which, mean_log) -> SISState:
 
     poses, cur, (lpx, lc, cs) = _rejuvenation.sweeps(
         poses, tid, movable, target, (cur, (lpx, lc, cs)), gens, st.opts["rejuvenate"],
-        st.sigma_bearing, st.sigma_heading, _KINDS, _MOVE_SCALE, _TRACE)
+        st.sigma_bearing, st.sigma_heading, _KINDS, _MOVE_SCALE)
     # moved trajectories share no ancestors any more: the levels are rebuilt flat (O(N n), as
     # the moves themselves)
     # (a triplet left unmoved keeps its hypotheses' weights and summaries as they were)
