@@ -9,7 +9,8 @@ import pytest
 
 from qfg.geometry import bearing, motion_heading, wrap_angle
 from qfg.simulation import TripletHistory, _make_truth, random_triplet_history
-from qfg.solvers import TripletSolver, _sis, solve_triplet, solve_triplets
+from qfg.solvers import TripletSolver, solve_triplet, solve_triplets
+from qfg.solvers.sis import engine as _sis
 
 SB, SH = np.deg2rad(0.7), np.deg2rad(1.6)
 

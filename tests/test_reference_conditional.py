@@ -9,9 +9,9 @@ from qfg import partitions
 from qfg.geometry import bearing, locus_point
 from qfg.priors import CallablePrior
 from qfg.simulation import random_triplet_history
-from qfg.solvers import _reference_rb as R
-from qfg.solvers._prior import resolve_prior
-from qfg.solvers._reference import REFERENCE_DEFAULTS, _Layout, solve_reference
+from qfg.solvers.common.prior import resolve_prior
+from qfg.solvers.reference import conditional as R
+from qfg.solvers.reference.staged import REFERENCE_DEFAULTS, _Layout, solve_reference
 
 PRIOR = resolve_prior("world")
 

@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from qfg.simulation import random_triplet_history
-from qfg.solvers import _reference, _sis, solve_triplets
+from qfg.solvers import solve_triplets
+from qfg.solvers.reference import staged as _reference
+from qfg.solvers.sis import engine as _sis
 
 SB, SH = np.deg2rad(2), np.deg2rad(5)
 

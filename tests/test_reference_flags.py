@@ -5,7 +5,8 @@ near line AB in one view of several not flagged when the others place it."""
 import numpy as np
 
 from qfg.simulation import random_triplet_history
-from qfg.solvers import _degenerate, solve_triplet
+from qfg.solvers import solve_triplet
+from qfg.solvers.common import degenerate as _degenerate
 
 
 def test_reference_names_the_view_on_line_ab_one_based():

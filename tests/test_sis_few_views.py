@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from qfg.simulation import random_triplet_history
-from qfg.solvers import TripletSolver, _sis, solve_triplet, solve_triplets
+from qfg.solvers import TripletSolver, solve_triplet, solve_triplets
+from qfg.solvers.sis import engine as _sis
 
 _SMALL = {"n_samples": 48, "motion_samples": 3, "max_hypotheses": 120, "posterior_samples": 24,
           "landmark_samples": 2}
@@ -92,7 +93,7 @@ def test_budget_options_a_call_sets_are_not_overridden():
     sets a budget option, a population count or any few-views option gets the package off with
     its own settings on top, the same answers as saying so."""
     from qfg.solvers import DEFAULTS
-    from qfg.solvers._options import FEW_VIEWS_OFF
+    from qfg.solvers.common.options import FEW_VIEWS_OFF
 
     assert DEFAULTS["full"]["few_views_budget"] and DEFAULTS["full"]["few_views_escalate"]
     h = _hist(61, 3)

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from qfg.simulation import random_triplet_history
-from qfg.solvers import TripletSolver, _sis, solve_triplet, solve_triplets
+from qfg.solvers import TripletSolver, solve_triplet, solve_triplets
+from qfg.solvers.sis import engine as _sis
 
 _WHOLE = {"n_samples": 96, "motion_samples": 4, "max_hypotheses": 240, "posterior_samples": 48}
 _SMALL = {"n_samples": 48, "motion_samples": 3, "max_hypotheses": 120, "posterior_samples": 24,

@@ -10,7 +10,9 @@ import pytest
 
 from qfg.geometry import wrap_angle
 from qfg.simulation import random_triplet_history
-from qfg.solvers import _laplace, _sis, solve_triplets
+from qfg.solvers import solve_triplets
+from qfg.solvers.common import laplace as _laplace
+from qfg.solvers.sis import engine as _sis
 
 
 def _lines(rng, n, sig, spread=1.5):
@@ -162,8 +164,8 @@ def _histories(n, k, seed=810000):
 
 
 def _run(h, k, opts=None):
-    from qfg.solvers import _options
-    from qfg.solvers._input import get_partition
+    from qfg.solvers.common import options as _options
+    from qfg.solvers.common.input import get_partition
 
     opts = _options.resolve_options("full", opts or {})
     roots = [np.random.SeedSequence(11)]
@@ -182,7 +184,7 @@ def test_the_carried_c_weights_are_as_close_to_the_integral_as_a_batch_refit():
     # sampling with many draws: the carried summaries' log Z no further from it than the batch
     # Laplace fit over the same views (the batch fit sits at the lines' unweighted
     # least-squares point, not at the mode)
-    from qfg.solvers import _landmarks
+    from qfg.solvers.sis import landmarks as _landmarks
 
     h = _histories(2, 8)[1]
     st = _run(h, 8)[-1]
@@ -193,7 +195,7 @@ def test_the_carried_c_weights_are_as_close_to_the_integral_as_a_batch_refit():
     sig = st.sigma_v()[0]
     L, log_q, log_lik, _ = _landmarks.sample_landmarks(np.random.default_rng(0), P, phi, sig,
                                                        4000, 0.25)
-    from qfg.solvers._likelihood import logsumexp
+    from qfg.solvers.common.likelihood import logsumexp
 
     is_lz = logsumexp(log_lik - log_q, axis=1) - np.log(4000)
     batch, _, _ = _laplace.laplace_landmark(P, phi, sig)
@@ -221,7 +223,7 @@ def _pose_views_per_step(monkeypatch, incremental, k=16, options=None):
     # the engine's own steps: the rejuvenation (rebuilding the levels flat at its views) is
     # counted in tests/test_sis_rejuvenation.py
     opts = _sis._options.resolve_options("full", {"rejuvenate": 0, **(options or {})})
-    from qfg.solvers._input import get_partition
+    from qfg.solvers.common.input import get_partition
 
     # (n_views: as solve_triplets, no few-views budget to solve again at view 4)
     st = _sis.start(h.bearings[None, 0], np.array([h.sigma_bearing]),
@@ -321,7 +323,7 @@ def test_a_retried_triplet_is_merged_with_its_own_ancestry(monkeypatch, moves):
     # merged trajectories are those of the retry for it and those of the first proposal for the
     # other triplet, with the earlier levels still shared (rebuilt flat when moves rewrote the
     # trajectories)
-    from qfg.solvers._input import get_partition
+    from qfg.solvers.common.input import get_partition
 
     hs = _histories(2, 3, seed=816000)
     opts = _sis._options.resolve_options("full", {"max_hypotheses": 200, "n_samples": 100,

@@ -8,7 +8,10 @@ import numpy as np
 import pytest
 
 from qfg.simulation import random_triplet_history
-from qfg.solvers import DEFAULTS, TripletSolver, _budget, _rejuvenation, _sis, solve_triplet, solve_triplets
+from qfg.solvers import DEFAULTS, TripletSolver, solve_triplet, solve_triplets
+from qfg.solvers import budget as _budget
+from qfg.solvers.sis import engine as _sis
+from qfg.solvers.sis import rejuvenation as _rejuvenation
 
 
 def _history(seed, n):

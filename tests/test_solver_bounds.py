@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from qfg.simulation import random_triplet_history
-from qfg.solvers import DEFAULTS, TripletSolver, _budget, solve_triplet, solve_triplets
+from qfg.solvers import DEFAULTS, TripletSolver, solve_triplet, solve_triplets
+from qfg.solvers import budget as _budget
 
 METHODS = ("full", "fast", "fast-paper", "baseline", "reference")
 

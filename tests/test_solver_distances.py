@@ -12,15 +12,11 @@ import pytest
 
 from qfg import metrics, partitions
 from qfg.simulation import TripletHistory, random_triplet_history
-from qfg.solvers import (
-    TripletSolver,
-    _input,
-    _likelihood,
-    _seeds,
-    _sis,
-    solve_triplet,
-    solve_triplets,
-)
+from qfg.solvers import TripletSolver, solve_triplet, solve_triplets
+from qfg.solvers.common import input as _input
+from qfg.solvers.common import likelihood as _likelihood
+from qfg.solvers.common import seeds as _seeds
+from qfg.solvers.sis import engine as _sis
 
 SB, SH = np.deg2rad(2), np.deg2rad(5)
 TAIL = (0.1, 7.0)

@@ -9,7 +9,8 @@ import pytest
 
 from qfg import metrics
 from qfg.simulation import random_triplet_history
-from qfg.solvers import TripletSolver, _sis, solve_triplet, solve_triplets
+from qfg.solvers import TripletSolver, solve_triplet, solve_triplets
+from qfg.solvers.sis import engine as _sis
 
 SB = np.deg2rad(1.0)
 STEPS = np.deg2rad([1.0, 20.0, 1.0])
@@ -115,7 +116,7 @@ HTAIL = (0.1, 8.0)
 
 
 def test_move_target_with_a_heading_tail_is_the_mixture():
-    from qfg.solvers import _likelihood
+    from qfg.solvers.common import likelihood as _likelihood
 
     h = _noisy(4)
     st = TripletSolver.solve(h, method="fast", seed=0, heading_tail=HTAIL)._state

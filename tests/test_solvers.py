@@ -8,20 +8,15 @@ from hypothesis import strategies as st
 
 from qfg import geometry, metrics, partitions
 from qfg.simulation import TripletHistory, random_triplet_history
-from qfg.solvers import (
-    TripletSolver,
-    _arcs,
-    _estimate,
-    _input,
-    _laplace,
-    _options,
-    _prior,
-    _seeds,
-    add_view,
-    solve_triplet,
-    solve_triplets,
-)
-from qfg.solvers._baseline import resect
+from qfg.solvers import TripletSolver, add_view, solve_triplet, solve_triplets
+from qfg.solvers.baseline import resect
+from qfg.solvers.common import arcs as _arcs
+from qfg.solvers.common import estimate as _estimate
+from qfg.solvers.common import input as _input
+from qfg.solvers.common import laplace as _laplace
+from qfg.solvers.common import options as _options
+from qfg.solvers.common import prior as _prior
+from qfg.solvers.common import seeds as _seeds
 
 METHODS = ("full", "fast", "fast-paper", "baseline")
 EDC = partitions.get("edc")
@@ -440,7 +435,7 @@ def test_move_target_is_zero_residual_at_the_true_poses():
     # to both A/B bearing residuals of view 1 and to the heading residual of the first move.
     from dataclasses import replace as _replace
 
-    from qfg.solvers import _sis
+    from qfg.solvers.sis import engine as _sis
 
     h = random_triplet_history(np.random.default_rng(21), 3, 0.0, 0.0)
     opts = _options.resolve_options("full", {})
@@ -507,7 +502,7 @@ def test_logsumexp_matches_scipy(n, k, axis, p_inf):
     scipy.special.logsumexp's values on any axis, all -inf rows included (no warning)."""
     from scipy.special import logsumexp as scipy_lse
 
-    from qfg.solvers._likelihood import logsumexp
+    from qfg.solvers.common.likelihood import logsumexp
 
     rng = np.random.default_rng(n * 100 + k * 10 + axis)
     a = rng.standard_normal((n, 5, k)) * 30

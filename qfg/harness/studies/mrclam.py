@@ -450,7 +450,7 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
     if heading_tail not in ("normal", "measured"):
         raise ValueError(f"heading_tail: expected 'normal' or 'measured', got {heading_tail!r}")
     htail = HEADING_WALK_TAIL[1] if heading_tail == "measured" else None
-    from qfg.solvers._options import CAMERA_PRIORS, scaled_budget
+    from qfg.solvers.common.options import CAMERA_PRIORS, scaled_budget
 
     if camera_prior not in CAMERA_PRIORS:
         raise ValueError(f"camera_prior: expected one of {CAMERA_PRIORS}, got {camera_prior!r}")
@@ -525,7 +525,7 @@ def solve_piece(prep: Prepared, index: int, *, method: str = "full", seed=0, pie
     opts = {k: v for k, v in prep.solver_options.items() if v}
     budget = opts.pop("budget", None)
     if budget is not None:
-        from qfg.solvers._options import scaled_budget
+        from qfg.solvers.common.options import scaled_budget
 
         opts.update(scaled_budget(method, budget))
     if method == "baseline":

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import wrap_angle
-from ._degenerate import geometry_reasons
-from ._likelihood import logsumexp
+from ...geometry import wrap_angle
+from ..common.degenerate import geometry_reasons
+from ..common.likelihood import logsumexp
 
 _LOG2PI = np.log(2 * np.pi)
 
@@ -49,7 +49,7 @@ def final_answer(L, part, finals, N, min_ess, final_lws, ess_rounds, total) -> d
     Pareto k-hat of the final log weights ``final_lws`` (list of arrays), and the uniform
     answer, flagged, when no sample had positive weight. ``L``: the sampler's layout of all
     views (``L.n`` views)."""
-    from ._diagnostics import pareto_k
+    from ..common.diagnostics import pareto_k
 
     summ = _combine(finals, N)
     m = part.n_states

@@ -39,9 +39,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import _seeds
-from ._estimate import pool
-from ._sis import FEW_VIEWS
+from ..common import seeds as _seeds
+from ..common.estimate import pool
+from .engine import FEW_VIEWS
 
 #: Budget options divided among the populations (each gets ``max(1, round(value / K))``).
 SPLIT_KEYS = ("n_samples", "max_hypotheses", "posterior_samples")

@@ -40,9 +40,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import _estimate, _seeds
-from ._options import FEW_VIEWS_OFF
-from ._sis import FEW_VIEWS
+from ..common import estimate as _estimate
+from ..common import seeds as _seeds
+from ..common.options import FEW_VIEWS_OFF
+from .engine import FEW_VIEWS
 
 #: Spawn key (under a triplet's seed) of the escalated solve's seed.
 ESCALATE_KEY = 2_000_003

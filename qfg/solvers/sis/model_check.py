@@ -34,8 +34,8 @@ from functools import lru_cache
 import numpy as np
 from scipy.special import chdtrc
 
-from ..geometry import bearing, motion_heading, wrap_angle
-from ._likelihood import BearingTail, log_bearing
+from ...geometry import bearing, motion_heading, wrap_angle
+from ..common.likelihood import BearingTail, log_bearing
 
 #: Draws of the tabulated reference distribution of D under a bearing tail.
 REFERENCE_DRAWS = 20_000
@@ -101,7 +101,7 @@ def _reference_table(n_bearings: int, n_headings: int, tail: BearingTail,
     """Sorted draws of D under the model: ``n_bearings`` deviances of the tail's mixture (core
     width ``sigma``: the outlier share's density is per radian, so D depends on it) plus a
     chi-square with ``n_headings`` degrees of freedom."""
-    from ._likelihood import bearing_noise
+    from ..common.likelihood import bearing_noise
 
     rng = np.random.default_rng(20201)
     R = REFERENCE_DRAWS
@@ -256,7 +256,7 @@ def prior_states(prior, part) -> tuple[np.ndarray, np.ndarray]:
     """(C's (m,), one camera's (m,)) state distributions under ``prior`` alone
     (:func:`qfg.combine.prior_state_distribution`, 50,000 draws, cached per prior and
     partition)."""
-    from ..combine import prior_state_distribution
+    from ...combine import prior_state_distribution
 
     key = (type(prior).__name__, repr(prior), part.name)
     if key not in _PRIOR_STATES:

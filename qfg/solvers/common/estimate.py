@@ -9,8 +9,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._degenerate import UNRESOLVED_REASON, UNRESOLVED_SHARE
-from ._diagnostics import pareto_k
+from .degenerate import UNRESOLVED_REASON, UNRESOLVED_SHARE
+from .diagnostics import pareto_k
 
 
 @dataclass(frozen=True, eq=False, repr=False)

@@ -49,10 +49,10 @@ from math import lgamma
 
 import numpy as np
 
-from .. import priors as _priors
-from ..geometry import locus_circle, ray_circle_intersection, wrap_angle
-from ._likelihood import logsumexp
-from ._reference_weights import _log_wn, _summaries, final_answer
+from ... import priors as _priors
+from ...geometry import locus_circle, ray_circle_intersection, wrap_angle
+from ..common.likelihood import logsumexp
+from .weights import _log_wn, _summaries, final_answer
 
 __all__ = ["RB_DEFAULTS", "solve_rb", "resect", "fit_trajectories", "log_joint"]
 
@@ -136,7 +136,7 @@ def resect(L, C):
 
     >>> import numpy as np
     >>> from qfg.geometry import bearing
-    >>> from qfg.solvers._reference import _Layout
+    >>> from qfg.solvers.reference.staged import _Layout
     >>> C, P = np.array([0.7, 0.4]), np.array([-0.8, 1.9, 0.3])
     >>> phi = np.array([[bearing(P, np.zeros(2)), bearing(P, np.array([0.0, 1.0])), bearing(P, C)]])
     >>> X, al = resect(_Layout(phi, None, 0.01, 0.01), C[None])

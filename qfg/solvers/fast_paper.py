@@ -32,7 +32,13 @@ from ..geometry import (
     triangulate_pairwise_centroid,
     wrap_angle,
 )
-from . import _arcs, _degenerate, _estimate, _laplace, _likelihood, _options, _prior
+from .common import arcs as _arcs
+from .common import degenerate as _degenerate
+from .common import estimate as _estimate
+from .common import laplace as _laplace
+from .common import likelihood as _likelihood
+from .common import options as _options
+from .common import prior as _prior
 
 
 @dataclass(frozen=True, eq=False)

@@ -53,7 +53,13 @@ import numpy as np
 
 from .. import priors as _priors
 from ..geometry import LOCUS_EPS, wrap_angle
-from . import _degenerate, _estimate, _histograms, _input, _likelihood, _prior, _seeds
+from .common import degenerate as _degenerate
+from .common import estimate as _estimate
+from .common import histograms as _histograms
+from .common import input as _input
+from .common import likelihood as _likelihood
+from .common import prior as _prior
+from .common import seeds as _seeds
 
 _PRODUCT = _priors.ProductPrior()
 

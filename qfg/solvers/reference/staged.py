@@ -51,10 +51,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import partitions as _partitions
-from .. import priors as _priors
-from .._validate import as_rng, non_negative, positive_int
-from ..geometry import (
+from ... import partitions as _partitions
+from ... import priors as _priors
+from ..._validate import as_rng, non_negative, positive_int
+from ...geometry import (
     heading_on_locus,
     locus_circle,
     locus_point,
@@ -62,16 +62,16 @@ from ..geometry import (
     triangulate_lsq,
     wrap_angle,
 )
-from ._arcs import arc_parameter, log_ray_jacobian
-from ._input import DISTANCE_RATIO_FLOOR, check_bearings, check_distances, check_headings
-from ._likelihood import logsumexp
-from ._reference_rb import RB_DEFAULTS as _RB_DEFAULTS
-from ._reference_weights import (  # noqa: F401  (_log_wn: part of this module's interface)
+from ..common.arcs import arc_parameter, log_ray_jacobian
+from ..common.input import DISTANCE_RATIO_FLOOR, check_bearings, check_distances, check_headings
+from ..common.likelihood import logsumexp
+from ..common.odometry import log_distance_factor
+from .conditional import RB_DEFAULTS as _RB_DEFAULTS
+from .weights import (  # noqa: F401  (_log_wn: part of this module's interface)
     _log_wn,
     _summaries,
     final_answer,
 )
-from ._sis import log_distance_factor
 
 __all__ = ["solve_reference", "REFERENCE_DEFAULTS"]
 
@@ -687,7 +687,7 @@ def solve_reference(bearings, headings, sigma_bearing, sigma_heading, partition=
 
     def run(prior):
         if sampler == "conditional":
-            from ._reference_rb import solve_rb
+            from .conditional import solve_rb
 
             return solve_rb(L, prior, part, rng, opts)
         return _solve(L, prior, part, rng, opts, N, rounds, lam, lam_ray)

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._arcs import RAY_CENTRE, ray_log_density_polar, ray_points, wrap
-from ._laplace import CHUNK_ROWS, depth_spread, triangulate
-from ._likelihood import log_bearing, logaddexp, logsumexp, sum_views
+from ..common.arcs import RAY_CENTRE, ray_log_density_polar, ray_points, wrap
+from ..common.laplace import CHUNK_ROWS, depth_spread, triangulate
+from ..common.likelihood import log_bearing, logaddexp, logsumexp, sum_views
 
 
 def sample_landmarks(rng, poses, phi_c, sigma, k: int, ray_fraction: float, draws=None,

@@ -73,8 +73,8 @@ def work_units(method: str, opts: dict, n_views: int) -> int:
     >>> work_units("full", DEFAULTS["full"], 150) < WORK_BUDGET < work_units("full", DEFAULTS["full"], 160)
     True
     """
-    from ._rejuvenation import KINDS, work_views
-    from ._sis import REFIT_VIEWS
+    from .sis.engine import REFIT_VIEWS
+    from .sis.rejuvenation import KINDS, work_views
 
     n = int(n_views)
     if method in ("full", "fast"):

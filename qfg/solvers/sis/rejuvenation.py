@@ -31,9 +31,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import heading_on_locus, locus_circle, locus_point, ray_circle_intersection, wrap_angle
-from ._arcs import log_arc_jacobian, log_ray_jacobian
-from ._seeds import per_triplet
+from ...geometry import heading_on_locus, locus_circle, locus_point, ray_circle_intersection, wrap_angle
+from ..common.arcs import log_arc_jacobian, log_ray_jacobian
+from ..common.seeds import per_triplet
 
 #: Views (1-based) after whose resampling the hypotheses are rejuvenated: ``FIRST_VIEW`` and
 #: every view about ``GROWTH`` times the previous one (4, 6, 9, 14, 20, 30, ... with 1.5; 4, 8,

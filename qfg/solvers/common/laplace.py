@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._arcs import cos_sin, wrap
-from ._likelihood import sum_views
+from .arcs import cos_sin, wrap
+from .likelihood import sum_views
 
 #: Cap of the Laplace volume of C (log of an area in |AB|^2): near-parallel rays leave C
 #: unconstrained along them, and the prior, not the volume, then bounds it.

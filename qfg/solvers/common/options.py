@@ -6,10 +6,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import priors as _priors
-from .._validate import non_negative, positive_int
-from ._likelihood import as_normal_tail, as_tail
-from ._prior import resolve_prior
+from ... import priors as _priors
+from ..._validate import non_negative, positive_int
+from .likelihood import as_normal_tail, as_tail
+from .prior import resolve_prior
 
 #: Methods :func:`qfg.solvers.solve_triplet` knows.
 METHODS = ("full", "fast", "fast-paper", "baseline", "reference")
