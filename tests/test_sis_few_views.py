@@ -1,5 +1,5 @@
 """The SIS engine's few-views budget (option ``few_views_budget``): used while a triplet has at
-most ``_sis.FEW_VIEWS`` views, never seen in an answer with more views, and the same answer
+most ``_engine.FEW_VIEWS`` views, never seen in an answer with more views, and the same answer
 whether the views come one at a time or together."""
 
 import numpy as np
@@ -7,7 +7,7 @@ import pytest
 
 from qfg.simulation import random_triplet_history
 from qfg.solvers import TripletSolver, solve_triplet, solve_triplets
-from qfg.solvers.sis import engine as _sis
+from qfg.solvers.sis import engine as _engine
 
 _SMALL = {"n_samples": 48, "motion_samples": 3, "max_hypotheses": 120, "posterior_samples": 24,
           "landmark_samples": 2}
@@ -44,7 +44,7 @@ def test_incremental_equals_batch_and_later_views_ignore_the_small_budget(distan
                               few_views_budget=None)
         small = solve_triplet(**_first(h, n), method="full", seed=9,
                               **{**_BUDGET, **_SMALL}, rejuvenate=1, few_views_budget=None)
-        if n <= _sis.FEW_VIEWS:
+        if n <= _engine.FEW_VIEWS:
             # the small budget's answer: exactly the engine with those options
             np.testing.assert_array_equal(batch.landmark, small.landmark)
         else:

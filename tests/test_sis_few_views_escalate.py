@@ -8,7 +8,7 @@ import pytest
 
 from qfg.simulation import random_triplet_history
 from qfg.solvers import TripletSolver, solve_triplet, solve_triplets
-from qfg.solvers.sis import engine as _sis
+from qfg.solvers.sis import engine as _engine
 
 _WHOLE = {"n_samples": 96, "motion_samples": 4, "max_hypotheses": 240, "posterior_samples": 48}
 _SMALL = {"n_samples": 48, "motion_samples": 3, "max_hypotheses": 120, "posterior_samples": 24,
@@ -78,7 +78,7 @@ def test_incremental_equals_batch_after_every_view(distances):
         np.testing.assert_array_equal(inc.cameras, batch.cameras)
         assert inc.mc_error == batch.mc_error and inc.ess == batch.ess
         plain = solve_triplet(**_first(h, n), method="full", seed=9, **_FEW)
-        if n <= _sis.FEW_VIEWS:
+        if n <= _engine.FEW_VIEWS:
             assert batch.n_hypotheses > plain.n_hypotheses      # escalated
         else:
             # beyond FEW_VIEWS the option changes nothing

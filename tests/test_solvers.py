@@ -435,21 +435,22 @@ def test_move_target_is_zero_residual_at_the_true_poses():
     # to both A/B bearing residuals of view 1 and to the heading residual of the first move.
     from dataclasses import replace as _replace
 
-    from qfg.solvers.sis import engine as _sis
+    from qfg.solvers.sis import engine as _engine
+    from qfg.solvers.sis import target as _target
 
     h = random_triplet_history(np.random.default_rng(21), 3, 0.0, 0.0)
     opts = _options.resolve_options("full", {})
-    st = _sis.start(h.bearings[:1], np.array([0.02]), np.array([0.05]),
+    st = _engine.start(h.bearings[:1], np.array([0.02]), np.array([0.05]),
                     (np.random.SeedSequence(0),), opts, _input.get_partition("edc"), "full")
     st = _replace(st, bearings=h.bearings[None], headings=np.asarray(h.headings)[None],
                   same_pose=np.zeros((1, 3), dtype=bool))
     true = np.asarray(h.truth.poses_ab, dtype=float)[None]
-    lt, lp = _sis._log_pose_target(st, np.zeros(1, dtype=int), true)
+    lt, lp = _target.log_pose_target(st, np.zeros(1, dtype=int), true)
     np.testing.assert_allclose(lt, lp, atol=1e-12)
     d = 0.01
     turned = true.copy()
     turned[0, 0, 2] += d
-    lt2, lp2 = _sis._log_pose_target(st, np.zeros(1, dtype=int), turned)
+    lt2, lp2 = _target.log_pose_target(st, np.zeros(1, dtype=int), turned)
     np.testing.assert_allclose(lp2, lp)
     np.testing.assert_allclose(lt2 - lp2, -0.5 * (2 * d**2 / 0.02**2 + d**2 / 0.05**2),
                                rtol=1e-6)

@@ -220,7 +220,7 @@ def step(state: BaselineState, phi, heading=None) -> BaselineState:
 
 def _quadrature(prior):
     """The prior whose joint density the correction evaluates: a
-    :class:`qfg.priors.WorldBoxPrior` with more than :data:`._prior.SOLVER_N_RHO` quadrature
+    :class:`qfg.priors.WorldBoxPrior` with more than :data:`.prior.SOLVER_N_RHO` quadrature
     angles is evaluated with that many (the same box; the solvers' resolution for the world
     prior, within ~0.02 nats; N x M configurations per triplet at 128 angles cost 10x more)."""
     if isinstance(prior, _priors.WorldBoxPrior) and prior.n_rho > _prior.SOLVER_N_RHO:

@@ -52,7 +52,7 @@ def _model_options(method, model, options):
 
 
 def _resolve(method, options):
-    """:func:`._options.resolve_options`, with the reference solver's own defaults."""
+    """:func:`.options.resolve_options`, with the reference solver's own defaults."""
     if method == "reference":
         from .reference.staged import REFERENCE_DEFAULTS
 
@@ -115,7 +115,7 @@ def solve_triplet(bearings, headings=None, *, method: str = "full", partition="e
     return _solve(model, meas, part, opts, root)[0]
 
 
-#: Methods solved by the batched SIS engine (:mod:`._sis`).
+#: Methods solved by the batched SIS engine (:mod:`.sis`).
 _SIS = ("full", "fast")
 
 
@@ -145,7 +145,7 @@ def _solve_fast_batch(metas, part, opts, hypotheses=False):
 
 
 def _reference_estimate(meas, part, opts, root) -> TripletEstimate:
-    """``method="reference"``: :func:`qfg.solvers._reference.solve_reference` as an estimate
+    """``method="reference"``: :func:`qfg.solvers.reference.staged.solve_reference` as an estimate
     (``mc_error`` the largest standard error of the landmark probabilities). A view repeating the
     previous view's bearings is the same camera (not moved, as the other methods take it): the
     distinct views are solved, the repeated view's camera row is its predecessor's, and the

@@ -15,7 +15,7 @@ def log_distance_factor(step, prev_step, distance, prev_distance, sigma, tail=No
         log N(log(s_i / s_(i-1)) - log(d_i / d_(i-1)); sigma),
 
     for steps ``s`` (AB units) of hypotheses and the measured distances ``d`` (any unit), all
-    broadcast together; with ``tail`` (a :class:`._likelihood.BearingTail` without outliers,
+    broadcast together; with ``tail`` (a :class:`.likelihood.BearingTail` without outliers,
     the option ``distance_tail``) the normal is the mixture ``(1 - share) N(r; sigma) + share
     N(r; scale sigma)`` instead: on MRCLAM 9% of the ratios are off by a factor of about 2
     (docs/mrclam.md, "The odometry's step-length ratios"). 0 (no factor) where a measured

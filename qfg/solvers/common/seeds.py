@@ -13,7 +13,7 @@ STREAM_CAMERAS, STREAM_RESAMPLE, STREAM_LANDMARKS, STREAM_POSTERIOR, STREAM_RETR
 
 
 STREAM_MOVE = 6
-#: the rejuvenation moves (:func:`._sis._rejuvenate`)
+#: the rejuvenation moves (:func:`.moves._rejuvenate`)
 STREAM_REJUVENATE = 7
 
 

@@ -2,7 +2,7 @@
 importance sampling of ``(C, trajectory)``, Rao-Blackwellised around C, at a cost linear in the
 number of views.
 
-Model (the same as :mod:`._reference`, AB frame): configuration ``(C, X_1, alpha_1, ..,
+Model (the same as :mod:`.staged`, AB frame): configuration ``(C, X_1, alpha_1, ..,
 X_n, alpha_n)``, prior ``prior(C, X_1..X_n) (2 pi)^-n`` (headings uniform), bearings
 ``phi_{j,P} ~ WN(atan2(P - X_j) - alpha_j, sigma_v^2)`` for P in {A, B, C}, headings
 ``psi_j ~ WN(atan2(X_{j+1} - X_j) - alpha_j, sigma_w^2)``.
@@ -40,7 +40,7 @@ headings chain consecutive poses. So, for a draw of C:
 Whatever the quality of the approximations, this is an importance sampler of the exact
 posterior; their quality shows in the ESS and the Pareto k. Rounds of final draws are added
 until the ESS reaches ``ess_goal`` (at most ``final_rounds``) and combined by ESS
-(:func:`._reference_weights._combine`).
+(:func:`.weights._combine`).
 """
 
 from __future__ import annotations
@@ -672,7 +672,7 @@ def adapt_c_proposal(L, prior, rng, opts):
 @_quiet
 def solve_rb(L, prior, part, rng, opts):
     """The reference's answer by the conditional-Laplace sampler (the dict of
-    :func:`qfg.solvers._reference.solve_reference`)."""
+    :func:`qfg.solvers.reference.staged.solve_reference`)."""
     mix, spent = adapt_c_proposal(L, prior, rng, opts)
     M = int(opts["rb_samples"])
     iters = int(opts["gn_iters"])

@@ -114,7 +114,7 @@ def _summaries(part, X, c, lw):
 
 def _geometry_flags(L, X, c, wn):
     """Reasons the geometry leaves the answer spread: the measurement flags every solver
-    attaches (:func:`qfg.solvers._degenerate.geometry_reasons`: cameras on line AB where fewer
+    attaches (:func:`qfg.solvers.common.degenerate.geometry_reasons`: cameras on line AB where fewer
     than two views place the camera, travel along the line of sight to C), and lines of sight to
     C that nearly coincide in the weighted posterior sample (``X`` (N, n, 2) cameras, ``c``
     (N, 2) C, ``wn`` (N,) normalized weights) when the measurements did not say so already."""

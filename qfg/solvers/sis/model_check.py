@@ -7,7 +7,7 @@ The check is a posterior predictive check (Gelman, Meng and Stern 1996) with the
 
 ``r`` the residuals of the measured bearings (A, B and C of every view) and headings at a
 configuration theta = [C, X_1..X_n] (AB frame), ``d(u) = -2 log(p(u) / p(0))`` the deviance of
-the bearing noise (``u^2`` for the normal; for a :class:`._likelihood.BearingTail` its
+the bearing noise (``u^2`` for the normal; for a :class:`.likelihood.BearingTail` its
 mixture's). Replicated data given theta have residuals that are the noise itself, so
 ``D(y_rep, theta)`` has a known distribution F (chi-square with 3n + n - 1 degrees of freedom for
 normal noise; for a tail, the sum of the mixture's deviances, tabulated by simulation once per
@@ -181,7 +181,7 @@ def posterior_predictive_batch(bearings, headings, poses, tid, landmark, weights
             > 0 leaves its headings out of D (and out of the reference distribution).
         tail: the bearing noise's :class:`BearingTail`, or None for the normal.
         c_loglik: (J r,) optional, each draw's C-bearing log likelihood summed over the views
-            (:func:`._landmarks.sample_landmarks`' ``log lik``, at these widths and tail): C's
+            (:func:`.landmarks.sample_landmarks`' ``log lik``, at these widths and tail): C's
             deviances are then ``-2 (c_loglik - n log p(0))`` instead of recomputed.
 
     Returns (T,) p-values, NaN for a triplet without a positive weight.
