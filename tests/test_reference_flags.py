@@ -1,5 +1,5 @@
 """The reference solver flags degenerate measurements by the same rule, and in the same words, as
-every other method (qfg.solvers._degenerate.geometry_reasons): views named 1-based, a camera
+every other method (qfg.solvers.common.degenerate.geometry_reasons): views named 1-based, a camera
 near line AB in one view of several not flagged when the others place it."""
 
 import numpy as np

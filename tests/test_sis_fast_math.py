@@ -1,7 +1,7 @@
-"""The solvers' fast elementwise helpers (:mod:`qfg.solvers._arcs`) against the plain formulas
+"""The solvers' fast elementwise helpers (:mod:`qfg.solvers.common.arcs`) against the plain formulas
 they replace: numpy's sine and cosine, :func:`qfg.geometry.wrap_angle`, and the locus circle's
 ray intersection and change of variables of :mod:`qfg.geometry` and
-:func:`qfg.solvers._arcs.log_ray_jacobian`."""
+:func:`qfg.solvers.common.arcs.log_ray_jacobian`."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Escalation of few-views answers (option ``few_views_escalate``, :mod:`qfg.solvers._escalation`):
+"""Escalation of few-views answers (option ``few_views_escalate``, :mod:`qfg.solvers.sis.escalation`):
 the answers equal the small budget's where its populations agree and the budget-weighted mean of
 the small and the whole budget's answers (the latter from the escalation seed) where they do
 not; incremental and batch solves agree after every view; bad values are refused."""
