@@ -12,8 +12,11 @@ import pytest
 from qfg.geometry import bearing
 from qfg.partitions import get as get_partition
 from qfg.priors import WindowPrior, WorldBoxPrior
-from qfg.solvers import _input, _options, _seeds, solve_triplet
-from qfg.solvers._baseline import joint_correction, start, step
+from qfg.solvers import solve_triplet
+from qfg.solvers.baseline import joint_correction, start, step
+from qfg.solvers.common import input as _input
+from qfg.solvers.common import options as _options
+from qfg.solvers.common import seeds as _seeds
 
 
 def _far_views(C, cams, sigma, seed):

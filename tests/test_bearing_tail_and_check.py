@@ -13,14 +13,14 @@ from scipy.stats import chi2, kstest
 from qfg.metrics import log_score
 from qfg.simulation import random_triplet_history
 from qfg.solvers import DEFAULTS, solve_triplets
-from qfg.solvers import _model_check as mc
-from qfg.solvers._likelihood import (
+from qfg.solvers.common.likelihood import (
     BearingTail,
     as_tail,
     bearing_noise,
     log_bearing,
     log_bearing_proposal,
 )
+from qfg.solvers.sis import model_check as mc
 
 TAIL = BearingTail(share=0.27, scale=2.8, outlier=0.01)
 

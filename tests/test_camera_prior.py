@@ -9,7 +9,8 @@ import pytest
 
 from qfg.geometry import bearing, motion_heading, wrap_angle
 from qfg.simulation import TripletHistory, _make_truth, random_triplet_history
-from qfg.solvers import TripletSolver, _sis, solve_triplet, solve_triplets
+from qfg.solvers import TripletSolver, solve_triplet, solve_triplets
+from qfg.solvers.sis import target as _target
 
 SB, SH = np.deg2rad(0.7), np.deg2rad(1.6)
 
@@ -56,16 +57,16 @@ def test_carried_prior_part_is_the_targets(method):
                              motion_samples=3, max_hypotheses=10**6, prune_ratio=0.0,
                              rejuvenate=0)._state
     X = st.poses[..., :2]
-    want = _sis._log_camera_prior(st.opts, X)
+    want = _target.log_camera_prior(st.opts, X)
     ok = np.isfinite(want)
     assert ok.mean() > 0.9
     np.testing.assert_allclose(st.lp_x[ok], want[ok], rtol=1e-9, atol=1e-9)
-    lt, lp = _sis._log_pose_target(st, st.tid, st.poses)
+    lt, lp = _target.log_pose_target(st, st.tid, st.poses)
     np.testing.assert_allclose(lp[ok], want[ok], rtol=1e-12)
     # "point": the sum of per-point priors, as before
     p = TripletSolver.solve(h, method=method, seed=1, n_samples=60, motion_samples=3,
                             max_hypotheses=10**6, prune_ratio=0.0, rejuvenate=0)._state
-    np.testing.assert_allclose(p.lp_x, _sis._log_camera_prior(p.opts, p.poses[..., :2]),
+    np.testing.assert_allclose(p.lp_x, _target.log_camera_prior(p.opts, p.poses[..., :2]),
                                rtol=1e-9, atol=1e-9)
 
 

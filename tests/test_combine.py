@@ -18,7 +18,7 @@ from qfg.combine import (
 )
 from qfg.partitions import get as get_partition
 from qfg.priors import WindowPrior, sample_measurements
-from qfg.solvers._reference import solve_reference
+from qfg.solvers.reference.staged import solve_reference
 
 
 def _tv(p, q):

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from qfg.simulation import random_triplet_history
-from qfg.solvers import _model_check as mc
 from qfg.solvers import solve_triplets
-from qfg.solvers._likelihood import as_tail
+from qfg.solvers.common.likelihood import as_tail
+from qfg.solvers.sis import model_check as mc
 
 
 def _one(b, h, P, L, w, sv, sh, tail):
@@ -53,7 +53,7 @@ def test_batch_equals_one_triplet_at_a_time(tail):
     assert np.isnan(got[2]) and np.isnan(got[3])
     # C's deviances from the draws' log likelihoods (as the SIS engine hands them over)
     from qfg.geometry import bearing, wrap_angle
-    from qfg.solvers._likelihood import log_bearing
+    from qfg.solvers.common.likelihood import log_bearing
 
     rc = wrap_angle(b[tr, :, 2] - bearing(np.repeat(P, r, axis=0), L[:, None, :]))
     svc = np.where(sv > 0, sv, 1.0)[tr][:, None]

@@ -351,7 +351,7 @@ def test_noise_model_options_reach_the_histories_and_the_solver(data):
         study.solve_piece(big, 0, method="fast", seed=0, piece=2)
     finally:
         solvers.solve_triplets = orig
-    from qfg.solvers._options import DEFAULTS
+    from qfg.solvers.common.options import DEFAULTS
 
     assert seen["n_samples"] == round(DEFAULTS["fast"]["n_samples"] * 0.5)
     assert seen["max_hypotheses"] == round(DEFAULTS["fast"]["max_hypotheses"] * 0.5)

@@ -209,7 +209,7 @@ def _known_options(method):
     if method in solvers.DEFAULTS:
         return solvers.DEFAULTS[method]
     try:
-        from qfg.solvers._reference import REFERENCE_DEFAULTS
+        from qfg.solvers.reference.staged import REFERENCE_DEFAULTS
     except ImportError:
         return {}
     return REFERENCE_DEFAULTS

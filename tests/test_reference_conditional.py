@@ -1,6 +1,7 @@
-"""The reference's conditional sampler (qfg.solvers._reference_rb): its pieces against geometry
-and dense linear algebra, and its answers against the staged sampler (an independent importance
-sampler of the same exact posterior) at 3-4 views, within the Monte Carlo errors both report."""
+"""The reference's conditional sampler (qfg.solvers.reference.conditional and .trajectory): its
+pieces against geometry and dense linear algebra, and its answers against the staged sampler (an
+independent importance sampler of the same exact posterior) at 3-4 views, within the Monte Carlo
+errors both report."""
 
 import numpy as np
 import pytest
@@ -9,9 +10,10 @@ from qfg import partitions
 from qfg.geometry import bearing, locus_point
 from qfg.priors import CallablePrior
 from qfg.simulation import random_triplet_history
-from qfg.solvers import _reference_rb as R
-from qfg.solvers._prior import resolve_prior
-from qfg.solvers._reference import REFERENCE_DEFAULTS, _Layout, solve_reference
+from qfg.solvers.common.prior import resolve_prior
+from qfg.solvers.reference import conditional as R
+from qfg.solvers.reference import trajectory as RT
+from qfg.solvers.reference.staged import REFERENCE_DEFAULTS, _Layout, solve_reference
 
 PRIOR = resolve_prior("world")
 
@@ -30,7 +32,7 @@ def test_resection_recovers_noise_free_poses():
                     bearing(P, C)], -1)
     for i in range(0, 200, 20):
         L = _Layout(phi[i:i + 1], None, 0.01, 0.01)
-        Xr, ar = R.resect(L, C[i:i + 1])
+        Xr, ar = RT.resect(L, C[i:i + 1])
         assert np.allclose(Xr[0, 0], X[i], atol=1e-8)
         assert np.isclose(np.cos(ar[0, 0] - al[i]), 1.0)
 
@@ -38,12 +40,12 @@ def test_resection_recovers_noise_free_poses():
 def test_arc_coordinates_invert_and_their_jacobian_matches_finite_differences():
     rng = np.random.default_rng(1)
     X = rng.uniform(-3, 3, (50, 2))
-    a, g = R.arc_coords(X)
-    Y, dXda, dXdg, logdet, valid = R.arc_position(a, g)
+    a, g = RT.arc_coords(X)
+    Y, dXda, dXdg, logdet, valid = RT.arc_position(a, g)
     assert valid.all() and np.allclose(Y, X) and np.allclose(locus_point(g, a), X)
     e = 1e-6
-    fa = (R.arc_position(a + e, g)[0] - R.arc_position(a - e, g)[0]) / (2 * e)
-    fg = (R.arc_position(a, g + e)[0] - R.arc_position(a, g - e)[0]) / (2 * e)
+    fa = (RT.arc_position(a + e, g)[0] - RT.arc_position(a - e, g)[0]) / (2 * e)
+    fg = (RT.arc_position(a, g + e)[0] - RT.arc_position(a, g - e)[0]) / (2 * e)
     assert np.allclose(fa, dXda, atol=1e-6) and np.allclose(fg, dXdg, atol=1e-6)
     det = np.abs(fa[:, 0] * fg[:, 1] - fa[:, 1] * fg[:, 0])
     assert np.allclose(np.log(det), logdet, atol=1e-6)
@@ -59,15 +61,15 @@ def test_block_cholesky_solves_and_samples_the_dense_system():
     P = P + 3 * n * np.eye(3 * n)                         # diagonally dominant: positive definite
     D = np.stack([P[:, 3 * j:3 * j + 3, 3 * j:3 * j + 3] for j in range(n)], 1)
     O = np.stack([P[:, 3 * j + 3:3 * j + 6, 3 * j:3 * j + 3] for j in range(n - 1)], 1)
-    Ld, Lo = R.block_cholesky(D, O)
+    Ld, Lo = RT.block_cholesky(D, O)
     b = rng.standard_normal((N, n, 3))
-    x = R.block_solve(Ld, Lo, b)
+    x = RT.block_solve(Ld, Lo, b)
     assert np.allclose(np.einsum("nij,nj->ni", P, x.reshape(N, -1)), b.reshape(N, -1))
     # log det P = 2 sum log diag(Ld); back substitution of z ~ N(0, I) has covariance P^-1
     assert np.allclose(2 * np.sum(np.log(np.diagonal(Ld, axis1=-2, axis2=-1)), axis=(1, 2)),
                        np.linalg.slogdet(P)[1])
     z = rng.standard_normal((N, n, 3))
-    y = R.back_substitute(Ld, Lo, z)
+    y = RT.back_substitute(Ld, Lo, z)
     Lfull = np.linalg.cholesky(P)
     assert np.allclose(y.reshape(N, -1), np.linalg.solve(np.swapaxes(Lfull, 1, 2),
                                                          z.reshape(N, -1)[..., None])[..., 0])
@@ -82,7 +84,7 @@ def test_particle_filter_log_z_agrees_with_the_laplace_integral():
     logz, X, al = R.particle_trajectories(L, C, np.random.default_rng(0), K=8)
     lw = logz + PRIOR.log_density(np.concatenate([C[:, None], X], 1))
     est = float(np.log(np.mean(np.exp(lw - lw.max()))) + lw.max())
-    lap = float(R.laplace_marginal(L, PRIOR, C[:1])[0])
+    lap = float(RT.laplace_marginal(L, PRIOR, C[:1])[0])
     assert abs(est - lap) < 0.3, (est, lap)
     # the drawn trajectories sit near the truth's poses
     assert np.median(np.linalg.norm(X - h.truth.poses_ab[None, :, :2], axis=-1)) < 0.2
@@ -156,7 +158,7 @@ def test_c_proposal_matches_the_laplace_marginal_it_is_tempered_to():
     L = _Layout(h.bearings, h.headings, h.sigma_bearing, h.sigma_heading)
     mix, _ = R.adapt_c_proposal(L, PRIOR, np.random.default_rng(0), dict(REFERENCE_DEFAULTS))
     C = mix.draw(np.random.default_rng(1), 1000)
-    lw = R.laplace_marginal(L, PRIOR, C) - mix.log_density(C)
+    lw = RT.laplace_marginal(L, PRIOR, C) - mix.log_density(C)
     w = np.exp(lw[np.isfinite(lw)] - np.max(lw[np.isfinite(lw)]))
     assert w.sum() ** 2 / np.sum(w * w) > 300
 

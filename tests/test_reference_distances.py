@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from qfg.simulation import random_triplet_history
-from qfg.solvers import _reference, _sis, solve_triplets
+from qfg.solvers import solve_triplets
+from qfg.solvers.common import odometry as _odometry
+from qfg.solvers.reference import staged as _reference
 
 SB, SH = np.deg2rad(2), np.deg2rad(5)
 
@@ -43,10 +45,10 @@ def test_layout_factor_is_the_sis_factor():
     L = _reference._Layout(b, np.zeros(3), 0.01, 0.02, d, 0.07)
     X = rng.normal(size=(5, 4, 2))
     s = np.hypot(*np.diff(X, axis=1).transpose(2, 0, 1))
-    want = _sis.log_distance_factor(s[:, 1:], s[:, :-1], d[1:], d[:-1], 0.07).sum(axis=1)
+    want = _odometry.log_distance_factor(s[:, 1:], s[:, :-1], d[1:], d[:-1], 0.07).sum(axis=1)
     np.testing.assert_allclose(L.log_distances(X), want, rtol=1e-12)
     # the first three views keep the first two distances
-    np.testing.assert_allclose(L.first(3).log_distances(X[:, :3]), want - _sis.log_distance_factor(
+    np.testing.assert_allclose(L.first(3).log_distances(X[:, :3]), want - _odometry.log_distance_factor(
         s[:, 2], s[:, 1], d[2], d[1], 0.07), rtol=1e-12)
 
 

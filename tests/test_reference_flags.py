@@ -1,11 +1,12 @@
 """The reference solver flags degenerate measurements by the same rule, and in the same words, as
-every other method (qfg.solvers._degenerate.geometry_reasons): views named 1-based, a camera
+every other method (qfg.solvers.common.degenerate.geometry_reasons): views named 1-based, a camera
 near line AB in one view of several not flagged when the others place it."""
 
 import numpy as np
 
 from qfg.simulation import random_triplet_history
-from qfg.solvers import _degenerate, solve_triplet
+from qfg.solvers import solve_triplet
+from qfg.solvers.common import degenerate as _degenerate
 
 
 def test_reference_names_the_view_on_line_ab_one_based():

@@ -1,14 +1,14 @@
-"""The solvers' fast elementwise helpers (:mod:`qfg.solvers._arcs`) against the plain formulas
+"""The solvers' fast elementwise helpers (:mod:`qfg.solvers.common.arcs`) against the plain formulas
 they replace: numpy's sine and cosine, :func:`qfg.geometry.wrap_angle`, and the locus circle's
 ray intersection and change of variables of :mod:`qfg.geometry` and
-:func:`qfg.solvers._arcs.log_ray_jacobian`."""
+:func:`qfg.solvers.common.arcs.log_ray_jacobian`."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from qfg.geometry import locus_circle, ray_circle_intersection, wrap_angle
-from qfg.solvers import _arcs
+from qfg.solvers.common import arcs as _arcs
 
 
 def test_cos_sin_equal_numpy_to_rounding():
@@ -79,7 +79,7 @@ def test_log_ray_jacobian_u_equals_log_ray_jacobian():
 
 
 def test_segment_max_equals_maximum_at():
-    from qfg.solvers._sis import _segment_max
+    from qfg.solvers.sis.resampling import segment_max
 
     rng = np.random.default_rng(4)
     for _ in range(300):
@@ -90,15 +90,15 @@ def test_segment_max_equals_maximum_at():
         for t, v in ((tid, x), (tid[::-1].copy(), x[::-1].copy())):     # sorted, and not
             ref = np.full(T, -np.inf)
             np.maximum.at(ref, t, v)
-            assert np.array_equal(_segment_max(t, v, T), ref)
+            assert np.array_equal(segment_max(t, v, T), ref)
             base = rng.normal(size=T)
             ref = base.copy()
             np.maximum.at(ref, t, v)
-            assert np.array_equal(_segment_max(t, v, T, out=base), ref)
+            assert np.array_equal(segment_max(t, v, T, out=base), ref)
 
 
 def test_logaddexp_equals_numpy():
-    from qfg.solvers._likelihood import logaddexp
+    from qfg.solvers.common.likelihood import logaddexp
 
     rng = np.random.default_rng(5)
     a, b = rng.normal(0.0, 30.0, (2, 100_000))
@@ -116,7 +116,7 @@ def test_logaddexp_equals_numpy():
 
 
 def test_logsumexp_over_a_few_columns_equals_the_reduction():
-    from qfg.solvers._likelihood import logsumexp
+    from qfg.solvers.common.likelihood import logsumexp
 
     rng = np.random.default_rng(6)
     for k in range(1, 10):
@@ -134,7 +134,7 @@ def test_logsumexp_over_a_few_columns_equals_the_reduction():
 def test_weighted_state_errors_equal_the_delta_method_per_sample():
     """The batched Monte Carlo error of the finish step against the delta-method sum written
     out per group and state: sqrt(sum_i w_i^2 (1[s_i = s] - p_s)^2), the largest over s."""
-    from qfg.solvers._histograms import weighted_state_errors
+    from qfg.solvers.common.histograms import weighted_state_errors
     rng = np.random.default_rng(3)
     G, m = 6, 5
     g = np.sort(rng.integers(0, G - 1, 400))                    # group G - 1 stays empty

@@ -1,12 +1,13 @@
 """The SIS engine's few-views budget (option ``few_views_budget``): used while a triplet has at
-most ``_sis.FEW_VIEWS`` views, never seen in an answer with more views, and the same answer
+most ``_engine.FEW_VIEWS`` views, never seen in an answer with more views, and the same answer
 whether the views come one at a time or together."""
 
 import numpy as np
 import pytest
 
 from qfg.simulation import random_triplet_history
-from qfg.solvers import TripletSolver, _sis, solve_triplet, solve_triplets
+from qfg.solvers import TripletSolver, solve_triplet, solve_triplets
+from qfg.solvers.sis import engine as _engine
 
 _SMALL = {"n_samples": 48, "motion_samples": 3, "max_hypotheses": 120, "posterior_samples": 24,
           "landmark_samples": 2}
@@ -43,7 +44,7 @@ def test_incremental_equals_batch_and_later_views_ignore_the_small_budget(distan
                               few_views_budget=None)
         small = solve_triplet(**_first(h, n), method="full", seed=9,
                               **{**_BUDGET, **_SMALL}, rejuvenate=1, few_views_budget=None)
-        if n <= _sis.FEW_VIEWS:
+        if n <= _engine.FEW_VIEWS:
             # the small budget's answer: exactly the engine with those options
             np.testing.assert_array_equal(batch.landmark, small.landmark)
         else:
@@ -92,7 +93,7 @@ def test_budget_options_a_call_sets_are_not_overridden():
     sets a budget option, a population count or any few-views option gets the package off with
     its own settings on top, the same answers as saying so."""
     from qfg.solvers import DEFAULTS
-    from qfg.solvers._options import FEW_VIEWS_OFF
+    from qfg.solvers.common.options import FEW_VIEWS_OFF
 
     assert DEFAULTS["full"]["few_views_budget"] and DEFAULTS["full"]["few_views_escalate"]
     h = _hist(61, 3)

@@ -1,4 +1,4 @@
-"""Escalation of few-views answers (option ``few_views_escalate``, :mod:`qfg.solvers._escalation`):
+"""Escalation of few-views answers (option ``few_views_escalate``, :mod:`qfg.solvers.sis.escalation`):
 the answers equal the small budget's where its populations agree and the budget-weighted mean of
 the small and the whole budget's answers (the latter from the escalation seed) where they do
 not; incremental and batch solves agree after every view; bad values are refused."""
@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from qfg.simulation import random_triplet_history
-from qfg.solvers import TripletSolver, _sis, solve_triplet, solve_triplets
+from qfg.solvers import TripletSolver, solve_triplet, solve_triplets
+from qfg.solvers.sis import engine as _engine
 
 _WHOLE = {"n_samples": 96, "motion_samples": 4, "max_hypotheses": 240, "posterior_samples": 48}
 _SMALL = {"n_samples": 48, "motion_samples": 3, "max_hypotheses": 120, "posterior_samples": 24,
@@ -77,7 +78,7 @@ def test_incremental_equals_batch_after_every_view(distances):
         np.testing.assert_array_equal(inc.cameras, batch.cameras)
         assert inc.mc_error == batch.mc_error and inc.ess == batch.ess
         plain = solve_triplet(**_first(h, n), method="full", seed=9, **_FEW)
-        if n <= _sis.FEW_VIEWS:
+        if n <= _engine.FEW_VIEWS:
             assert batch.n_hypotheses > plain.n_hypotheses      # escalated
         else:
             # beyond FEW_VIEWS the option changes nothing

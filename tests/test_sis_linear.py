@@ -10,7 +10,14 @@ import pytest
 
 from qfg.geometry import wrap_angle
 from qfg.simulation import random_triplet_history
-from qfg.solvers import _laplace, _sis, solve_triplets
+from qfg.solvers import solve_triplets
+from qfg.solvers.common import laplace as _laplace
+from qfg.solvers.common import options as _options
+from qfg.solvers.common import seeds as _seeds
+from qfg.solvers.sis import c_integral as _c_integral
+from qfg.solvers.sis import engine as _engine
+from qfg.solvers.sis import motion as _motion
+from qfg.solvers.sis import state as _state
 
 
 def _lines(rng, n, sig, spread=1.5):
@@ -119,10 +126,10 @@ def test_trajectories_walk_the_ancestry_like_a_naive_gather():
         levels = levels + ((new, up),)
         keep = rng.permutation(9)[:5]           # a resampling keeps some of them
         full = full[keep]
-        levels = _sis._take_last(levels, keep)
-    np.testing.assert_array_equal(_sis.trajectories(levels), full)
-    np.testing.assert_array_equal(_sis.trajectories(levels, [4, 0]), full[[4, 0]])
-    np.testing.assert_array_equal(_sis.trajectories(levels, [3], last=2), full[[3], -2:])
+        levels = _state.take_last(levels, keep)
+    np.testing.assert_array_equal(_state.trajectories(levels), full)
+    np.testing.assert_array_equal(_state.trajectories(levels, [4, 0]), full[[4, 0]])
+    np.testing.assert_array_equal(_state.trajectories(levels, [3], last=2), full[[3], -2:])
 
 
 def test_refits_take_at_most_the_window_of_views(monkeypatch):
@@ -137,7 +144,7 @@ def test_refits_take_at_most_the_window_of_views(monkeypatch):
         return real(poses, *a, **kw)
 
     monkeypatch.setattr(_laplace, "laplace_landmark", recording)
-    monkeypatch.setattr(_sis, "REFIT_VIEWS", 4)
+    monkeypatch.setattr(_motion, "REFIT_VIEWS", 4)
     # a bearing tail: every child is refitted at every view
     hs = _histories(2, 9, seed=814000)
     # (the engine's refits: the rejuvenation fits whole trajectories at its own views,
@@ -153,7 +160,7 @@ def test_gather_equals_concatenate_then_index():
     parts = [rng.standard_normal((m, 3)) for m in (4, 0, 7, 2)]
     full = np.concatenate(parts)
     for rows in (np.arange(13), np.array([12, 0, 5, 5, 3]), np.array([], dtype=int)):
-        np.testing.assert_array_equal(_sis._gather(parts, rows), full[rows])
+        np.testing.assert_array_equal(_motion._gather(parts, rows), full[rows])
 
 
 def _histories(n, k, seed=810000):
@@ -162,17 +169,17 @@ def _histories(n, k, seed=810000):
 
 
 def _run(h, k, opts=None):
-    from qfg.solvers import _options
-    from qfg.solvers._input import get_partition
+    from qfg.solvers.common import options as _options
+    from qfg.solvers.common.input import get_partition
 
     opts = _options.resolve_options("full", opts or {})
     roots = [np.random.SeedSequence(11)]
-    st = _sis.start(h.bearings[None, 0], np.array([h.sigma_bearing]),
+    st = _engine.start(h.bearings[None, 0], np.array([h.sigma_bearing]),
                     np.array([h.sigma_heading]), roots, opts, get_partition("edc"), "full",
                     n_views=k)
     states = [st]
     for i in range(1, k):
-        st = _sis.step(st, h.bearings[None, i], np.array([h.headings[i - 1]]))
+        st = _engine.step(st, h.bearings[None, i], np.array([h.headings[i - 1]]))
         states.append(st)
     return states
 
@@ -182,7 +189,7 @@ def test_the_carried_c_weights_are_as_close_to_the_integral_as_a_batch_refit():
     # sampling with many draws: the carried summaries' log Z no further from it than the batch
     # Laplace fit over the same views (the batch fit sits at the lines' unweighted
     # least-squares point, not at the mode)
-    from qfg.solvers import _landmarks
+    from qfg.solvers.sis import landmarks as _landmarks
 
     h = _histories(2, 8)[1]
     st = _run(h, 8)[-1]
@@ -193,7 +200,7 @@ def test_the_carried_c_weights_are_as_close_to_the_integral_as_a_batch_refit():
     sig = st.sigma_v()[0]
     L, log_q, log_lik, _ = _landmarks.sample_landmarks(np.random.default_rng(0), P, phi, sig,
                                                        4000, 0.25)
-    from qfg.solvers._likelihood import logsumexp
+    from qfg.solvers.common.likelihood import logsumexp
 
     is_lz = logsumexp(log_lik - log_q, axis=1) - np.log(4000)
     batch, _, _ = _laplace.laplace_landmark(P, phi, sig)
@@ -216,22 +223,22 @@ def _pose_views_per_step(monkeypatch, incremental, k=16, options=None):
         return real(poses, *a, **kw)
 
     monkeypatch.setattr(_laplace, "laplace_landmark", counting)
-    monkeypatch.setattr(_sis, "_INCREMENTAL_C", incremental)
+    monkeypatch.setattr(_motion, "_INCREMENTAL_C", incremental)
     h = _histories(1, k, seed=811000)[0]
     # the engine's own steps: the rejuvenation (rebuilding the levels flat at its views) is
     # counted in tests/test_sis_rejuvenation.py
-    opts = _sis._options.resolve_options("full", {"rejuvenate": 0, **(options or {})})
-    from qfg.solvers._input import get_partition
+    opts = _options.resolve_options("full", {"rejuvenate": 0, **(options or {})})
+    from qfg.solvers.common.input import get_partition
 
     # (n_views: as solve_triplets, no few-views budget to solve again at view 4)
-    st = _sis.start(h.bearings[None, 0], np.array([h.sigma_bearing]),
+    st = _engine.start(h.bearings[None, 0], np.array([h.sigma_bearing]),
                     np.array([h.sigma_heading]), [np.random.SeedSequence(2)], opts,
                     get_partition("edc"), "full", n_views=k)
     alive = []
     for i in range(1, k):
         seen.append(0)
         prev = st
-        st = _sis.step(st, h.bearings[None, i], np.array([h.headings[i - 1]]))
+        st = _engine.step(st, h.bearings[None, i], np.array([h.headings[i - 1]]))
         # earlier levels are shared, not copied
         assert all(a[0] is b[0] for a, b in zip(st.levels[:-1], prev.levels, strict=True))
         alive.append(st.tid.size)
@@ -245,7 +252,7 @@ def test_per_view_work_does_not_grow_with_the_views(monkeypatch):
     inc, alive = _pose_views_per_step(monkeypatch, True, options={"c_anchors": True})
     batch, _ = _pose_views_per_step(monkeypatch, False)
     views = np.arange(2, 17)
-    anchor = np.array([_sis._anchor(v) for v in views])
+    anchor = np.array([_motion._anchor(v) for v in views])
     assert views[anchor].tolist() == [4, 8, 16]
     assert np.mean(alive[8:]) > 1000               # the sampler kept many hypotheses here
     # the refit of every child: O(views) each (with 1000s of hypotheses, each with children)
@@ -272,7 +279,7 @@ def test_both_c_paths_answer_within_monte_carlo_error(monkeypatch):
     hs = _histories(6, 6, seed=813000)
 
     def answers(incremental, seed):
-        monkeypatch.setattr(_sis, "_INCREMENTAL_C", incremental)
+        monkeypatch.setattr(_motion, "_INCREMENTAL_C", incremental)
         return np.array([e.landmark for e in solve_triplets(hs, method="full", seed=seed)])
 
     def tv(a, b):
@@ -293,7 +300,7 @@ def test_the_final_c_proposal_centres_nearer_the_mode_than_the_least_squares_poi
     rows = np.flatnonzero(np.isfinite(st.c_sum[:, 0]))[:40]
     P = st.poses[rows]
     sig = float(st.sigma_v()[0])
-    at_mode = _sis._final_proposal(st, rows, P)[0]
+    at_mode = _engine._final_proposal(st, rows, P)[0]
     th = P[..., 2] + st.bearings[0, :, 2]
     lsq = _laplace.triangulate(P[..., :2], th)[0]
     d_mode, d_lsq = [], []
@@ -310,7 +317,7 @@ def test_final_draws_at_the_mode_raise_the_effective_sample_size(monkeypatch):
     hs = _histories(8, 8, seed=815000)
     ess = {}
     for at_mode in (True, False):
-        monkeypatch.setattr(_sis, "_FINAL_AT_MODE", at_mode)
+        monkeypatch.setattr(_engine, "_FINAL_AT_MODE", at_mode)
         ess[at_mode] = np.array([e.ess for e in solve_triplets(hs, method="full", seed=4)])
     assert np.median(ess[True]) > 1.5 * np.median(ess[False])
 
@@ -321,30 +328,30 @@ def test_a_retried_triplet_is_merged_with_its_own_ancestry(monkeypatch, moves):
     # merged trajectories are those of the retry for it and those of the first proposal for the
     # other triplet, with the earlier levels still shared (rebuilt flat when moves rewrote the
     # trajectories)
-    from qfg.solvers._input import get_partition
+    from qfg.solvers.common.input import get_partition
 
     hs = _histories(2, 3, seed=816000)
-    opts = _sis._options.resolve_options("full", {"max_hypotheses": 200, "n_samples": 100,
+    opts = _options.resolve_options("full", {"max_hypotheses": 200, "n_samples": 100,
                                                      "move_steps": moves})
-    st = _sis.start(np.stack([h.bearings[0] for h in hs]), np.full(2, hs[0].sigma_bearing),
+    st = _engine.start(np.stack([h.bearings[0] for h in hs]), np.full(2, hs[0].sigma_bearing),
                     np.full(2, hs[0].sigma_heading),
                     [np.random.SeedSequence(3, spawn_key=(t,)) for t in range(2)], opts,
                     get_partition("edc"), "full")
-    real = _sis._extend
+    real = _motion.extend
     made = {}
 
     def extend(state, phi, psi, spread, purpose):
         out = real(state, phi, psi, spread, purpose)
-        if purpose == _sis._seeds.STREAM_CAMERAS and state.n_triplets == 2:
-            out = _sis._take(out, np.flatnonzero(out.tid == 1))   # triplet 0 dies
+        if purpose == _seeds.STREAM_CAMERAS and state.n_triplets == 2:
+            out = _state.take(out, np.flatnonzero(out.tid == 1))   # triplet 0 dies
         made[purpose] = out
         return out
 
-    monkeypatch.setattr(_sis, "_extend", extend)
-    nxt = _sis.step(st, np.stack([h.bearings[1] for h in hs]),
+    monkeypatch.setattr(_motion, "extend", extend)
+    nxt = _engine.step(st, np.stack([h.bearings[1] for h in hs]),
                     np.array([h.headings[0] for h in hs]))
-    assert _sis._seeds.STREAM_RETRY in made and nxt.lost[0] == 0
-    first, retry = made[_sis._seeds.STREAM_CAMERAS], made[_sis._seeds.STREAM_RETRY]
+    assert _seeds.STREAM_RETRY in made and nxt.lost[0] == 0
+    first, retry = made[_seeds.STREAM_CAMERAS], made[_seeds.STREAM_RETRY]
     np.testing.assert_array_equal(nxt.poses[nxt.tid == 0], retry.poses)
     np.testing.assert_array_equal(nxt.poses[nxt.tid == 1], first.poses[first.tid == 1])
     assert (nxt.levels[0][0] is st.levels[0][0]) == (moves == 0)
@@ -366,7 +373,7 @@ def test_refits_at_the_mode_equal_the_exact_laplace_fit():
     P, TH = np.array(P), np.array(TH)
     s = np.full(len(P), sig)
     lz, Ls, spread, parts = _laplace.laplace_landmark(P, TH, s, parts=True)
-    lzm, Lm, _, _ = _sis._at_mode(P, TH, s, lz, spread, parts)
+    lzm, Lm, _, _ = _c_integral._at_mode(P, TH, s, lz, spread, parts)
     for j in range(len(P)):
         L, H, z = _map_laplace(P[j], TH[j], sig, Ls[j])
         e = Lm[j] - L

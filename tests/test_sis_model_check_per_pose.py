@@ -5,12 +5,12 @@ repeated poses."""
 import numpy as np
 import pytest
 
-from qfg.solvers import _model_check
+from qfg.solvers.sis import model_check as _model_check
 
 
 @pytest.mark.parametrize("tail", [None, (0.1, 5.0, 0.01)])
 def test_model_check_per_pose_equals_repeated_poses(tail):
-    from qfg.solvers._likelihood import as_tail
+    from qfg.solvers.common.likelihood import as_tail
 
     rng = np.random.default_rng(3)
     n, J, r = 3, 40, 4

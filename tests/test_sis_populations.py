@@ -10,8 +10,10 @@ import numpy as np
 import pytest
 
 from qfg.simulation import random_triplet_history
-from qfg.solvers import TripletSolver, _populations, _seeds, solve_triplet, solve_triplets
-from qfg.solvers._sis import FEW_VIEWS
+from qfg.solvers import TripletSolver, solve_triplet, solve_triplets
+from qfg.solvers.common import seeds as _seeds
+from qfg.solvers.sis import populations as _populations
+from qfg.solvers.sis.engine import FEW_VIEWS
 
 SV, SW = np.deg2rad(2.0), np.deg2rad(5.0)
 
@@ -91,7 +93,7 @@ def test_hypotheses_are_the_populations_pooled():
 
 def test_disagreeing_populations_are_flagged():
     """Two populations certain of different states: the average keeps both and is flagged."""
-    from qfg.solvers._estimate import TripletEstimate
+    from qfg.solvers.common.estimate import TripletEstimate
 
     def est(s):
         p = np.full(20, 1e-6)
@@ -127,8 +129,8 @@ def test_pooled_flags_decide_the_sampled_tests_for_the_pool():
     kept as they are."""
     import dataclasses
 
-    from qfg.solvers._degenerate import UNRESOLVED_REASON, UNRESOLVED_SHARE
-    from qfg.solvers._estimate import ess_reason, pooled_reasons
+    from qfg.solvers.common.degenerate import UNRESOLVED_REASON, UNRESOLVED_SHARE
+    from qfg.solvers.common.estimate import ess_reason, pooled_reasons
 
     h = _history(3, 3)
     base = solve_triplet(h, method="full", seed=1, few_views_budget=None)

@@ -8,7 +8,11 @@ import numpy as np
 import pytest
 
 from qfg.simulation import random_triplet_history
-from qfg.solvers import DEFAULTS, TripletSolver, _budget, _rejuvenation, _sis, solve_triplet, solve_triplets
+from qfg.solvers import DEFAULTS, TripletSolver, solve_triplet, solve_triplets
+from qfg.solvers import budget as _budget
+from qfg.solvers.sis import engine as _engine
+from qfg.solvers.sis import moves as _moves
+from qfg.solvers.sis import rejuvenation as _rejuvenation
 
 
 def _history(seed, n):
@@ -141,9 +145,9 @@ def test_rejuvenation_recovers_from_a_collapsed_start_toward_the_reference():
     rows = has[st.part.state_of(st.c_sum[has, :2]) == minority]
     assert rows.size
     col = _collapsed(st, int(rows[0]))
-    before = _sis.finish(col)[0][0].landmark
-    moved = _sis._rejuvenate(col, np.array([True]), np.zeros(1))
-    after = _sis.finish(moved)[0][0].landmark
+    before = _engine.finish(col)[0][0].landmark
+    moved = _moves._rejuvenate(col, np.array([True]), np.zeros(1))
+    after = _engine.finish(moved)[0][0].landmark
     tv_before = 0.5 * np.abs(before - ref).sum()
     tv_after = 0.5 * np.abs(after - ref).sum()
     assert tv_before > 0.5
@@ -212,7 +216,7 @@ def test_a_triplet_with_no_finite_target_is_left_as_it_was():
     h = _history(61, 4)
     st = _solver_state(h, rejuvenate=0, max_hypotheses=300, prior=prior)
     st = replace(st, opts={**st.opts, "rejuvenate": 2})
-    moved = _sis._rejuvenate(st, np.array([True]), np.zeros(1))
+    moved = _moves._rejuvenate(st, np.array([True]), np.zeros(1))
     np.testing.assert_array_equal(moved.poses, st.poses)
     for a in ("lw_base", "lw_c", "lp_x"):
         np.testing.assert_array_equal(getattr(moved, a), getattr(st, a))

@@ -15,8 +15,8 @@ with the option ``few_views_budget`` (which that tree lacks) off; the ``*_few`` 
 few-views budget docs/solvers.md measured, were solved at commit ``d86a664`` (the commit after
 ``a0098ed``, which added the option) and pin later exact speedups' answers with it. The three
 cases with odometry distances (``distances``, ``distances_few`` and the first history of
-``tail``) were solved again when the motion step's proposal gained its
-odometry draws (``_sis._MIX_SHARES``, a deliberate change of their answers: the landmark
+``tail``) were solved again when the motion step's proposal gained its odometry draws
+(``qfg.solvers.sis.distance_proposal._MIX_SHARES``, a deliberate change of their answers: the landmark
 distributions moved by up to 0.08, the cameras' mean state indices by up to 0.63; on the
 ``tail`` history the new answer puts 0.895 on the true state where 8x the budget gives 0.91
 under either proposal and the old one put 0.824). A

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from qfg.simulation import random_triplet_history
-from qfg.solvers import DEFAULTS, TripletSolver, _budget, solve_triplet, solve_triplets
+from qfg.solvers import DEFAULTS, TripletSolver, solve_triplet, solve_triplets
+from qfg.solvers import budget as _budget
 
 METHODS = ("full", "fast", "fast-paper", "baseline", "reference")
 
@@ -74,7 +75,7 @@ def test_ess_flags_a_deliberately_failed_sampler(method, histories):
 
 def test_time_of_the_sis_methods_is_capped():
     """full and fast spend time linear in the views beyond the refit window (at worst: every
-    child refitted over the latest _sis.REFIT_VIEWS views; docs/solvers.md), quadratic with
+    child refitted over the latest sis.motion.REFIT_VIEWS views; docs/solvers.md), quadratic with
     moves: refused above the work budget (full: about 150 views with its default rejuvenation,
     260 without; fast: about 5900), before any work."""
     assert _budget.work_units("full", DEFAULTS["full"], 150) <= _budget.WORK_BUDGET

@@ -5,7 +5,7 @@ import pytest
 
 from qfg.simulation import random_triplet_history
 from qfg.solvers import solve_triplet
-from qfg.solvers._diagnostics import pareto_k
+from qfg.solvers.common.diagnostics import pareto_k
 
 
 @pytest.mark.parametrize("xi", [0.1, 0.5, 0.9])

@@ -12,15 +12,14 @@ import pytest
 
 from qfg import metrics, partitions
 from qfg.simulation import TripletHistory, random_triplet_history
-from qfg.solvers import (
-    TripletSolver,
-    _input,
-    _likelihood,
-    _seeds,
-    _sis,
-    solve_triplet,
-    solve_triplets,
-)
+from qfg.solvers import TripletSolver, solve_triplet, solve_triplets
+from qfg.solvers.common import input as _input
+from qfg.solvers.common import likelihood as _likelihood
+from qfg.solvers.common import odometry as _odometry
+from qfg.solvers.common import seeds as _seeds
+from qfg.solvers.sis import distance_proposal as _distance_proposal
+from qfg.solvers.sis import motion as _motion
+from qfg.solvers.sis import target as _target
 
 SB, SH = np.deg2rad(2), np.deg2rad(5)
 TAIL = (0.1, 7.0)
@@ -40,9 +39,9 @@ def test_factor_is_the_gaussian_of_the_log_ratio():
     sig = rng.uniform(0.2, 1.0, 50)       # exp() of the direct formula stays above 0
     r = np.log(s / sp) - np.log(d / dp)
     direct = np.log(np.exp(-0.5 * (r / sig) ** 2) / (sig * np.sqrt(2 * np.pi)))
-    np.testing.assert_allclose(_sis.log_distance_factor(s, sp, d, dp, sig), direct, rtol=1e-12)
+    np.testing.assert_allclose(_odometry.log_distance_factor(s, sp, d, dp, sig), direct, rtol=1e-12)
     # no factor where a distance is 0 or a step is 0 (camera taken as not moved)
-    zero = _sis.log_distance_factor([1.0, 1.0, 0.0], [1.0, 1.0, 1.0], [0.0, 1.0, 1.0],
+    zero = _odometry.log_distance_factor([1.0, 1.0, 0.0], [1.0, 1.0, 1.0], [0.0, 1.0, 1.0],
                                     [1.0, 0.0, 1.0], 0.1)
     assert zero.tolist() == [0.0, 0.0, 0.0]
 
@@ -50,7 +49,7 @@ def test_factor_is_the_gaussian_of_the_log_ratio():
 def test_intermediate_weights_carry_the_factor(monkeypatch):
     # Ray proposal only and nothing pruned or resampled: the same children with and without
     # distances, whose weights differ by exactly the factor of their step lengths.
-    monkeypatch.setattr(_sis, "_MIX_DISTANCE_PROPOSAL", False)
+    monkeypatch.setattr(_distance_proposal, "_MIX_DISTANCE_PROPOSAL", False)
     h = _hist(11, 4)
     kw = dict(method="full", seed=2, n_samples=100, motion_samples=4, max_hypotheses=10**6,
               prune_ratio=0.0, rejuvenate=0)
@@ -58,7 +57,7 @@ def test_intermediate_weights_carry_the_factor(monkeypatch):
     b = TripletSolver.solve(h, sigma_distance_ratio=0.2, **kw)._state
     np.testing.assert_array_equal(a.poses, b.poses)
     st = _steps(b.poses)                                  # (N, 3)
-    f = _sis.log_distance_factor(st[:, 1:], st[:, :-1], h.distances[1:], h.distances[:-1], 0.2)
+    f = _odometry.log_distance_factor(st[:, 1:], st[:, :-1], h.distances[1:], h.distances[:-1], 0.2)
     np.testing.assert_allclose(b.lw_base - a.lw_base, f.sum(axis=1), rtol=1e-9, atol=1e-9)
     # the final weights keep it: finish() divides out only the per-point prior and C's integral
     e_a, e_b = solve_triplet(replace(h, distances=None), **kw), solve_triplet(
@@ -72,7 +71,7 @@ def test_intermediate_weights_carry_the_factor(monkeypatch):
     (None, (0.375, 0.25, 0.375), (0.2, 3.0, 0.01))])
 def test_mixture_proposal_targets_the_same_posterior(monkeypatch, tail, shares, bearing_tail):
     # Children drawn at the distance ratio's step length and from the odometry alone (balance
-    # heuristic over the three proposals, _sis._MIX_SHARES) against the ray proposal alone:
+    # heuristic over the three proposals, _distance_proposal._MIX_SHARES) against the ray proposal alone:
     # the weighted means of the step-length log ratio and of the new camera agree (both
     # unbiased for the same target), and the mixture's ESS is larger. With a tail the circle
     # and odometry children still come from the core normal while the target's factor is the
@@ -84,10 +83,10 @@ def test_mixture_proposal_targets_the_same_posterior(monkeypatch, tail, shares, 
     kw = dict(method="full", n_samples=1000, motion_samples=16, max_hypotheses=10**6,
               prune_ratio=0.0, sigma_distance_ratio=0.02, distance_tail=tail,
               bearing_tail=bearing_tail)
-    monkeypatch.setattr(_sis, "_MIX_SHARES", shares)
+    monkeypatch.setattr(_distance_proposal, "_MIX_SHARES", shares)
     out = {}
     for mix in (False, True):
-        monkeypatch.setattr(_sis, "_MIX_DISTANCE_PROPOSAL", mix)
+        monkeypatch.setattr(_distance_proposal, "_MIX_DISTANCE_PROPOSAL", mix)
         vals = []
         for seed in range(2):
             st = TripletSolver.solve(h, seed=seed, **kw)._state
@@ -118,13 +117,13 @@ def test_odometry_draws_follow_the_odometry():
     par = np.repeat(np.arange(st.tid.size), 8)
     z = np.random.default_rng(3).standard_normal((par.size, 3))
     st3 = replace(st, distances=np.concatenate([st.distances, h.distances[1:2][None]], axis=1))
-    old = _sis._MIX_SHARES
+    old = _distance_proposal._MIX_SHARES
     try:
-        _sis._MIX_SHARES = (0.0, 0.0, 1.0)
-        j, pose, lw, _ = _sis._children(st3, st.last, h.bearings[2][None], h.headings[1:2], r,
+        _distance_proposal._MIX_SHARES = (0.0, 0.0, 1.0)
+        j, pose, lw, _ = _motion._children(st3, st.last, h.bearings[2][None], h.headings[1:2], r,
                                         1.0, par, z, 0)
     finally:
-        _sis._MIX_SHARES = old
+        _distance_proposal._MIX_SHARES = old
     assert j.size == par.size                                  # one child per draw
     p = st.last[par[j]]
     d = pose[:, :2] - p[:, :2]
@@ -159,14 +158,14 @@ def test_odometry_draws_lift_a_short_step_seen_from_afar():
     truth = int(partitions.get("edc").state_of(C[None])[0])
     res = {}
     for shares in ((0.5, 0.5, 0.0), (0.375, 0.25, 0.375)):
-        _sis_shares = _sis._MIX_SHARES
+        _sis_shares = _distance_proposal._MIX_SHARES
         try:
-            _sis._MIX_SHARES = shares
+            _distance_proposal._MIX_SHARES = shares
             es = [solve_triplet(phi, headings=psi, distances=dist, sigma_bearing=sb,
                                 sigma_heading=sh, sigma_distance_ratio=sd, method="full",
                                 seed=s) for s in range(3)]
         finally:
-            _sis._MIX_SHARES = _sis_shares
+            _distance_proposal._MIX_SHARES = _sis_shares
         res[shares] = (np.mean([np.log(max(e.landmark[truth], 1e-4)) for e in es]),
                        np.median([e.ess for e in es]))
     (l0, e0), (l1, e1) = res.values()
@@ -296,10 +295,10 @@ def test_move_target_includes_the_factor():
     st = s._state
     tid = np.zeros(1, dtype=int)
     true = np.asarray(h.truth.poses_ab, dtype=float)[None]
-    lt, _ = _sis._log_pose_target(st, tid, true)
-    lt0, _ = _sis._log_pose_target(replace(st, distances=np.zeros_like(st.distances)), tid, true)
+    lt, _ = _target.log_pose_target(st, tid, true)
+    lt0, _ = _target.log_pose_target(replace(st, distances=np.zeros_like(st.distances)), tid, true)
     stp = _steps(true)
-    f = _sis.log_distance_factor(stp[:, 1:], stp[:, :-1], h.distances[1:], h.distances[:-1], 0.1)
+    f = _odometry.log_distance_factor(stp[:, 1:], stp[:, :-1], h.distances[1:], h.distances[:-1], 0.1)
     np.testing.assert_allclose(lt - lt0, f.sum(axis=1), rtol=1e-9)
 
 
@@ -316,14 +315,14 @@ def test_factor_is_the_normal_mixture_of_the_log_ratio():
 
     direct = np.log((1 - share) * normal(r, sig) + share * normal(r, scale * sig))
     tail = _likelihood.as_normal_tail(TAIL, "distance_tail")
-    np.testing.assert_allclose(_sis.log_distance_factor(s, sp, d, dp, sig, tail), direct,
+    np.testing.assert_allclose(_odometry.log_distance_factor(s, sp, d, dp, sig, tail), direct,
                                rtol=1e-10)
     # a density in r: integrates to 1 over the log ratio
     x = np.linspace(-5, 5, 200001)
-    f = np.exp(_sis.log_distance_factor(np.exp(x), 1.0, 1.0, 1.0, 0.1, tail))
+    f = np.exp(_odometry.log_distance_factor(np.exp(x), 1.0, 1.0, 1.0, 0.1, tail))
     assert abs(np.sum(f) * (x[1] - x[0]) - 1.0) < 1e-6
     # no factor where a distance or a step is 0, as without the tail
-    zero = _sis.log_distance_factor([1.0, 1.0, 0.0], [1.0, 1.0, 1.0], [0.0, 1.0, 1.0],
+    zero = _odometry.log_distance_factor([1.0, 1.0, 0.0], [1.0, 1.0, 1.0], [0.0, 1.0, 1.0],
                                     [1.0, 0.0, 1.0], 0.1, tail)
     assert zero.tolist() == [0.0, 0.0, 0.0]
 
@@ -331,7 +330,7 @@ def test_factor_is_the_normal_mixture_of_the_log_ratio():
 def test_intermediate_weights_carry_the_tail_factor(monkeypatch):
     # ray proposal only, nothing pruned: the same children with the normal and the tail, whose
     # weights differ by exactly the two factors' difference
-    monkeypatch.setattr(_sis, "_MIX_DISTANCE_PROPOSAL", False)
+    monkeypatch.setattr(_distance_proposal, "_MIX_DISTANCE_PROPOSAL", False)
     h = _hist(11, 4)
     kw = dict(method="full", seed=2, n_samples=100, motion_samples=4, max_hypotheses=10**6,
               prune_ratio=0.0, rejuvenate=0, sigma_distance_ratio=0.2)
@@ -340,8 +339,8 @@ def test_intermediate_weights_carry_the_tail_factor(monkeypatch):
     np.testing.assert_array_equal(a.poses, b.poses)
     st = _steps(b.poses)
     args = (st[:, 1:], st[:, :-1], h.distances[1:], h.distances[:-1], 0.2)
-    f = _sis.log_distance_factor(*args, _likelihood.as_normal_tail(TAIL, "distance_tail")) \
-        - _sis.log_distance_factor(*args)
+    f = _odometry.log_distance_factor(*args, _likelihood.as_normal_tail(TAIL, "distance_tail")) \
+        - _odometry.log_distance_factor(*args)
     np.testing.assert_allclose(b.lw_base - a.lw_base, f.sum(axis=1), rtol=1e-9, atol=1e-9)
 
 
@@ -350,10 +349,10 @@ def test_move_target_includes_the_tail_factor():
     st = TripletSolver.solve(h, method="fast", seed=0, distance_tail=TAIL)._state
     tid = np.zeros(1, dtype=int)
     true = np.asarray(h.truth.poses_ab, dtype=float)[None]
-    lt, _ = _sis._log_pose_target(st, tid, true)
-    lt0, _ = _sis._log_pose_target(replace(st, distances=np.zeros_like(st.distances)), tid, true)
+    lt, _ = _target.log_pose_target(st, tid, true)
+    lt0, _ = _target.log_pose_target(replace(st, distances=np.zeros_like(st.distances)), tid, true)
     stp = _steps(true)
-    f = _sis.log_distance_factor(stp[:, 1:], stp[:, :-1], h.distances[1:], h.distances[:-1], 0.1,
+    f = _odometry.log_distance_factor(stp[:, 1:], stp[:, :-1], h.distances[1:], h.distances[:-1], 0.1,
                                  _likelihood.as_normal_tail(TAIL, "distance_tail"))
     np.testing.assert_allclose(lt - lt0, f.sum(axis=1), rtol=1e-9)
 

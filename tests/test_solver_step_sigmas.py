@@ -9,7 +9,8 @@ import pytest
 
 from qfg import metrics
 from qfg.simulation import random_triplet_history
-from qfg.solvers import TripletSolver, _sis, solve_triplet, solve_triplets
+from qfg.solvers import TripletSolver, solve_triplet, solve_triplets
+from qfg.solvers.sis import target as _target
 
 SB = np.deg2rad(1.0)
 STEPS = np.deg2rad([1.0, 20.0, 1.0])
@@ -52,8 +53,8 @@ def test_move_target_is_the_per_step_closed_form():
     st = TripletSolver.solve(h, method="fast", seed=0)._state
     true = np.asarray(h.truth.poses_ab, dtype=float)[None]
     tid = np.zeros(1, dtype=int)
-    lt, _ = _sis._log_pose_target(st, tid, true)
-    flat, _ = _sis._log_pose_target(replace(st, step_sigma=np.ones_like(st.step_sigma)), tid,
+    lt, _ = _target.log_pose_target(st, tid, true)
+    flat, _ = _target.log_pose_target(replace(st, step_sigma=np.ones_like(st.step_sigma)), tid,
                                     true)
     X, al = true[0, :, :2], true[0, :, 2]
     d = np.diff(X, axis=0)
@@ -115,15 +116,15 @@ HTAIL = (0.1, 8.0)
 
 
 def test_move_target_with_a_heading_tail_is_the_mixture():
-    from qfg.solvers import _likelihood
+    from qfg.solvers.common import likelihood as _likelihood
 
     h = _noisy(4)
     st = TripletSolver.solve(h, method="fast", seed=0, heading_tail=HTAIL)._state
     true = np.asarray(h.truth.poses_ab, dtype=float)[None]
     tid = np.zeros(1, dtype=int)
-    lt, _ = _sis._log_pose_target(st, tid, true)
+    lt, _ = _target.log_pose_target(st, tid, true)
     plain = replace(st, opts={**st.opts, "heading_tail": None})
-    l0, _ = _sis._log_pose_target(plain, tid, true)
+    l0, _ = _target.log_pose_target(plain, tid, true)
     X, al = true[0, :, :2], true[0, :, 2]
     d = np.diff(X, axis=0)
     rh = np.angle(np.exp(1j * (h.headings - (np.arctan2(d[:, 1], d[:, 0]) - al[:-1]))))

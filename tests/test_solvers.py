@@ -8,20 +8,15 @@ from hypothesis import strategies as st
 
 from qfg import geometry, metrics, partitions
 from qfg.simulation import TripletHistory, random_triplet_history
-from qfg.solvers import (
-    TripletSolver,
-    _arcs,
-    _estimate,
-    _input,
-    _laplace,
-    _options,
-    _prior,
-    _seeds,
-    add_view,
-    solve_triplet,
-    solve_triplets,
-)
-from qfg.solvers._baseline import resect
+from qfg.solvers import TripletSolver, add_view, solve_triplet, solve_triplets
+from qfg.solvers.baseline import resect
+from qfg.solvers.common import arcs as _arcs
+from qfg.solvers.common import estimate as _estimate
+from qfg.solvers.common import input as _input
+from qfg.solvers.common import laplace as _laplace
+from qfg.solvers.common import options as _options
+from qfg.solvers.common import prior as _prior
+from qfg.solvers.common import seeds as _seeds
 
 METHODS = ("full", "fast", "fast-paper", "baseline")
 EDC = partitions.get("edc")
@@ -440,21 +435,22 @@ def test_move_target_is_zero_residual_at_the_true_poses():
     # to both A/B bearing residuals of view 1 and to the heading residual of the first move.
     from dataclasses import replace as _replace
 
-    from qfg.solvers import _sis
+    from qfg.solvers.sis import engine as _engine
+    from qfg.solvers.sis import target as _target
 
     h = random_triplet_history(np.random.default_rng(21), 3, 0.0, 0.0)
     opts = _options.resolve_options("full", {})
-    st = _sis.start(h.bearings[:1], np.array([0.02]), np.array([0.05]),
+    st = _engine.start(h.bearings[:1], np.array([0.02]), np.array([0.05]),
                     (np.random.SeedSequence(0),), opts, _input.get_partition("edc"), "full")
     st = _replace(st, bearings=h.bearings[None], headings=np.asarray(h.headings)[None],
                   same_pose=np.zeros((1, 3), dtype=bool))
     true = np.asarray(h.truth.poses_ab, dtype=float)[None]
-    lt, lp = _sis._log_pose_target(st, np.zeros(1, dtype=int), true)
+    lt, lp = _target.log_pose_target(st, np.zeros(1, dtype=int), true)
     np.testing.assert_allclose(lt, lp, atol=1e-12)
     d = 0.01
     turned = true.copy()
     turned[0, 0, 2] += d
-    lt2, lp2 = _sis._log_pose_target(st, np.zeros(1, dtype=int), turned)
+    lt2, lp2 = _target.log_pose_target(st, np.zeros(1, dtype=int), turned)
     np.testing.assert_allclose(lp2, lp)
     np.testing.assert_allclose(lt2 - lp2, -0.5 * (2 * d**2 / 0.02**2 + d**2 / 0.05**2),
                                rtol=1e-6)
@@ -507,7 +503,7 @@ def test_logsumexp_matches_scipy(n, k, axis, p_inf):
     scipy.special.logsumexp's values on any axis, all -inf rows included (no warning)."""
     from scipy.special import logsumexp as scipy_lse
 
-    from qfg.solvers._likelihood import logsumexp
+    from qfg.solvers.common.likelihood import logsumexp
 
     rng = np.random.default_rng(n * 100 + k * 10 + axis)
     a = rng.standard_normal((n, 5, k)) * 30

@@ -69,7 +69,7 @@ def drift_sigma_heading(h, sigma_heading: float) -> float:
 
 
 #: Bearing-noise models for the solvers, by name: (bearing sigma in degrees, heading sigma in
-#: degrees, (share, scale, outlier) of :class:`qfg.solvers._likelihood.BearingTail`); None: the
+#: degrees, (share, scale, outlier) of :class:`qfg.solvers.common.likelihood.BearingTail`); None: the
 #: loader's. Fitted by EM to dataset 6's bearing residuals against motion capture
 #: (docs/mrclam.md, "A heavy-tailed bearing model"): ``measured`` per landmark row;
 #: ``within-view`` to the residuals minus their image's mean (a per-image offset shared by A, B

@@ -148,7 +148,7 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
     if heading_tail not in ("normal", "measured"):
         raise ValueError(f"heading_tail: expected 'normal' or 'measured', got {heading_tail!r}")
     htail = HEADING_WALK_TAIL[1] if heading_tail == "measured" else None
-    from qfg.solvers._options import CAMERA_PRIORS, scaled_budget
+    from qfg.solvers.common.options import CAMERA_PRIORS, scaled_budget
 
     if camera_prior not in CAMERA_PRIORS:
         raise ValueError(f"camera_prior: expected one of {CAMERA_PRIORS}, got {camera_prior!r}")
@@ -223,7 +223,7 @@ def solve_piece(prep: Prepared, index: int, *, method: str = "full", seed=0, pie
     opts = {k: v for k, v in prep.solver_options.items() if v}
     budget = opts.pop("budget", None)
     if budget is not None:
-        from qfg.solvers._options import scaled_budget
+        from qfg.solvers.common.options import scaled_budget
 
         opts.update(scaled_budget(method, budget))
     if method == "baseline":
@@ -644,7 +644,7 @@ def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest"
         camera_prior: the solvers' ``camera_prior`` (``"joint"``: the cameras' joint prior in
             the intermediate weights; docs/solvers.md).
         budget: the full/fast solvers' budget times this factor
-            (:func:`qfg.solvers._options.scaled_budget`).
+            (:func:`qfg.solvers.common.options.scaled_budget`).
         populations: the full/fast solvers' independent SIS populations (their
             ``populations`` option; 1: the default; given, the few-views package is off,
             docs/solvers.md).

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import priors as _priors
+from ... import priors as _priors
 
 #: Quadrature points in rho of the world prior when the solvers are given its name (the prior
 #: object's default is 128): the log density then differs by at most ~0.02 between

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import LOCUS_EPS, wrap_angle
+from ...geometry import LOCUS_EPS, wrap_angle
 
 #: A sampler's answer whose posterior weight has C's depth along its lines of sight unresolved
 #: for more than this share is flagged (:data:`UNRESOLVED_REASON`).

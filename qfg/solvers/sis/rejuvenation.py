@@ -1,5 +1,5 @@
 """The measurement chart of camera trajectories, in which the SIS engine's rejuvenation moves
-(resample-move, :func:`._sis._rejuvenate`) slide a whole trajectory along what its bearings and
+(resample-move, :func:`.moves._rejuvenate`) slide a whole trajectory along what its bearings and
 headings leave open.
 
 A trajectory of n poses (x, y, alpha) in the AB frame (A = (0, 0), B = (0, 1)) is, per branch
@@ -23,7 +23,7 @@ of a trajectory in these coordinates is its density in (x, y, alpha) times
 
     |d(x, y, alpha) / d(a1, pa, pb, rh)| = |x_1| / sin^2(gamma_1) * prod_t t_t / |grad Gamma(X_t) . u_t|
 
-(:func:`._arcs.log_arc_jacobian` with da/dw = 1, :func:`._arcs.log_ray_jacobian`: each alpha_t
+(:func:`.arcs.log_arc_jacobian` with da/dw = 1, :func:`.arcs.log_ray_jacobian`: each alpha_t
 is the bearing of A minus pa_t, unit Jacobian), returned by :func:`poses_of`.
 """
 
@@ -31,9 +31,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import heading_on_locus, locus_circle, locus_point, ray_circle_intersection, wrap_angle
-from ._arcs import log_arc_jacobian, log_ray_jacobian
-from ._seeds import per_triplet
+from ...geometry import heading_on_locus, locus_circle, locus_point, ray_circle_intersection, wrap_angle
+from ..common.arcs import log_arc_jacobian, log_ray_jacobian
+from ..common.seeds import per_triplet
 
 #: Views (1-based) after whose resampling the hypotheses are rejuvenated: ``FIRST_VIEW`` and
 #: every view about ``GROWTH`` times the previous one (4, 6, 9, 14, 20, 30, ... with 1.5; 4, 8,

@@ -7,7 +7,7 @@ The check is a posterior predictive check (Gelman, Meng and Stern 1996) with the
 
 ``r`` the residuals of the measured bearings (A, B and C of every view) and headings at a
 configuration theta = [C, X_1..X_n] (AB frame), ``d(u) = -2 log(p(u) / p(0))`` the deviance of
-the bearing noise (``u^2`` for the normal; for a :class:`._likelihood.BearingTail` its
+the bearing noise (``u^2`` for the normal; for a :class:`.likelihood.BearingTail` its
 mixture's). Replicated data given theta have residuals that are the noise itself, so
 ``D(y_rep, theta)`` has a known distribution F (chi-square with 3n + n - 1 degrees of freedom for
 normal noise; for a tail, the sum of the mixture's deviances, tabulated by simulation once per
@@ -34,8 +34,8 @@ from functools import lru_cache
 import numpy as np
 from scipy.special import chdtrc
 
-from ..geometry import bearing, motion_heading, wrap_angle
-from ._likelihood import BearingTail, log_bearing
+from ...geometry import bearing, motion_heading, wrap_angle
+from ..common.likelihood import BearingTail, log_bearing
 
 #: Draws of the tabulated reference distribution of D under a bearing tail.
 REFERENCE_DRAWS = 20_000
@@ -101,7 +101,7 @@ def _reference_table(n_bearings: int, n_headings: int, tail: BearingTail,
     """Sorted draws of D under the model: ``n_bearings`` deviances of the tail's mixture (core
     width ``sigma``: the outlier share's density is per radian, so D depends on it) plus a
     chi-square with ``n_headings`` degrees of freedom."""
-    from ._likelihood import bearing_noise
+    from ..common.likelihood import bearing_noise
 
     rng = np.random.default_rng(20201)
     R = REFERENCE_DRAWS
@@ -181,7 +181,7 @@ def posterior_predictive_batch(bearings, headings, poses, tid, landmark, weights
             > 0 leaves its headings out of D (and out of the reference distribution).
         tail: the bearing noise's :class:`BearingTail`, or None for the normal.
         c_loglik: (J r,) optional, each draw's C-bearing log likelihood summed over the views
-            (:func:`._landmarks.sample_landmarks`' ``log lik``, at these widths and tail): C's
+            (:func:`.landmarks.sample_landmarks`' ``log lik``, at these widths and tail): C's
             deviances are then ``-2 (c_loglik - n log p(0))`` instead of recomputed.
 
     Returns (T,) p-values, NaN for a triplet without a positive weight.
@@ -256,7 +256,7 @@ def prior_states(prior, part) -> tuple[np.ndarray, np.ndarray]:
     """(C's (m,), one camera's (m,)) state distributions under ``prior`` alone
     (:func:`qfg.combine.prior_state_distribution`, 50,000 draws, cached per prior and
     partition)."""
-    from ..combine import prior_state_distribution
+    from ...combine import prior_state_distribution
 
     key = (type(prior).__name__, repr(prior), part.name)
     if key not in _PRIOR_STATES:

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import LOCUS_EPS, heading_on_locus, locus_point, wrap_angle
-from ._likelihood import NEG_INF, log_gauss
-from ._prior import point_log_prior
+from ...geometry import LOCUS_EPS, heading_on_locus, locus_point, wrap_angle
+from .likelihood import NEG_INF, log_gauss
+from .prior import point_log_prior
 
 #: Scale of the heavy-tailed distance proposal along lines of sight (|AB| units).
 RAY_CENTRE = np.array([0.0, 0.5])

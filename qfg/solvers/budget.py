@@ -7,7 +7,7 @@ linearly with the number of views (:func:`working_bytes`, refused above
 :data:`MEMORY_BUDGET`). Time grows linearly for ``fast-paper`` and ``baseline``, and for the
 SIS methods too (each child updates its parent's C summary with one line of sight and the
 trajectories are kept as ancestry: docs/solvers.md, "More views"), except that a child without
-a usable C summary is refitted over up to ``_sis.REFIT_VIEWS`` views and Metropolis-Hastings
+a usable C summary is refitted over up to ``sis.motion.REFIT_VIEWS`` views and Metropolis-Hastings
 moves (``move_steps``) take whole trajectories. :func:`work_units` counts the pose-views the
 worst case processes (every child refitted at every view, moves over whole trajectories) and
 :data:`WORK_BUDGET` caps them at what the old engine, which refitted every child over all
@@ -40,8 +40,8 @@ WORK_BUDGET = 3000 * 8 * 100 * 101 // 2
 #: Cost of one pose-view of a rejuvenation evaluation (the chart, the world prior's quadrature
 #: over the whole configuration, C's mode) in pose-views of a C refit: 2.2 us against 0.17 us
 #: (ratio 12.9) timed on 3000 trajectories of 16 views of one development triplet
-#: (``_sis._log_intermediate_c`` without ``c_anchors`` against ``_rejuvenation.poses_of`` plus
-#: ``_sis._joint_target``, best of 3, load 5).
+#: (``sis.c_integral.log_intermediate_c`` without ``c_anchors`` against ``sis.rejuvenation.poses_of`` plus
+#: ``sis.moves._joint_target``, best of 3, load 5).
 REJUVENATION_COST = 13
 
 #: Copies of the hypotheses' poses alive at once (children, resampling, the C weights), a
@@ -63,18 +63,18 @@ def working_bytes(method: str, opts: dict, n_triplets: int, n_views: int) -> int
 
 def work_units(method: str, opts: dict, n_views: int) -> int:
     """Pose-views one triplet of ``n_views`` views processes at worst: for the SIS methods every
-    child refitted over min(i, ``_sis.REFIT_VIEWS``) views at view i (linear in the views beyond
+    child refitted over min(i, ``sis.motion.REFIT_VIEWS``) views at view i (linear in the views beyond
     that window), plus ``move_steps`` moves of every hypothesis over all i views (quadratic:
     moves are off by default), plus the ``rejuvenate`` sweeps' evaluations over whole
-    trajectories at the views of :func:`._rejuvenation.schedule` (linear); hypotheses x views
+    trajectories at the views of :func:`.rejuvenation.schedule` (linear); hypotheses x views
     for the others (linear).
 
     >>> from qfg.solvers import DEFAULTS
     >>> work_units("full", DEFAULTS["full"], 150) < WORK_BUDGET < work_units("full", DEFAULTS["full"], 160)
     True
     """
-    from ._rejuvenation import KINDS, work_views
-    from ._sis import REFIT_VIEWS
+    from .sis.motion import REFIT_VIEWS
+    from .sis.rejuvenation import KINDS, work_views
 
     n = int(n_views)
     if method in ("full", "fast"):
@@ -125,12 +125,12 @@ def check(method: str, opts: dict, n_triplets: int, n_views: int) -> None:
     if work > WORK_BUDGET:
         raise ValueError(f"bearings: {n_views} views would take method {method!r} about "
                          f"{work / WORK_BUDGET:.1f}x the time budget at worst "
-                         "(qfg.solvers._budget.WORK_BUDGET); solve fewer views (e.g. the latest "
+                         "(qfg.solvers.budget.WORK_BUDGET); solve fewer views (e.g. the latest "
                          "ones) or smaller budgets (max_hypotheses, n_samples, move_steps, rejuvenate)")
     need = working_bytes(method, opts, n_triplets, n_views)
     if need > MEMORY_BUDGET:
         raise ValueError(f"bearings: {n_triplets} triplet(s) of {n_views} views would need about "
                          f"{need / 2**30:.1f} GiB with method {method!r} (budget "
-                         f"{MEMORY_BUDGET / 2**30:.0f} GiB, qfg.solvers._budget.MEMORY_BUDGET); "
+                         f"{MEMORY_BUDGET / 2**30:.0f} GiB, qfg.solvers.budget.MEMORY_BUDGET); "
                          "solve fewer triplets per call, fewer views, or smaller budgets "
                          "(max_hypotheses, n_samples)")

@@ -53,7 +53,13 @@ import numpy as np
 
 from .. import priors as _priors
 from ..geometry import LOCUS_EPS, wrap_angle
-from . import _degenerate, _estimate, _histograms, _input, _likelihood, _prior, _seeds
+from .common import degenerate as _degenerate
+from .common import estimate as _estimate
+from .common import histograms as _histograms
+from .common import input as _input
+from .common import likelihood as _likelihood
+from .common import prior as _prior
+from .common import seeds as _seeds
 
 _PRODUCT = _priors.ProductPrior()
 
@@ -214,7 +220,7 @@ def step(state: BaselineState, phi, heading=None) -> BaselineState:
 
 def _quadrature(prior):
     """The prior whose joint density the correction evaluates: a
-    :class:`qfg.priors.WorldBoxPrior` with more than :data:`._prior.SOLVER_N_RHO` quadrature
+    :class:`qfg.priors.WorldBoxPrior` with more than :data:`.prior.SOLVER_N_RHO` quadrature
     angles is evaluated with that many (the same box; the solvers' resolution for the world
     prior, within ~0.02 nats; N x M configurations per triplet at 128 angles cost 10x more)."""
     if isinstance(prior, _priors.WorldBoxPrior) and prior.n_rho > _prior.SOLVER_N_RHO:

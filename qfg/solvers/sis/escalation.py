@@ -1,5 +1,5 @@
 """Escalation of a few-views answer (option ``few_views_escalate`` of ``full``): a triplet with at
-most :data:`qfg.solvers._sis.FEW_VIEWS` views is solved with the small few-views budget
+most :data:`qfg.solvers.sis.engine.FEW_VIEWS` views is solved with the small few-views budget
 (``few_views_budget``) split among ``few_views_populations >= 2`` independent populations; where
 those populations disagree, it is solved again with the caller's whole budget and the two
 answers are pooled.
@@ -15,11 +15,11 @@ budget alone is about as wrong as the small one, so its answer is pooled with th
 rather than put in its place.
 
 The option's value is None (off) or a threshold in (0, 1) on the few-views answer's
-``mc_error``; it needs ``few_views_populations >= 2`` (:func:`qfg.solvers._options.resolve_options`
+``mc_error``; it needs ``few_views_populations >= 2`` (:func:`qfg.solvers.common.options.resolve_options`
 refuses it otherwise: one population's own error was measured blind to what escalation is for).
 
 The rule, for one triplet whose few-views answer ``e_s`` (populations merged by
-:func:`qfg.solvers._populations.merge`) has ``e_s.mc_error > threshold`` (or no finite error):
+:func:`qfg.solvers.sis.populations.merge`) has ``e_s.mc_error > threshold`` (or no finite error):
 
 * the same views are solved with the caller's options without the few-views ones (the whole
   budget, ``populations`` populations) from the seed ``child_seed(seed, ESCALATE_KEY)`` of the
@@ -29,7 +29,7 @@ The rule, for one triplet whose few-views answer ``e_s`` (populations merged by
   scales about as ``1 / b``); ``ess = 1 / (w^2 / ess_s + (1 - w)^2 / ess_f)`` (that of the pooled
   weights), ``mc_error = sqrt(w^2 mc_s^2 + (1 - w)^2 mc_f^2)``, ``n_hypotheses`` the sum, the
   larger ``pareto_k``, the weighted mean of the model checks' p-values, the flags decided for the pool
-  (:func:`qfg.solvers._estimate.pooled_reasons`);
+  (:func:`qfg.solvers.common.estimate.pooled_reasons`);
   the hypotheses are both sets, weights scaled by ``w`` and ``1 - w``.
 
 The test depends on the answer of ``n`` views only (not on how the views arrived), so the
@@ -40,9 +40,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import _estimate, _seeds
-from ._options import FEW_VIEWS_OFF
-from ._sis import FEW_VIEWS
+from ..common import estimate as _estimate
+from ..common import seeds as _seeds
+from ..common.options import FEW_VIEWS_OFF
+from .engine import FEW_VIEWS
 
 #: Spawn key (under a triplet's seed) of the escalated solve's seed.
 ESCALATE_KEY = 2_000_003

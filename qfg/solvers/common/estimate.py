@@ -9,8 +9,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._degenerate import UNRESOLVED_REASON, UNRESOLVED_SHARE
-from ._diagnostics import pareto_k
+from .degenerate import UNRESOLVED_REASON, UNRESOLVED_SHARE
+from .diagnostics import pareto_k
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -26,16 +26,16 @@ class TripletEstimate:
         mc_error: Monte Carlo standard error of ``landmark`` where the method estimates it
             (largest over states), else NaN.
         pareto_k: Pareto k-hat of the landmark weights' upper tail
-            (:func:`qfg.solvers._diagnostics.pareto_k`; above about 0.7 the weighted answer is
+            (:func:`qfg.solvers.common.diagnostics.pareto_k`; above about 0.7 the weighted answer is
             unreliable whatever the ESS), NaN where the weights are not importance weights
             (``fast-paper``'s quadrature, the reference) or too few.
         model_check: posterior predictive p-value of the bearings and headings
-            (:mod:`qfg.solvers._model_check`; small: the measurements contradict the model),
+            (:mod:`qfg.solvers.sis.model_check`; small: the measurements contradict the model),
             NaN where the method does not compute it (without headings, noiseless, the
             methods other than ``full`` and ``fast``).
         depth_unresolved: share of the final weight on hypotheses whose C depth along the lines
             of sight is unresolved (``full`` and ``fast`` from 2 views; NaN elsewhere); above
-            ``_degenerate.UNRESOLVED_SHARE`` the answer is flagged.
+            ``common.degenerate.UNRESOLVED_SHARE`` the answer is flagged.
         log_evidence: log p(measurements) under the model and the prior, angles in radians
             (``reference`` only, NaN elsewhere): the marginal likelihood that compares priors
             or noise models on the same measurements (the larger, the better they explain
@@ -264,7 +264,7 @@ def make_estimate(method, part, n_views, landmark, cameras, *, hypotheses: Hypot
     with the option ``min_ess``, an answer whose ESS is smaller is flagged (a failed sampler).
     ``widen`` = (lam, q_landmark (m,), q_camera (m,)): the answer (after the shrinkage) mixed
     with those state distributions by the share lam (a failed model check,
-    :mod:`._model_check`)."""
+    :mod:`.model_check`)."""
     lw = hypotheses.landmark_weights
     e = ess(lw)
     if "min_ess" in opts and e < opts["min_ess"]:

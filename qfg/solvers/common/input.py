@@ -8,9 +8,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import partitions as _partitions
-from .._validate import as_float_array, non_negative, per_step_sigma
-from ..geometry import wrap_angle
+from ... import partitions as _partitions
+from ..._validate import as_float_array, non_negative, per_step_sigma
+from ...geometry import wrap_angle
 
 
 @dataclass(frozen=True)
@@ -144,7 +144,7 @@ def measurements(bearings, headings, sigma_bearing, sigma_heading, distances=Non
                  sigma_distance_ratio=None) -> Measurements:
     """Validate one triplet's input. ``bearings`` may be a TripletHistory (then ``headings``,
     ``distances`` and unset sigmas come from it)."""
-    from ..simulation import TripletHistory
+    from ...simulation import TripletHistory
 
     if isinstance(bearings, TripletHistory):
         hist = bearings

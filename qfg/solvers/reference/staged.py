@@ -3,7 +3,7 @@ by adaptive importance sampling, with its Monte Carlo error estimated and report
 
 Two samplers of the same target (option ``sampler``): the staged sampler of this module
 (described below; its ESS collapses from about 8-10 views) and the conditional sampler of
-:mod:`._reference_rb` (C from a fitted 2-D mixture, the trajectory given C by a particle filter
+:mod:`.conditional` (C from a fitted 2-D mixture, the trajectory given C by a particle filter
 twisted by its Laplace approximation; time linear in the views). ``"auto"`` (default) takes the
 staged one up to :data:`AUTO_STAGED_VIEWS` views and the conditional one beyond
 (docs/priors.md).
@@ -23,7 +23,7 @@ Sampling variables ``u`` (a bijection with theta wherever the target is positive
   normal: this absorbs their likelihood exactly) and, between views, the true heading
   ``psi~ = psi + sigma_w eps``;
 * view 1 (every view without an incoming heading): the angle at A along the locus arc of
-  ``gamma = phi~_B - phi~_A``, through the arc parameter w in (0, 1) (``_arcs.arc_parameter``);
+  ``gamma = phi~_B - phi~_A``, through the arc parameter w in (0, 1) (``common.arcs.arc_parameter``);
   ``dX dalpha = |x| / sin^2(gamma) dphi~_A dphi~_B da``;
 * later views: the point where the motion ray from X_{j-1} at ``alpha_{j-1} + psi~`` meets the
   locus arc, root r_j among the valid intersections; ``dX = t / |grad Gamma . u| dpsi~ dgamma``;
@@ -51,10 +51,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import partitions as _partitions
-from .. import priors as _priors
-from .._validate import as_rng, non_negative, positive_int
-from ..geometry import (
+from ... import partitions as _partitions
+from ... import priors as _priors
+from ..._validate import as_rng, non_negative, positive_int
+from ...geometry import (
     heading_on_locus,
     locus_circle,
     locus_point,
@@ -62,16 +62,16 @@ from ..geometry import (
     triangulate_lsq,
     wrap_angle,
 )
-from ._arcs import arc_parameter, log_ray_jacobian
-from ._input import DISTANCE_RATIO_FLOOR, check_bearings, check_distances, check_headings
-from ._likelihood import logsumexp
-from ._reference_rb import RB_DEFAULTS as _RB_DEFAULTS
-from ._reference_weights import (  # noqa: F401  (_log_wn: part of this module's interface)
+from ..common.arcs import arc_parameter, log_ray_jacobian
+from ..common.input import DISTANCE_RATIO_FLOOR, check_bearings, check_distances, check_headings
+from ..common.likelihood import logsumexp
+from ..common.odometry import log_distance_factor
+from .conditional import RB_DEFAULTS as _RB_DEFAULTS
+from .weights import (  # noqa: F401  (_log_wn: part of this module's interface)
     _log_wn,
     _summaries,
     final_answer,
 )
-from ._sis import log_distance_factor
 
 __all__ = ["solve_reference", "REFERENCE_DEFAULTS"]
 
@@ -97,7 +97,7 @@ REFERENCE_DEFAULTS = {
     "laplace": True,              # refine poorly sampled components by Newton (Laplace; the
                                   # four heaviest clusters, split where the curvature says two modes)
     # the sampler: "conditional" (C drawn from a fitted 2-D mixture, the trajectory given C by a
-    # particle filter twisted by its Laplace approximation: ._reference_rb, cost linear in the
+    # particle filter twisted by its Laplace approximation: .conditional, cost linear in the
     # views), "staged" (the adaptive importance sampler above, views added in stages) or "auto"
     # (staged up to AUTO_STAGED_VIEWS views, conditional beyond: docs/priors.md); the options
     # above this line are the staged sampler's, those below the conditional sampler's
@@ -176,7 +176,7 @@ class _Layout:
 
     def log_distances(self, X) -> np.ndarray:
         """(N,) the odometry's step-length-ratio factors of camera positions X (N, n, 2)
-        (:func:`._sis.log_distance_factor`; 0 without distances)."""
+        (:func:`.odometry.log_distance_factor`; 0 without distances)."""
         if self.dist is None or self.n < 3:
             return np.zeros(X.shape[0])
         d = np.diff(X, axis=1)
@@ -611,10 +611,10 @@ def solve_reference(bearings, headings, sigma_bearing, sigma_heading, partition=
         distances: (n - 1,) the odometry's travelled distance between consecutive views (any
             unit, >= 0; 0 = unknown), or None: each ratio of consecutive steps is a factor
             ``N(log(s_i / s_(i-1)) - log(d_i / d_(i-1)); sigma_distance_ratio)`` of the target
-            (:func:`._sis.log_distance_factor`, as in the SIS solvers). The staged sampler only;
+            (:func:`.odometry.log_distance_factor`, as in the SIS solvers). The staged sampler only;
             the conditional one refuses them.
         sigma_distance_ratio: the noise of that log ratio (>= 0, floored at
-            :data:`._input.DISTANCE_RATIO_FLOOR`); required with distances.
+            :data:`.input.DISTANCE_RATIO_FLOOR`); required with distances.
         **options: see :data:`REFERENCE_DEFAULTS`.
 
     Returns a dict: ``landmark`` (m,), ``cameras`` (n, m), ``mc_error`` (m,) and
@@ -622,7 +622,7 @@ def solve_reference(bearings, headings, sigma_bearing, sigma_heading, partition=
     sample size of the final round), ``ess_rounds`` (per round), ``n_samples`` (draws in all
     rounds), ``log_evidence`` (log p(measurements), radians as the unit of every angle; None when
     nothing had weight), ``degenerate`` (bool), ``reason`` (str), ``pareto_k`` (Pareto k-hat of
-    the final rounds' weights, :func:`qfg.solvers._diagnostics.pareto_k`) and ``sampler`` (the
+    the final rounds' weights, :func:`qfg.solvers.common.diagnostics.pareto_k`) and ``sampler`` (the
     sampler used: ``options["sampler"]``, "auto" resolved by the number of views).
 
     >>> import numpy as np
@@ -687,7 +687,7 @@ def solve_reference(bearings, headings, sigma_bearing, sigma_heading, partition=
 
     def run(prior):
         if sampler == "conditional":
-            from ._reference_rb import solve_rb
+            from .conditional import solve_rb
 
             return solve_rb(L, prior, part, rng, opts)
         return _solve(L, prior, part, rng, opts, N, rounds, lam, lam_ray)

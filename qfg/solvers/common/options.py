@@ -6,10 +6,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import priors as _priors
-from .._validate import non_negative, positive_int
-from ._likelihood import as_normal_tail, as_tail
-from ._prior import resolve_prior
+from ... import priors as _priors
+from ..._validate import non_negative, positive_int
+from .likelihood import as_normal_tail, as_tail
+from .prior import resolve_prior
 
 #: Methods :func:`qfg.solvers.solve_triplet` knows.
 METHODS = ("full", "fast", "fast-paper", "baseline", "reference")
@@ -45,13 +45,13 @@ DEFAULTS = {
         "move_steps": 0,             # Metropolis-Hastings moves per hypothesis after resampling
                                      # (resample-move; measured not to help: docs/solvers.md)
         "rejuvenate": 1,             # sweeps of Metropolis-Hastings moves (resample-move) at
-                                     # views 4, 6, 9, 14, 20, 30, ... (_sis._rejuvenate; 0: off;
+                                     # views 4, 6, 9, 14, 20, 30, ... (sis.moves._rejuvenate; 0: off;
                                      # docs/solvers.md, "More views": closer to the reference
                                      # and fewer confidently wrong at 10-20 views, 2.5-2.9x the
                                      # time there, nothing at 3 views)
         "mc_shrinkage": 1.0,         # pseudo-draws of the uniform added to the ESS draws
                                      # (shrink_to_uniform)
-        "bearing_tail": None,        # heavy-tailed bearing noise (_likelihood.BearingTail, or
+        "bearing_tail": None,        # heavy-tailed bearing noise (common.likelihood.BearingTail, or
                                      # (share, scale, outlier)); None: the normal
         "distance_tail": None,       # heavy-tailed noise of the step-length ratios' log
                                      # ((share, scale): (1 - share) N(sigma) + share N(scale
@@ -68,11 +68,11 @@ DEFAULTS = {
                                      # views: 13; 5 of 120 answers at 6 and 10 views have 3-5)
         "populations": 1,            # independent SIS populations, each with 1/K of the budget
                                      # (n_samples, max_hypotheses, posterior_samples), answers
-                                     # averaged (_populations; docs/solvers.md)
-        # Up to _sis.FEW_VIEWS = 3 views (the next view solves them again with the budget
+                                     # averaged (sis.populations; docs/solvers.md)
+        # Up to sis.engine.FEW_VIEWS = 3 views (the next view solves them again with the budget
         # above): a smaller budget split between two independent populations, and the
         # triplets whose populations disagree (mc_error above few_views_escalate) solved again
-        # with the whole budget and pooled (_escalation). About 1.0 workload per 3-view triplet
+        # with the whole budget and pooled (sis.escalation). About 1.0 workload per 3-view triplet
         # instead of 1.6-1.8, as close to the reference as the whole budget, paired on 400
         # development geometries x 6 seeds (docs/solvers.md, "Issue 20, item 2 (time)"). A call
         # that sets a budget option or a population count itself gets exactly that budget
@@ -86,7 +86,7 @@ DEFAULTS = {
                                      # model-check tests not yet squared with it)
         "camera_prior": "point",     # the cameras' prior in the intermediate weights: "point"
                                      # (a product of per-point priors) or "joint" (the prior
-                                     # of the cameras so far together; _sis._camera_log_prior)
+                                     # of the cameras so far together; sis.target.log_camera_prior)
         "prior": "world",
     },
     "fast": {
@@ -139,7 +139,7 @@ DEFAULTS = {
         "bearing_tail": None,        # as full's: the noise draws come from the mixture
         "joint_samples": 16,         # tuples of the views' draws per candidate for the prior of
                                      # the whole configuration (0: a product of per-point
-                                     # priors, the paper's model; _baseline, docs/solvers.md)
+                                     # priors, the paper's model; baseline, docs/solvers.md)
         "prior": "world",
     },
 }
@@ -203,7 +203,7 @@ def _few_views_budget(value):
 
 def _few_views_escalate(value, opts):
     """``few_views_escalate``: None, or a threshold in (0, 1) on the few-views answer's
-    ``mc_error``, with ``few_views_populations >= 2`` (:mod:`._escalation`)."""
+    ``mc_error``, with ``few_views_populations >= 2`` (:mod:`.escalation`)."""
     if value is None:
         return None
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.number)):

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import wrap_angle
-from ._degenerate import geometry_reasons
-from ._likelihood import logsumexp
+from ...geometry import wrap_angle
+from ..common.degenerate import geometry_reasons
+from ..common.likelihood import logsumexp
 
 _LOG2PI = np.log(2 * np.pi)
 
@@ -49,7 +49,7 @@ def final_answer(L, part, finals, N, min_ess, final_lws, ess_rounds, total) -> d
     Pareto k-hat of the final log weights ``final_lws`` (list of arrays), and the uniform
     answer, flagged, when no sample had positive weight. ``L``: the sampler's layout of all
     views (``L.n`` views)."""
-    from ._diagnostics import pareto_k
+    from ..common.diagnostics import pareto_k
 
     summ = _combine(finals, N)
     m = part.n_states
@@ -114,7 +114,7 @@ def _summaries(part, X, c, lw):
 
 def _geometry_flags(L, X, c, wn):
     """Reasons the geometry leaves the answer spread: the measurement flags every solver
-    attaches (:func:`qfg.solvers._degenerate.geometry_reasons`: cameras on line AB where fewer
+    attaches (:func:`qfg.solvers.common.degenerate.geometry_reasons`: cameras on line AB where fewer
     than two views place the camera, travel along the line of sight to C), and lines of sight to
     C that nearly coincide in the weighted posterior sample (``X`` (N, n, 2) cameras, ``c``
     (N, 2) C, ``wn`` (N,) normalized weights) when the measurements did not say so already."""

@@ -8,7 +8,7 @@ triangulated from the lines of sight. The noise enters only through the weights,
 deterministic geometry: ``prior(X_1 .. X_n, L) x prod_t N(phi_C,t - f(L, X_t); sigma)`` (sigma =
 ``max(sigma_v, bearing_floor)``, or combined with sigma_w: option ``kernel``) and, with
 ``jacobian=True``, the change of variables of each motion step, ``t / |grad Gamma . u|``
-(:func:`._arcs.log_ray_jacobian`: the density of positions reached along the rays, the noiseless
+(:func:`.arcs.log_ray_jacobian`: the density of positions reached along the rays, the noiseless
 limit of the full solver's weights). The first camera's arc parameter is integrated adaptively:
 after the coarse grid, the cells of the heaviest hypotheses are split and solved again
 (``refine_*`` options). One view: C at deterministic quantiles along each camera's line of sight.
@@ -32,7 +32,13 @@ from ..geometry import (
     triangulate_pairwise_centroid,
     wrap_angle,
 )
-from . import _arcs, _degenerate, _estimate, _laplace, _likelihood, _options, _prior
+from .common import arcs as _arcs
+from .common import degenerate as _degenerate
+from .common import estimate as _estimate
+from .common import laplace as _laplace
+from .common import likelihood as _likelihood
+from .common import options as _options
+from .common import prior as _prior
 
 
 @dataclass(frozen=True, eq=False)
@@ -89,7 +95,7 @@ def _ray_landmarks(tid, poses, phi_c, sigma_v, opts):
     """C integrated along the first camera's line of sight by deterministic quadrature, for
     trajectories (N, i, 3) whose lines of sight to C coincide (C's depth is then left to the
     prior): ``k = one_view_samples`` points at quantiles of the ray proposal
-    (:func:`._arcs.ray_points`), weighted ``prior(L) t / q(t)`` (the area element ``t dt dtheta``
+    (:func:`.arcs.ray_points`), weighted ``prior(L) t / q(t)`` (the area element ``t dt dtheta``
     with view 1's angular likelihood integrated out) times the C-bearing likelihood of the other
     views (``k = COINCIDE_POINTS`` with more than one view). Returns (points (N, k, 2), log
     weights (N, k))."""
@@ -149,7 +155,7 @@ def _first(b0, tid, w, lwidth, opts):
 def _extend(hyp, bearings, headings, sv, opts, along_ray=None):
     """One motion step: rays along alpha + psi meet the next view's exact arc. ``bearings``
     (T, i + 1, 3) include the new view, ``headings`` (T, i). A view that repeats the previous
-    one's bearings (:func:`._degenerate.repeated_views`) keeps every camera where it was (the
+    one's bearings (:func:`.degenerate.repeated_views`) keeps every camera where it was (the
     camera taken as not moved: no ray, no new point in the prior)."""
     tid, poses, lw, w, lwidth = hyp
     phi, psi = bearings[:, -1], headings[:, -1]
@@ -216,9 +222,9 @@ def step(state: FastState, phi, psi) -> FastState:
 
 def _along_ray(bearings, headings, state) -> np.ndarray:
     """(T,) triplets whose lines of sight to C coincide whatever the trajectory: every view after
-    the first repeats its predecessor (:func:`._degenerate.repeated_views`), or the camera travels
+    the first repeats its predecessor (:func:`.degenerate.repeated_views`), or the camera travels
     along its line of sight to C between every pair of views (the flag of
-    :func:`._degenerate.geometry_reasons`). Their C is integrated along the line of sight."""
+    :func:`.degenerate.geometry_reasons`). Their C is integrated along the line of sight."""
     T, n = bearings.shape[:2]
     out = np.zeros(T, dtype=bool)
     if n < 2:

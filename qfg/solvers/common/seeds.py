@@ -6,14 +6,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._validate import as_seed_sequence
+from ..._validate import as_seed_sequence
 
 #: spawn-key purposes
 STREAM_CAMERAS, STREAM_RESAMPLE, STREAM_LANDMARKS, STREAM_POSTERIOR, STREAM_RETRY = 0, 1, 3, 4, 5
 
 
 STREAM_MOVE = 6
-#: the rejuvenation moves (:func:`._sis._rejuvenate`)
+#: the rejuvenation moves (:func:`.moves._rejuvenate`)
 STREAM_REJUVENATE = 7
 
 

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._arcs import cos_sin, wrap
-from ._likelihood import sum_views
+from .arcs import cos_sin, wrap
+from .likelihood import sum_views
 
 #: Cap of the Laplace volume of C (log of an area in |AB|^2): near-parallel rays leave C
 #: unconstrained along them, and the prior, not the volume, then bounds it.
@@ -126,9 +126,9 @@ def laplace_landmark(poses, phi_c, sigma, parts=False):
     (normalized Gaussians) about the least-squares triangulation, without the prior:
     ``sum_t log N(r_t) + log(2 pi sigma^2 / sqrt(det H))``. Good where C's depth is resolved;
     returns (log Z (J,), L* (J, 2), depth spread (J,)) so that callers can fall back to sampling
-    (:func:`sample_landmarks`) where it is not; with ``parts`` also the triangulation and ``H``
-    as :func:`sample_landmarks` takes them (``laplace=``): (L*, ok, h00, h01, h11, det H,
-    least squared camera distance)."""
+    (:func:`.landmarks.sample_landmarks`) where it is not; with ``parts`` also the triangulation
+    and ``H`` as :func:`.landmarks.sample_landmarks` takes them (``laplace=``): (L*, ok, h00, h01,
+    h11, det H, least squared camera distance)."""
     J, n = poses.shape[:2]
     sig = np.broadcast_to(np.asarray(sigma, dtype=float), (J,))
     phi_c = np.broadcast_to(np.asarray(phi_c, dtype=float), (J, n))

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._arcs import RAY_CENTRE, ray_log_density_polar, ray_points, wrap
-from ._laplace import CHUNK_ROWS, depth_spread, triangulate
-from ._likelihood import log_bearing, logaddexp, logsumexp, sum_views
+from ..common.arcs import RAY_CENTRE, ray_log_density_polar, ray_points, wrap
+from ..common.laplace import CHUNK_ROWS, depth_spread, triangulate
+from ..common.likelihood import log_bearing, logaddexp, logsumexp, sum_views
 
 
 def sample_landmarks(rng, poses, phi_c, sigma, k: int, ray_fraction: float, draws=None,
@@ -29,7 +29,7 @@ def sample_landmarks(rng, poses, phi_c, sigma, k: int, ray_fraction: float, draw
     triangulation and ``H`` of these rows if already computed (:func:`laplace_landmark` with
     ``parts``). Returns ``L (J, k, 2)``, ``log q
     (J, k)``, ``log lik (J, k)`` (sum over views of the normalized Gaussian C-bearing
-    likelihood; with ``tail`` a :class:`._likelihood.BearingTail`, its mixture) and the depth
+    likelihood; with ``tail`` a :class:`.likelihood.BearingTail`, its mixture) and the depth
     spread ``(J,)``: the standard deviation of C along its least
     constrained direction over its distance from the nearest camera (inf without a
     triangulation).

@@ -21,14 +21,14 @@ Merging (:func:`merge`), for the ``K`` estimates ``e_k`` of one triplet:
   posterior predictive probability); ``n_hypotheses``: the sum;
 * flagged by every flag read off the measurements (the same in each population), by the two
   read off the samples decided for the pool (C's depth unresolved by the mean of the
-  populations' shares, the ESS by the pooled ESS: :func:`qfg.solvers._estimate.pooled_reasons`;
+  populations' shares, the ESS by the pooled ESS: :func:`qfg.solvers.common.estimate.pooled_reasons`;
   a union of noisy per-population tests would flag more often the more populations there are),
   or when two populations put most of their mass on different states (total variation above
   :data:`DISAGREE`): the sampler then failed to settle, and the average says only that both
   are possible.
 
 ``K = 1`` is the engine alone, unchanged (the same seed, the same answer). ``K`` may differ for
-solves of at most :data:`FEW_VIEWS` views (option ``few_views_populations``), where a sampler
+solves of at most :data:`.engine.FEW_VIEWS` views (option ``few_views_populations``), where a sampler
 rarely settles in a wrong mode and ``K`` populations cost about ``K`` times the per-triplet
 work the budget does not scale: :class:`qfg.solvers.TripletSolver` then solves its views again
 from the first when the next view changes ``K``, so that the answer after ``n`` views depends on
@@ -39,9 +39,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import _seeds
-from ._estimate import pool
-from ._sis import FEW_VIEWS
+from ..common import seeds as _seeds
+from ..common.estimate import pool
+from .engine import FEW_VIEWS
 
 #: Budget options divided among the populations (each gets ``max(1, round(value / K))``).
 SPLIT_KEYS = ("n_samples", "max_hypotheses", "posterior_samples")
@@ -56,7 +56,7 @@ _POPULATION_KEY = 1_000_003
 
 def count(opts, n_views: int | None = None) -> int:
     """``K`` for a solve that ends after ``n_views`` views: option ``few_views_populations`` up
-    to :data:`qfg.solvers._sis.FEW_VIEWS` views, ``populations`` beyond (and when ``n_views``
+    to :data:`qfg.solvers.sis.engine.FEW_VIEWS` views, ``populations`` beyond (and when ``n_views``
     is None); 1 where the options have neither."""
     if n_views is not None and n_views <= FEW_VIEWS and "few_views_populations" in opts:
         return int(opts["few_views_populations"])
