@@ -30,7 +30,7 @@ import time
 import numpy as np
 
 from qfg import metrics, partitions, priors
-from qfg.solvers._reference import solve_reference
+from qfg.solvers.reference import solve_reference
 
 NOISE = ((0.5, 2.0), (2.0, 5.0), (4.0, 10.0))
 BINS = (0.0, 0.05, 0.2, 0.5, 0.8, 0.95, 1.0 + 1e-9)

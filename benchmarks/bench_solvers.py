@@ -219,7 +219,7 @@ def logsumexp_shapes(repeats=5, number=20):
 
     from scipy.special import logsumexp as scipy_lse
 
-    from qfg.solvers._likelihood import logsumexp
+    from qfg.solvers.common.likelihood import logsumexp
 
     rng = np.random.default_rng(0)
     rows = []

@@ -1,4 +1,4 @@
-"""The baseline under the prior of the whole configuration (``joint_samples``, qfg/solvers/_baseline.py).
+"""The baseline under the prior of the whole configuration (``joint_samples``, qfg/solvers/baseline.py).
 
 A world prior couples C and the cameras through their common frame; the product of per-point
 priors counts the small-|AB| penalty of a far camera once per view. Checked against the exact

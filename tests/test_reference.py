@@ -178,9 +178,9 @@ def test_far_negative_arc_logit_gives_w_zero_without_overflow():
     # step can put the logit below -709.78, where exp overflows (pytest makes the warning an
     # error). w is then 0 to double precision (the camera sits at A: no valid draw), and draws
     # with ordinary logits are untouched.
-    from qfg.solvers.reference.staged import _construct, _Layout
+    from qfg.solvers.reference.staged import Layout, _construct
 
-    L = _Layout(np.array([[0.3, 0.9, 0.5]]), None, 0.01, 0.0)
+    L = Layout(np.array([[0.3, 0.9, 0.5]]), None, 0.01, 0.0)
     logits = np.array([-1e4, -800.0, -5.0, -1.0, 0.4, 4.0])
     v = np.zeros((logits.size, 3))
     v[:, 0] = logits

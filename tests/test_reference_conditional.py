@@ -13,7 +13,7 @@ from qfg.simulation import random_triplet_history
 from qfg.solvers.common.prior import resolve_prior
 from qfg.solvers.reference import conditional as R
 from qfg.solvers.reference import trajectory as RT
-from qfg.solvers.reference.staged import REFERENCE_DEFAULTS, _Layout, solve_reference
+from qfg.solvers.reference.staged import REFERENCE_DEFAULTS, Layout, solve_reference
 
 PRIOR = resolve_prior("world")
 
@@ -31,7 +31,7 @@ def test_resection_recovers_noise_free_poses():
     phi = np.stack([bearing(P, np.zeros(2)), bearing(P, np.array([0.0, 1.0])),
                     bearing(P, C)], -1)
     for i in range(0, 200, 20):
-        L = _Layout(phi[i:i + 1], None, 0.01, 0.01)
+        L = Layout(phi[i:i + 1], None, 0.01, 0.01)
         Xr, ar = RT.resect(L, C[i:i + 1])
         assert np.allclose(Xr[0, 0], X[i], atol=1e-8)
         assert np.isclose(np.cos(ar[0, 0] - al[i]), 1.0)
@@ -79,7 +79,7 @@ def test_particle_filter_log_z_agrees_with_the_laplace_integral():
     # given the true C of a 4-view history the trajectory's integral is nearly Gaussian: the
     # filter's unbiased estimate and the Laplace approximation agree to a few tenths of a nat
     h = random_triplet_history(np.random.default_rng(700000), 4, np.deg2rad(2), np.deg2rad(5))
-    L = _Layout(h.bearings, h.headings, h.sigma_bearing, h.sigma_heading)
+    L = Layout(h.bearings, h.headings, h.sigma_bearing, h.sigma_heading)
     C = np.repeat(h.truth.C_ab[None], 400, 0)
     logz, X, al = R.particle_trajectories(L, C, np.random.default_rng(0), K=8)
     lw = logz + PRIOR.log_density(np.concatenate([C[:, None], X], 1))
@@ -134,7 +134,7 @@ def test_prior_inside_the_filter_estimates_the_same_integral(kind):
     # whole target given C; the filter without it, weighted by the prior of one drawn
     # trajectory, is another unbiased estimator of the same integral
     h = random_triplet_history(np.random.default_rng(700203), 6, np.deg2rad(2), np.deg2rad(5))
-    L = _Layout(h.bearings, h.headings, h.sigma_bearing, h.sigma_heading)
+    L = Layout(h.bearings, h.headings, h.sigma_bearing, h.sigma_heading)
     C = np.repeat(h.truth.C_ab[None], 500, 0)
     prior = PRIOR if kind == "world" else CallablePrior(PRIOR.log_density)
     assert (R.intermediate_prior(prior) is None) == (kind == "callable")
@@ -155,7 +155,7 @@ def test_c_proposal_matches_the_laplace_marginal_it_is_tempered_to():
     # world box admits them); counted against all draws they once held the temperature at 0
     # for every round (ESS 5 of 1000)
     h = random_triplet_history(np.random.default_rng(700007), 8, np.deg2rad(2), np.deg2rad(5))
-    L = _Layout(h.bearings, h.headings, h.sigma_bearing, h.sigma_heading)
+    L = Layout(h.bearings, h.headings, h.sigma_bearing, h.sigma_heading)
     mix, _ = R.adapt_c_proposal(L, PRIOR, np.random.default_rng(0), dict(REFERENCE_DEFAULTS))
     C = mix.draw(np.random.default_rng(1), 1000)
     lw = RT.laplace_marginal(L, PRIOR, C) - mix.log_density(C)

@@ -42,7 +42,7 @@ def test_layout_factor_is_the_sis_factor():
     rng = np.random.default_rng(0)
     b = rng.uniform(-1, 1, (4, 3))
     d = np.array([0.3, 0.5, 0.2])
-    L = _reference._Layout(b, np.zeros(3), 0.01, 0.02, d, 0.07)
+    L = _reference.Layout(b, np.zeros(3), 0.01, 0.02, d, 0.07)
     X = rng.normal(size=(5, 4, 2))
     s = np.hypot(*np.diff(X, axis=1).transpose(2, 0, 1))
     want = _odometry.log_distance_factor(s[:, 1:], s[:, :-1], d[1:], d[:-1], 0.07).sum(axis=1)

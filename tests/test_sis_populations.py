@@ -23,9 +23,9 @@ def _history(seed, n):
 
 
 def _first(h, k):
-    from qfg.harness.studies.single_triplet import _first_views
+    from qfg.harness.studies.single_triplet import first_views
 
-    return _first_views(h, k)
+    return first_views(h, k)
 
 
 SMALL = {"n_samples": 120, "max_hypotheses": 600, "posterior_samples": 128}

@@ -39,10 +39,10 @@ from scipy.special import expit, logit
 
 from qfg import joint
 from qfg.datasets import mrclam
-from qfg.datasets.mrclam._noise import _bearing_residuals, _landmark_rows
+from qfg.datasets.mrclam import landmark_rows, truth_bearing_residuals
 from qfg.datasets.mrclam.joint_map import mrclam_reference, mrclam_runs
 from qfg.harness.studies.mrclam import prepare
-from qfg.solvers._likelihood import BearingTail, log_bearing
+from qfg.solvers.common.likelihood import BearingTail, log_bearing
 
 TAIL_AT = np.deg2rad(2.0)
 
@@ -53,8 +53,8 @@ def bearing_residuals(ds, offset: float) -> np.ndarray:
     out = []
     for rd in ds.robots.values():
         if rd.groundtruth is not None:
-            t, phi, lxy, _, _ = _landmark_rows(ds, rd)
-            r, ok = _bearing_residuals(rd, t, phi, lxy, offset)
+            t, phi, lxy, _, _ = landmark_rows(ds, rd)
+            r, ok = truth_bearing_residuals(rd, t, phi, lxy, offset)
             out.append(r[ok])
     return np.concatenate(out)
 

@@ -81,7 +81,7 @@ from qfg.metrics import (
 )
 from qfg.priors import MixturePrior, TrajectoryPrior, TravelPrior
 from qfg.solvers import solve_triplet, solve_triplets
-from qfg.solvers._options import scaled_budget
+from qfg.solvers.common.options import scaled_budget
 
 VARIANTS = ("real", "twin", "twin-bearings", "twin-odometry", "clean")
 CHUNK = 64

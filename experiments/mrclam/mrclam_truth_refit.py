@@ -24,7 +24,6 @@ import numpy as np
 
 from qfg import partitions
 from qfg.datasets import mrclam
-from qfg.datasets.mrclam import _noise
 from qfg.geometry import to_frame
 from qfg.metrics import log_score
 
@@ -32,9 +31,9 @@ from qfg.metrics import log_score
 def main(paths) -> int:
     ds = mrclam.load(mrclam.data_root() / "MRCLAM_Dataset6")
     robots = [k for k, rd in ds.robots.items() if rd.groundtruth is not None]
-    rows = {k: _noise._landmark_rows(ds, ds.robots[k]) for k in robots}
-    m = _noise.measure_noise(ds, offsets=[-0.040])
-    refit = _noise._refit_landmarks(ds, robots, rows, m.measurement_offset, m.bearing.sigma90)
+    rows = {k: mrclam.landmark_rows(ds, ds.robots[k]) for k in robots}
+    m = mrclam.measure_noise(ds, offsets=[-0.040])
+    refit = mrclam.refit_landmarks(ds, robots, rows, m.measurement_offset, m.bearing.sigma90)
     part = partitions.get("edc")
     tri = np.array(list(itertools.permutations(range(len(ds.landmark_ids)), 3)))
 

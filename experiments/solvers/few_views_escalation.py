@@ -17,8 +17,8 @@ gives the commands and what they measured. Run from the repository root as above
 (:func:`sis_rejuvenation.geometry`, its solver seeds; ``--replicate R`` another seed
 of each geometry), every option set NAME=JSON of ``full`` solved in one batched call per set.
 A set with ``few_views_populations`` K > 1 is solved population by population (each with its
-share of the budget and its seed, as :mod:`qfg.solvers._populations` runs them, and merged by
-:func:`qfg.solvers._populations.merge`), so that each population's answer is kept. One JSON
+share of the budget and its seed, as :mod:`qfg.solvers.sis.populations` runs them, and merged by
+:func:`qfg.solvers.sis.populations.merge`), so that each population's answer is kept. One JSON
 line per geometry: ``{"g", "gt", "rep", NAME: {"p", "ess", "mc", "flag", "pops"}}``.
 Option sets whose NAME ends in ``@esc`` are solved with the seed an escalation would use
 (the triplet's seed's child :data:`ESCALATE_KEY`), i.e. independent of the other sets' draws.
@@ -55,14 +55,16 @@ ESCALATE_KEY = 2_000_003
 def _solve(metas, roots, opts_json):
     """(estimate, [per-population landmark]) per triplet, batched."""
     from qfg.partitions import get as get_partition
-    from qfg.solvers import _options, _populations, _solve_sis_batch
+    from qfg.solvers.solve import solve_sis_batch
+    from qfg.solvers.common import options as _options
+    from qfg.solvers.sis import populations as _populations
 
     part = get_partition("edc")
     opts = _options.resolve_options("full", dict(opts_json))
     K = _populations.count(opts, 3)
     if K == 1 or opts.get("few_views_escalate") is not None:
         # the library's own path (an escalating set is measured as the library answers)
-        return [(e, []) for e in _solve_sis_batch("full", metas, roots, part, opts)]
+        return [(e, []) for e in solve_sis_batch("full", metas, roots, part, opts)]
     one = dict(opts_json, few_views_populations=1, populations=1)
     split = _populations.split_options(opts, K)
     # each population's options as the engine receives them (budget already split)
@@ -70,7 +72,7 @@ def _solve(metas, roots, opts_json):
     if split.get("few_views_budget"):
         one["few_views_budget"] = split["few_views_budget"]
     o1 = _options.resolve_options("full", one)
-    per = [_solve_sis_batch("full", metas, [_populations.roots(r, K)[k] for r in roots], part,
+    per = [solve_sis_batch("full", metas, [_populations.roots(r, K)[k] for r in roots], part,
                             o1, hypotheses=True) for k in range(K)]
     out = []
     for t in range(len(metas)):
@@ -83,7 +85,8 @@ def _solve(metas, roots, opts_json):
 def run(lo, hi, out, sets, replicate=0, views=3):
     from sis_rejuvenation import geometry, solver_seed
 
-    from qfg.solvers import _input, _seeds
+    from qfg.solvers.common import input as _input
+    from qfg.solvers.common import seeds as _seeds
 
     metas, roots, gts = [], [], []
     for i in range(lo, hi):

@@ -31,7 +31,7 @@ import numpy as np
 
 from qfg import metrics
 from qfg.harness.runner import scenario_rng
-from qfg.harness.studies.single_triplet import METHODS, _first_views
+from qfg.harness.studies.single_triplet import METHODS, first_views
 from qfg.partitions import get as get_partition
 from qfg.simulation import random_triplet_history
 
@@ -50,7 +50,7 @@ def scenario(seed, i, k, max_views=20):
                                   np.deg2rad(5.0), partition=PART)
     s = np.random.SeedSequence(solver_root.entropy,
                                spawn_key=(1000 + k, METHODS.index("reference")))
-    return _first_views(hmax, k), s
+    return first_views(hmax, k), s
 
 
 def measure(seed, lo, hi, views, out, opts, max_views=20):
@@ -101,18 +101,18 @@ def paired(old_path, new_path):
 
 
 def at_truth(seed, lo, hi, views):
-    from qfg.solvers import _reference_rb as R
-    from qfg.solvers._prior import resolve_prior
-    from qfg.solvers._reference import _Layout
+    from qfg.solvers.reference import conditional as R
+    from qfg.solvers.common.prior import resolve_prior
+    from qfg.solvers.reference.staged import Layout
 
     prior = resolve_prior("world")
 
-    ess = R._ess
+    ess = R.effective_sample_size
 
     for n in views:
         for i in range(lo, hi):
             h, _ = scenario(seed, i, n)
-            L = _Layout(h.bearings, h.headings, h.sigma_bearing, h.sigma_heading)
+            L = Layout(h.bearings, h.headings, h.sigma_bearing, h.sigma_heading)
             C = np.repeat(h.truth.C_ab[None], 400, 0)
             lz, X, _ = R.particle_trajectories(L, C, np.random.default_rng(0), 16)
             lp = prior.log_density(np.concatenate([C[:, None], X], 1))

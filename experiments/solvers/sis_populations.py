@@ -3,7 +3,7 @@ with 1/K of the budget, beat one population with the whole budget?
 
 Geometries as the single-triplet views sweep draws them (``scenario_rng(RUN_SEED, i)``, 2/5 deg,
 the paper box), each solved with its first n views by ``full`` with ``populations=K`` (the
-options' budget split K ways, ``qfg/solvers/_populations.py``). ``run`` writes one JSON line per
+options' budget split K ways, ``qfg/solvers/sis/populations.py``). ``run`` writes one JSON line per
 (geometry, n) with the K populations' answers (solved as K single-population calls, so each
 population's answer is kept) and prints their mean log p(truth), the average's, and the
 populations' total variation; ``compare`` pairs runs by geometry against a base run::
@@ -26,11 +26,11 @@ import time
 import numpy as np
 
 from qfg.harness.runner import scenario_rng
-from qfg.harness.studies.single_triplet import _first_views
+from qfg.harness.studies.single_triplet import first_views
 from qfg.partitions import get
 from qfg.simulation import random_triplet_history
 from qfg.solvers import DEFAULTS, solve_triplets
-from qfg.solvers._populations import split_options
+from qfg.solvers.sis.populations import split_options
 
 
 def _histories(run_seed, lo, hi, n_max, part):
@@ -52,7 +52,7 @@ def run(run_seed: int, span: str, views: str, K: int, path: str) -> None:
     opts = {k: v for k, v in split_options({k: DEFAULTS["full"][k] for k in keys}, K).items()}
     with open(path, "w") as out:
         for n in ns:
-            hs = [_first_views(H[i], n) for i in range(lo, hi)]
+            hs = [first_views(H[i], n) for i in range(lo, hi)]
             t0 = time.process_time()
             P = np.array([[e.landmark for e in solve_triplets(
                 hs, method="full", partition=part,

@@ -38,7 +38,7 @@ import numpy as np
 
 def geometry(i, k, run_seed=2):
     from qfg.harness.runner import scenario_rng
-    from qfg.harness.studies.single_triplet import _first_views
+    from qfg.harness.studies.single_triplet import first_views
     from qfg.partitions import get as get_partition
     from qfg.simulation import random_triplet_history
 
@@ -48,7 +48,7 @@ def geometry(i, k, run_seed=2):
     root = np.random.SeedSequence(int(rng.integers(2**63)))
     hmax = random_triplet_history(np.random.default_rng(geometry_seed + 1), 20, np.deg2rad(2.0),
                                   np.deg2rad(5.0), partition=part)
-    return _first_views(hmax, k), root, part
+    return first_views(hmax, k), root, part
 
 
 def solver_seed(root, k, method, replicate=0):

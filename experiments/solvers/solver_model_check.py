@@ -4,7 +4,7 @@ well-specified data (false alarms) and on misfits, and how the widened answers s
 usage: python experiments/solvers/solver_model_check.py N VIEWS [LEVELS]   (e.g. 40 3,5 0.01,0.05,0.1)
 
 One JSON line per (views, case): the mean log p(truth) as solved, widened at each level as
-``model_check=level`` widens (``qfg.solvers._model_check.widening``, after the shrinkage) and of
+``model_check=level`` widens (``qfg.solvers.sis.model_check.widening``, after the shrinkage) and of
 the prior alone; how often the check fires; the share of truths under 1%. A misfit moves one
 bearing of the middle view by 20 deg, or draws the noise at 5x the sigmas the solver is told.
 
@@ -23,7 +23,7 @@ from qfg.metrics import log_score
 from qfg.partitions import get as get_partition
 from qfg.priors import get as get_prior
 from qfg.simulation import random_triplet_history
-from qfg.solvers import _model_check as mc
+from qfg.solvers.sis import model_check as mc
 from qfg.solvers import solve_triplets
 
 

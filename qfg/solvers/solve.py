@@ -111,7 +111,7 @@ def solve_triplet(bearings, headings=None, *, method: str = "full", partition="e
     if model == "fast-paper":
         return _solve_fast_batch([meas], part, opts)[0]
     if model in _SIS:
-        return _solve_sis_batch(model, [meas], [root], part, opts)[0]
+        return solve_sis_batch(model, [meas], [root], part, opts)[0]
     return _solve(model, meas, part, opts, root)[0]
 
 
@@ -178,7 +178,11 @@ def _reference_estimate(meas, part, opts, root) -> TripletEstimate:
         options=_estimate.public_options(opts))
 
 
-def _solve_sis_batch(model, metas, roots, part, opts, hypotheses=False):
+def solve_sis_batch(model, metas, roots, part, opts, hypotheses=False):
+    """The SIS engine (method ``"full"`` or ``"fast"``, :mod:`qfg.solvers.sis`) on a batch of
+    checked measurements ``metas`` with their seed ``roots`` and resolved options ``opts``;
+    one estimate per triplet (with its hypotheses when asked). The step below
+    :func:`solve_triplets`, for experiments that drive the populations themselves."""
     # each triplet K times in the batch, once per independent population (_populations)
     K = _populations.count(opts, metas[0].n_views)
     n = len(metas)
@@ -210,7 +214,7 @@ def _solve_sis_batch(model, metas, roots, part, opts, hypotheses=False):
         # batched call and pooled with the few-views answers (_escalation)
         idx = [t for t in range(n) if _escalation.needed(out[t][0], opts)]
         if idx:
-            whole = _solve_sis_batch(model, [given[0][t] for t in idx],
+            whole = solve_sis_batch(model, [given[0][t] for t in idx],
                                      [_escalation.seed(given[1][t]) for t in idx], part,
                                      _escalation.whole_options(opts), hypotheses=True)
             for t, pair in zip(idx, whole, strict=True):
@@ -265,7 +269,7 @@ def solve_triplets(histories, headings=None, *, method: str = "full", partition=
         if model == "fast-paper":
             ests = _solve_fast_batch(ms, part, opts, hypotheses)
         else:
-            ests = _solve_sis_batch(model, ms, [_seeds.child_seed(root, t) for t in idx], part,
+            ests = solve_sis_batch(model, ms, [_seeds.child_seed(root, t) for t in idx], part,
                                     opts, hypotheses)
         for t, est in zip(idx, ests, strict=True):
             out[t] = est

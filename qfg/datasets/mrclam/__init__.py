@@ -98,7 +98,15 @@ from ._histories import (
 )
 from ._io import DataFormatError
 from ._load import data_root, find_datasets, load
-from ._noise import NoiseMeasurement, RobustStats, measure_noise, noise_table
+from ._noise import (
+    NoiseMeasurement,
+    RobustStats,
+    landmark_rows,
+    measure_noise,
+    noise_table,
+    refit_landmarks,
+    truth_bearing_residuals,
+)
 from ._odometry import dead_reckon, integrate_odometry, travelled
 
 __all__ = [
@@ -121,6 +129,9 @@ __all__ = [
     "swap_landmarks",
     "anchored_dead_reckoning",
     "bearing_residuals",
+    "truth_bearing_residuals",
+    "landmark_rows",
+    "refit_landmarks",
     "odometry_check",
     "repeated_views",
     "interpolate_poses",

@@ -149,7 +149,7 @@ def _dist(P, i, j):
     return np.hypot(*(P[j, :2] - P[i, :2]).T)
 
 
-def _landmark_rows(dataset: MRCLAMDataset, rd: RobotData):
+def landmark_rows(dataset: MRCLAMDataset, rd: RobotData):
     """(times, bearings, landmark xy, view index, landmark column) of every landmark
     observation of ``rd``."""
     v, col = np.nonzero(rd.visible)
@@ -164,7 +164,10 @@ def _minus_view_mean(r, v, n_views):
     return r - mean[v], k[v]
 
 
-def _bearing_residuals(rd, t, phi, lxy, offset):
+def truth_bearing_residuals(rd, t, phi, lxy, offset):
+    """Measured bearings ``phi`` (rad) of the landmarks at ``lxy`` (n, 2) minus those seen from
+    robot ``rd``'s motion-capture pose at times ``t + offset`` (s), wrapped to [-pi, pi); and
+    the mask of times the motion capture covers."""
     P, ok = rd.groundtruth_poses(t + offset)
     return wrap_angle(phi - bearing(P, lxy)), ok
 
@@ -194,7 +197,7 @@ def _turn_errors(rd, offset, window, step):
     return d_odo - d_gt
 
 
-def _refit_landmarks(dataset, robots, rows, offset, sigma):
+def refit_landmarks(dataset, robots, rows, offset, sigma):
     """Each landmark's position by :func:`qfg.nonlinear.intersect_rays` over every robot's rays
     (capture pose at the measurement's time + ``offset``, measured bearing); (L, 2), NaN rows
     for a landmark with fewer than 10 rays or no intersection."""
@@ -238,7 +241,7 @@ def _lag_correlations(dataset, robots, rows, offset, points):
         rd = dataset.robots[n]
         t, phi, _, v, col = rows[n]
         good = np.isfinite(points[col, 0])
-        r, ok = _bearing_residuals(rd, t, phi, np.where(good[:, None], points[col], 0.0), offset)
+        r, ok = truth_bearing_residuals(rd, t, phi, np.where(good[:, None], points[col], 0.0), offset)
         ok &= good
         t, v, col = t[ok], v[ok], col[ok]
         w, k = _minus_view_mean(r[ok], v, rd.n_views)
@@ -282,11 +285,11 @@ def measure_noise(dataset: MRCLAMDataset, *, offsets=None, window: float = 1.0,
     robots = [n for n, rd in dataset.robots.items() if rd.groundtruth is not None]
     if not robots:
         raise ValueError(f"dataset: {dataset.name} has no robot ground truth (RobotN_Groundtruth)")
-    rows = {n: _landmark_rows(dataset, dataset.robots[n]) for n in robots}
+    rows = {n: landmark_rows(dataset, dataset.robots[n]) for n in robots}
 
     def bearing_spread(off):
         res = [r[ok] for n in robots
-               for r, ok in [_bearing_residuals(dataset.robots[n], *rows[n][:3], off)]]
+               for r, ok in [truth_bearing_residuals(dataset.robots[n], *rows[n][:3], off)]]
         return _robust_spread(np.concatenate(res))
 
     m_off = float(grid[int(np.argmin([bearing_spread(x) for x in grid]))])
@@ -305,7 +308,7 @@ def measure_noise(dataset: MRCLAMDataset, *, offsets=None, window: float = 1.0,
     for n in robots:
         rd = dataset.robots[n]
         t, phi, lxy, v, _ = rows[n]
-        r, ok = _bearing_residuals(rd, t, phi, lxy, m_off)
+        r, ok = truth_bearing_residuals(rd, t, phi, lxy, m_off)
         r, v = r[ok], v[ok]
         b_all.append(r)
         per_robot.append((n, RobustStats.of(r)))
@@ -345,7 +348,7 @@ def measure_noise(dataset: MRCLAMDataset, *, offsets=None, window: float = 1.0,
     def cat(xs):
         return np.concatenate(xs) if xs else np.zeros(0)
 
-    refit = _refit_landmarks(dataset, robots, rows, m_off, RobustStats.of(cat(b_all)).sigma90)
+    refit = refit_landmarks(dataset, robots, rows, m_off, RobustStats.of(cat(b_all)).sigma90)
     return NoiseMeasurement(
         dataset=dataset.name, robots=tuple(robots), measurement_offset=m_off,
         odometry_offset=o_off, odometry_lead=o_off - m_off, bearing=RobustStats.of(cat(b_all)),

@@ -180,7 +180,7 @@ def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
         hmax = random_triplet_history(np.random.default_rng(geometry_seed + 1), kmax,
                                       np.deg2rad(sv), np.deg2rad(sw), partition=part)
         for k in sweep:
-            h = _first_views(hmax, k)
+            h = first_views(hmax, k)
             for method in task["methods"]:
                 if method == "reference" and not task.get("reference_sweep", False):
                     continue
@@ -192,7 +192,7 @@ def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
     return rows
 
 
-def _first_views(h, k):
+def first_views(h, k):
     """The history of the first k views of ``h`` (the same geometry and noise draws)."""
     from dataclasses import replace
 

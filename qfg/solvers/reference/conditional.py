@@ -190,7 +190,7 @@ def _fit_mixture(x, w, K, rng, iters=25):
     return pis, mus, chols
 
 
-def _ess(lw):
+def effective_sample_size(lw):
     lw = lw[np.isfinite(lw)]
     if lw.size == 0:
         return 0.0
@@ -252,15 +252,15 @@ def adapt_c_proposal(L, prior, rng, opts):
             def lw_at(b, l0=l0, l1=l1, lq=lq):
                 return b * l1 + (1.0 - b) * l0 - lq
 
-            if _ess(lw_at(1.0)) >= need:
+            if effective_sample_size(lw_at(1.0)) >= need:
                 beta_new = 1.0
-            elif _ess(lw_at(beta)) < need:
+            elif effective_sample_size(lw_at(beta)) < need:
                 beta_new = beta          # refit at the same temperature
             else:
                 lo, hi = beta, 1.0
                 for _ in range(25):
                     mid = 0.5 * (lo + hi)
-                    lo, hi = (mid, hi) if _ess(lw_at(mid)) >= need else (lo, mid)
+                    lo, hi = (mid, hi) if effective_sample_size(lw_at(mid)) >= need else (lo, mid)
                 beta_new = lo
             lw = lw_at(beta_new)
             w = np.exp(lw - lw.max())

@@ -152,7 +152,7 @@ def _draw_t(rng, n, mean, chol, dof):
 # the model's layout
 
 
-class _Layout:
+class Layout:
     """The sampling variables of the first ``n`` views: one block of 3 per view, ``[logit w_j,
     eps_A, eps_B]`` for an anchor view (drawn on its arc: view 1, or every view without motion)
     and ``[eps_psi_{j-1}, eps_A, eps_B]`` for a view reached along the motion ray."""
@@ -170,7 +170,7 @@ class _Layout:
         self.dim = 3 * self.n
 
     def first(self, k):
-        return _Layout(self.phi[:k], None if self.psi is None else self.psi[:k - 1],
+        return Layout(self.phi[:k], None if self.psi is None else self.psi[:k - 1],
                        self.sv, self.sw, None if self.dist is None else self.dist[:k - 1],
                        self.sd)
 
@@ -672,7 +672,7 @@ def solve_reference(bearings, headings, sigma_bearing, sigma_heading, partition=
                  DISTANCE_RATIO_FLOOR)
         if h is None or not h.size or not np.any(dist > 0):
             dist = None
-    L = _Layout(b, h if (h is not None and h.size) else None, sv, sw, dist, sd)
+    L = Layout(b, h if (h is not None and h.size) else None, sv, sw, dist, sd)
     if opts["sampler"] not in ("auto", "conditional", "staged"):
         raise ValueError(f"sampler: expected 'auto', 'conditional' or 'staged', got "
                          f"{opts['sampler']!r}")

@@ -80,10 +80,10 @@ def resect(L, C):
 
     >>> import numpy as np
     >>> from qfg.geometry import bearing
-    >>> from qfg.solvers.reference.staged import _Layout
+    >>> from qfg.solvers.reference.staged import Layout
     >>> C, P = np.array([0.7, 0.4]), np.array([-0.8, 1.9, 0.3])
     >>> phi = np.array([[bearing(P, np.zeros(2)), bearing(P, np.array([0.0, 1.0])), bearing(P, C)]])
-    >>> X, al = resect(_Layout(phi, None, 0.01, 0.01), C[None])
+    >>> X, al = resect(Layout(phi, None, 0.01, 0.01), C[None])
     >>> np.round(X[0, 0], 6).tolist(), round(float(al[0, 0]), 6)
     ([-0.8, 1.9], 0.3)
     """
