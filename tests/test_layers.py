@@ -7,6 +7,7 @@ point, which belongs to the command). It must not import the harness or matplotl
 """
 
 import ast
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -150,3 +151,17 @@ def test_the_joint_map_reads_no_dataset_and_the_loader_needs_no_solver():
     assert not [m for m in below if m.startswith("qfg.datasets")]
     assert g.has_edge("qfg.datasets.mrclam.joint_map", "qfg.joint")
     assert not nx.has_path(g, "qfg.datasets.mrclam", "qfg.joint")
+
+
+#: the longest module a file may be unless docs/modules.md names it with the one concept it holds
+MAX_MODULE_LINES = 800
+
+
+def test_no_module_is_over_800_lines_unless_docs_modules_names_it():
+    doc = (ROOT.parent / "docs" / "modules.md").read_text(encoding="utf-8")
+    section = doc.split("## Modules over 800 lines", 1)[1].split("\n## ", 1)[0]
+    named = set(re.findall(r"`(qfg/[\w/]+\.py)`", section))
+    long = {str(p.relative_to(ROOT.parent)) for p in MODULES.values()
+            if len(p.read_text(encoding="utf-8").splitlines()) > MAX_MODULE_LINES}
+    assert long <= named, f"over {MAX_MODULE_LINES} lines and not in docs/modules.md: {sorted(long - named)}"
+    assert named <= long, f"named in docs/modules.md but not over {MAX_MODULE_LINES} lines: {sorted(named - long)}"
