@@ -55,9 +55,9 @@ ESCALATE_KEY = 2_000_003
 def _solve(metas, roots, opts_json):
     """(estimate, [per-population landmark]) per triplet, batched."""
     from qfg.partitions import get as get_partition
-    from qfg.solvers.solve import solve_sis_batch
     from qfg.solvers.common import options as _options
     from qfg.solvers.sis import populations as _populations
+    from qfg.solvers.solve import solve_sis_batch
 
     part = get_partition("edc")
     opts = _options.resolve_options("full", dict(opts_json))

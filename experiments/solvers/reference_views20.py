@@ -101,8 +101,8 @@ def paired(old_path, new_path):
 
 
 def at_truth(seed, lo, hi, views):
-    from qfg.solvers.reference import conditional as R
     from qfg.solvers.common.prior import resolve_prior
+    from qfg.solvers.reference import conditional as R
     from qfg.solvers.reference.staged import Layout
 
     prior = resolve_prior("world")

@@ -23,8 +23,8 @@ from qfg.metrics import log_score
 from qfg.partitions import get as get_partition
 from qfg.priors import get as get_prior
 from qfg.simulation import random_triplet_history
-from qfg.solvers.sis import model_check as mc
 from qfg.solvers import solve_triplets
+from qfg.solvers.sis import model_check as mc
 
 
 def _scores(P, g, q_c):
