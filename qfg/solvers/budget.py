@@ -24,7 +24,7 @@ from __future__ import annotations
 MEMORY_BUDGET = 2 * 2**30
 
 #: Most views the reference solver takes. Its conditional sampler (beyond 5 views) evaluates the
-#: world-box prior on every point seen so far at each filter step (since issue 20's item 2), so
+#: world-box prior on every point seen so far at each filter step, so
 #: its cost per round grows about quadratically with the views: 27.1 s median per triplet at 30
 #: views on 2 development histories (load 3.0), ESS 272 and 532 (``python -m
 #: benchmarks.bench_reference --views-dev 30 --triplets 2 --samplers conditional``,

@@ -74,7 +74,7 @@ DEFAULTS = {
         # triplets whose populations disagree (mc_error above few_views_escalate) solved again
         # with the whole budget and pooled (sis.escalation). About 1.0 workload per 3-view triplet
         # instead of 1.6-1.8, as close to the reference as the whole budget, paired on 400
-        # development geometries x 6 seeds (docs/solvers.md, "Issue 20, item 2 (time)"). A call
+        # development geometries x 6 seeds (docs/results/solvers_options.md, "The few-views package"). A call
         # that sets a budget option or a population count itself gets exactly that budget
         # (the package steps aside: FEW_VIEWS_OFF).
         "few_views_populations": 2,

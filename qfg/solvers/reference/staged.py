@@ -93,7 +93,7 @@ REFERENCE_DEFAULTS = {
     "inflate": 1.1,               # scale factor on the fitted standard deviations
     "bearing_floor": np.deg2rad(0.05),   # sigmas used are max(sigma, floor): zero noise works
     "heading_floor": np.deg2rad(0.05),
-    "min_ess": 50.0,              # below this the answer is flagged (issue 20)
+    "min_ess": 50.0,              # below this the answer is flagged
     "laplace": True,              # refine poorly sampled components by Newton (Laplace; the
                                   # four heaviest clusters, split where the curvature says two modes)
     # the sampler: "conditional" (C drawn from a fitted 2-D mixture, the trajectory given C by a

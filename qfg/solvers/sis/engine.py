@@ -30,8 +30,8 @@ from .resampling import draw_offsets, kept, plan_resampling, segment_max, system
 from .state import SISState, merge, streams, subset, take, trajectories
 from .target import view_patterns
 
-#: Views up to which the option ``few_views_budget`` replaces the budget (docs/solvers.md,
-#: "Issue 20, item 2 (time)").
+#: Views up to which the option ``few_views_budget`` replaces the budget
+#: (docs/results/solvers_options.md, "The few-views package").
 FEW_VIEWS = 3
 
 

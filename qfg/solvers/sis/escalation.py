@@ -8,7 +8,8 @@ Why: a sequential importance sampler with a small budget mostly errs by weightin
 multimodal posterior wrongly, and its own effective sample size cannot see that (it is computed
 inside the modes it found); two independent populations can, because they weight the modes
 differently. Measured on 400 development geometries x 6 solver seeds at 3 views
-(docs/solvers.md, "Issue 20, item 2 (time)", ``benchmarks/few_views_escalation.py``): the
+(docs/results/solvers_options.md, "The few-views package",
+``experiments/solvers/few_views_escalation.py``): the
 single run's ESS, entropy or ``mc_error`` do not find the triplets where the small budget is
 worse than the whole one, the populations' disagreement does; and on those triplets the whole
 budget alone is about as wrong as the small one, so its answer is pooled with the small one
