@@ -30,11 +30,13 @@ from ...joint import (
     JointMeasurements,
     JointPosterior,
     RobotRun,
+    SolveParams,
     camera_marginals,
     odometry_steps,
     solve,
     triplet_marginals,
 )
+from ...joint.params import _removed_options
 from ...joint.start import _apply, similarity
 from ._constants import DEFAULT_ODOMETRY_LEAD, DEFAULT_SIGMA_BEARING
 from ._data import repeated_views
@@ -192,19 +194,25 @@ class MRCLAMJoint:
 def mrclam_marginals(dataset, triplets=None, histories=None, *, robots=None, prior_states=None,
                      camera_prior_states=None, samples: int = 2000, camera_samples: int = 300,
                      seed=0, partition="edc", floor: float = FLOOR, widen: float = 0.5,
-                     run_options=None, progress=None, **solve_options) -> MRCLAMJoint:
+                     run_options=None, params: SolveParams | None = None, progress=None,
+                     **removed) -> MRCLAMJoint:
     """The joint method on one MRCLAM dataset: triplet state distributions (every ordered
     triplet of the dataset's landmarks, or ``triplets`` of subject numbers) and, for each
     history in ``histories`` (objects with ``robot``, ``views`` (time stamps) and ``landmarks``,
     e.g. :class:`qfg.datasets.mrclam.MRCLAMHistory`), the camera state of each of its views.
 
     ``prior_states`` / ``camera_prior_states``: the state distributions of the prior alone (for
-    the floor and for what cannot be solved); ``run_options`` go to :func:`mrclam_runs`, the
-    rest to :func:`qfg.joint.solve` (``progress``: a callable told each phase, as there).
+    the floor and for what cannot be solved); ``run_options`` go to :func:`mrclam_runs`;
+    ``params`` (a :class:`qfg.joint.SolveParams`, None: its defaults), ``seed`` and
+    ``progress`` (a callable told each phase) to :func:`qfg.joint.solve`. A solve option
+    passed as a keyword of its own (the form before :class:`qfg.joint.SolveParams`) is a
+    ``TypeError`` naming it.
     When nothing can be solved (e.g. one robot without odometry: its fit
     cannot be checked against another's), ``method`` is ``"none"`` and every row is the prior:
     answer with the solver pipeline instead (``qfg mrclam --method full``).
     """
+    if removed:
+        raise _removed_options("mrclam_marginals", removed)
     t0 = _time.perf_counter()
     keep = None
     if histories:
@@ -212,7 +220,7 @@ def mrclam_marginals(dataset, triplets=None, histories=None, *, robots=None, pri
         for h in histories:
             keep.setdefault(int(h.robot), set()).update(float(t) for t in np.asarray(h.views))
     meas = mrclam_runs(dataset, robots, keep_times=keep, **(run_options or {}))
-    post = solve(meas, seed=seed, progress=progress, **solve_options)
+    post = solve(meas, params, seed=seed, progress=progress)
     if progress is not None:
         progress("joint: the states of " + ("every ordered triplet" if triplets is None else
                                              f"{len(triplets)} ordered triplet"
