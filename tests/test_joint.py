@@ -369,7 +369,11 @@ def test_a_lone_run_without_odometry_is_unverified_and_skip_leaves_it_out():
     assert post.method == "none" and "unverified" in post.flags
     assert post.robot_flags[0] == "unverified"
     res = joint.triplet_marginals(post, samples=100)
-    assert res.method == "joint:none" and np.allclose(res.probabilities, 1 / 20)
+    assert res.method == "joint" and np.allclose(res.probabilities, 1 / 20)
+    assert res.info["flagged"].all()
+    cam = joint.camera_marginals(post, 0, [0, 1], [(0, 1, 2), (1, 2, 3)])
+    assert isinstance(cam, Marginals) and cam.method == "joint" and cam.info["robot"] == 0
+    assert np.allclose(cam.probabilities, 1 / 20) and np.allclose(cam[(1, 2, 3)], 1 / 20)
     skip = joint.SolveParams(without_odometry="skip")
     post = joint.solve(joint.simulated_measurements(run, odometry=False), skip)
     assert post.method == "none" and post.robot_flags[0] == "no_odometry"
@@ -440,7 +444,11 @@ def test_camera_states_of_a_known_configuration():
                sigma_step=0.001, sigma_turn=np.deg2rad(0.05))
     post = joint.solve(joint.simulated_measurements(run))
     tri = [(0, 1, 2)] * run.n_poses
-    P = joint.camera_marginals(post, 0, np.arange(run.n_poses), tri, samples=200, seed=0)
+    res = joint.camera_marginals(post, 0, np.arange(run.n_poses), tri, samples=200, seed=0)
+    assert (res.method, res.partition, res.info["robot"]) == ("joint", "edc", 0)
+    assert res.triplets == tuple(tri) and np.array_equal(res.info["pose_index"],
+                                                         np.arange(run.n_poses))
+    P = res.probabilities
     A, B = run.landmarks[0], run.landmarks[1]
     g = EDC.state_of(joint_states._safe_frame(run.poses[:, :2], A, B))
     assert np.mean(P.argmax(1) == g) >= 0.9
@@ -508,7 +516,7 @@ def test_mrclam_dataset_without_odometry_skipped_says_the_pipeline_must_answer()
                            params=joint.SolveParams(without_odometry="skip"))
     assert res.method == "none" and "no_odometry" in res.posterior.flags
     assert set(res.posterior.robot_flags.values()) == {"no_odometry"}
-    assert res.triplets.method == "joint:none" and np.allclose(res.triplets[(6, 7, 8)], q)
+    assert res.triplets.method == "joint" and np.allclose(res.triplets[(6, 7, 8)], q)
 
 
 @pytest.mark.skipif(_mrclam_dir() is None or not (_mrclam_dir().parent / "MRCLAM_Dataset5").is_dir(),

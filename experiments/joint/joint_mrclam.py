@@ -109,7 +109,7 @@ def run(path, *, seed=0, samples=2000, cameras=True, run_options=None, params=No
             ok = np.asarray(h.truth.camera_states) >= 0
             if h.groundtruth_valid is not None:
                 ok &= np.asarray(h.groundtruth_valid, bool)
-            Pc.append(C[ok])
+            Pc.append(C.probabilities[ok])
             gc.append(np.asarray(h.truth.camera_states)[ok])
         Pc, gc = np.concatenate(Pc), np.concatenate(gc).astype(int)
         row = {"dataset": ds.name, "kind": "camera", "method": res.method, **score(Pc, gc),

@@ -8,7 +8,7 @@ between consecutive poses with its per-step noise. Output: a :class:`JointPoster
 landmark positions (and the poses), and from samples of it the state distribution of every
 ordered landmark triplet (:func:`triplet_marginals`, a labelled
 :class:`qfg.inference.results.Marginals` keyed by landmark ids) and of the cameras
-(:func:`camera_marginals`). The options of the solve are one frozen
+(:func:`camera_marginals`, labelled the same way). The options of the solve are one frozen
 :class:`SolveParams` (``solve(measurements, SolveParams(starts=1), seed=0)``).
 
 The method (docs/joint.md has the math and the measurements behind each default):

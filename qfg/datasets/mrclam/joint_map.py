@@ -25,6 +25,7 @@ import numpy as np
 from ... import partitions as _partitions
 from ..._validate import as_rng, non_negative
 from ...geometry import wrap_angle
+from ...inference.results import Marginals
 from ...joint import (
     FLOOR,
     JointMeasurements,
@@ -176,8 +177,11 @@ class MRCLAMJoint:
 
     Attributes:
         triplets: :class:`~qfg.inference.results.Marginals` keyed by subject-number triplets.
-        cameras: list of (n_views, m) arrays, one per requested history (or None when none
-            were requested).
+        cameras: list of :class:`~qfg.inference.results.Marginals` (n_views, m), one per
+            requested history, keyed by the history's triplet of subject numbers, method
+            ``"joint"``, ``info["robot"]`` and ``info["pose_index"]`` (the keyframe of each
+            view; None for a robot the map was not given) (or None when no history was
+            requested).
         method: which method answered (``"joint"``, or ``"none"``: nothing could be solved,
             e.g. a lone robot without odometry (``posterior.flags`` say why); the solver-based
             pipeline must answer).
@@ -239,10 +243,13 @@ def mrclam_marginals(dataset, triplets=None, histories=None, *, robots=None, pri
             except KeyError:
                 run = None
             m = _partitions.get(partition).n_states
+            part_name = _partitions.get(partition).name
             if run is None:
                 q = (np.full(m, 1 / m) if camera_prior_states is None
                      else np.asarray(camera_prior_states, float))
-                cams.append(np.tile(q, (len(h.views), 1)))
+                cams.append(Marginals((tuple(h.landmarks),) * len(h.views), part_name,
+                                      np.tile(q, (len(h.views), 1)), "joint",
+                                      {"robot": rn, "pose_index": None}))
                 continue
             pi = np.searchsorted(run.times, np.asarray(h.views, float))
             pi = np.clip(pi, 0, run.n_poses - 1)
