@@ -5,6 +5,7 @@ posterior (numpy, not GTSAM's linearisation), geometry (ray intersections, noise
 configurations), GTSAM's own graph error against the numpy cost, and data corrupted on purpose.
 """
 
+import dataclasses
 import os
 from pathlib import Path
 
@@ -53,7 +54,7 @@ def test_intersect_rays_is_the_exact_intersection_and_measures_parallax():
 def test_robust_cost_equals_gtsams_graph_error():
     run = _run(1)
     meas = joint.simulated_measurements(run)
-    post = joint.solve(meas, starts=1)
+    post = joint.solve(meas, joint.SolveParams(starts=1))
     pr, fit = post._problem, post._fit
     rng = np.random.default_rng(2)
     for scale in (0.0, 0.01, 0.05):
@@ -161,12 +162,48 @@ def test_a_landmark_the_data_put_on_a_pose_loses_that_bearing():
     assert np.array_equal(pr2.bearing, pr.bearing[gone])
     assert nl.Laplace(pr2, f2).method == "gtsam"
     with pytest.raises(ValueError, match="too_close"):
-        joint.solve(joint.simulated_measurements(_run(1)), too_close=1.5)
+        joint.SolveParams(too_close=1.5)
+
+
+def test_solve_params_hold_every_option_checked_once():
+    p = joint.SolveParams()
+    assert (p.chunk, p.min_rays, p.min_parallax_deg, p.starts, p.robust, p.outlier) == (
+        100, 3, 10.0, 3, nl.HUBER_K, joint.OUTLIER)
+    assert (p.inflate_kinematic, p.agree, p.too_close) == (
+        joint.KINEMATIC_INFLATE, joint_start.AGREE, joint_start.TOO_CLOSE)
+    assert p.kinematic is joint_start.KINEMATIC and p.kinematic_chunks == (25, 50, 100)
+    assert joint.SolveParams(kinematic_chunks=np.array([10, 20])).kinematic_chunks == (10, 20)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        p.starts = 1
+    assert dataclasses.replace(p, starts=1).starts == 1
+    for name, bad in [("chunk", 1), ("min_rays", 1.5), ("min_parallax_deg", -1), ("starts", 0),
+                      ("robust", np.nan), ("outlier", -1), ("residual_limit", "x"),
+                      ("landmark_limit", -1), ("mode_cost", -1), ("inflate", -1),
+                      ("inflate_kinematic", "twice"), ("sir_rays", -1), ("max_iterations", 0),
+                      ("without_odometry", "ignore"), ("kinematic", {"speed": 1}),
+                      ("kinematic_chunks", (1,)), ("agree", -1), ("too_close", 1.0)]:
+        with pytest.raises(ValueError, match=f"^{name}: "):
+            joint.SolveParams(**{name: bad})
+        with pytest.raises(ValueError, match=f"^{name}: "):
+            dataclasses.replace(p, **{name: bad})
+
+
+def test_an_option_passed_as_its_own_keyword_names_solve_params():
+    meas = joint.simulated_measurements(_run(1))
+    with pytest.raises(TypeError, match=r"starts.*SolveParams\(starts=\.\.\.\).*CHANGELOG"):
+        joint.solve(meas, starts=1)
+    with pytest.raises(TypeError, match="unexpected keyword argument 'stars'"):
+        joint.solve(meas, stars=1)
+    with pytest.raises(ValueError, match="params"):
+        joint.solve(meas, {"starts": 1})
+    with pytest.raises(TypeError, match="mrclam_marginals.*SolveParams"):
+        mrclam_marginals(None, without_odometry="skip")
 
 
 def test_a_long_solve_tells_its_phases():
     said = []
-    post = joint.solve(joint.simulated_measurements(_run(1)), starts=1, progress=said.append)
+    post = joint.solve(joint.simulated_measurements(_run(1)), joint.SolveParams(starts=1),
+                       progress=said.append)
     assert post.method == "joint" and said[0].startswith("joint: robot 0 (1 of 1)")
     assert any("the joint solve of robot 0" in m for m in said)
     assert any("covariance" in m for m in said)
@@ -253,7 +290,7 @@ def test_joint_matches_long_run_sampling_of_the_exact_posterior():
 
     ref = states(joint.reference_samples(post, n, steps=800, seed=1))
     sir = states(joint.sample_landmarks(post, n, seed=2))
-    gauss = states(joint.sample_landmarks(joint.solve(meas, sir_rays=0), n, seed=2))
+    gauss = states(joint.sample_landmarks(joint.solve(meas, joint.SolveParams(sir_rays=0)), n, seed=2))
     # the posterior is far from Gaussian here (8 views): the conditional resampling of the weak
     # landmarks is much closer to the exact posterior than one Laplace approximation
     assert tv(sir, ref) < 0.25 and tv(sir, ref) < tv(gauss, ref) - 0.1, (tv(sir, ref),
@@ -332,14 +369,18 @@ def test_a_lone_run_without_odometry_is_unverified_and_skip_leaves_it_out():
     assert post.method == "none" and "unverified" in post.flags
     assert post.robot_flags[0] == "unverified"
     res = joint.triplet_marginals(post, samples=100)
-    assert res.method == "joint:none" and np.allclose(res.probabilities, 1 / 20)
-    post = joint.solve(joint.simulated_measurements(run, odometry=False),
-                       without_odometry="skip")
+    assert res.method == "joint" and np.allclose(res.probabilities, 1 / 20)
+    assert res.info["flagged"].all()
+    cam = joint.camera_marginals(post, 0, [0, 1], [(0, 1, 2), (1, 2, 3)])
+    assert isinstance(cam, Marginals) and cam.method == "joint" and cam.info["robot"] == 0
+    assert np.allclose(cam.probabilities, 1 / 20) and np.allclose(cam[(1, 2, 3)], 1 / 20)
+    skip = joint.SolveParams(without_odometry="skip")
+    post = joint.solve(joint.simulated_measurements(run, odometry=False), skip)
     assert post.method == "none" and post.robot_flags[0] == "no_odometry"
     # with another robot that has odometry, skip leaves the one without out, flagged
     m1 = joint.simulated_measurements(run, odometry=False, robot=1).runs[0]
     m0 = joint.simulated_measurements(run).runs[0]
-    post = joint.solve(joint.JointMeasurements((m0, m1)), without_odometry="skip")
+    post = joint.solve(joint.JointMeasurements((m0, m1)), skip)
     assert post.method == "joint" and post.robot_flags == {0: "ok", 1: "no_odometry"}
 
 
@@ -403,7 +444,11 @@ def test_camera_states_of_a_known_configuration():
                sigma_step=0.001, sigma_turn=np.deg2rad(0.05))
     post = joint.solve(joint.simulated_measurements(run))
     tri = [(0, 1, 2)] * run.n_poses
-    P = joint.camera_marginals(post, 0, np.arange(run.n_poses), tri, samples=200, seed=0)
+    res = joint.camera_marginals(post, 0, np.arange(run.n_poses), tri, samples=200, seed=0)
+    assert (res.method, res.partition, res.info["robot"]) == ("joint", "edc", 0)
+    assert res.triplets == tuple(tri) and np.array_equal(res.info["pose_index"],
+                                                         np.arange(run.n_poses))
+    P = res.probabilities
     A, B = run.landmarks[0], run.landmarks[1]
     g = EDC.state_of(joint_states._safe_frame(run.poses[:, :2], A, B))
     assert np.mean(P.argmax(1) == g) >= 0.9
@@ -468,10 +513,10 @@ def test_mrclam_dataset_without_odometry_skipped_says_the_pipeline_must_answer()
     ds = mrclam.load(_mrclam_dir().parent / "MRCLAM_Dataset5")
     q = np.full(20, 0.05)
     res = mrclam_marginals(ds, [(6, 7, 8)], prior_states=q, samples=50,
-                                 without_odometry="skip")
+                           params=joint.SolveParams(without_odometry="skip"))
     assert res.method == "none" and "no_odometry" in res.posterior.flags
     assert set(res.posterior.robot_flags.values()) == {"no_odometry"}
-    assert res.triplets.method == "joint:none" and np.allclose(res.triplets[(6, 7, 8)], q)
+    assert res.triplets.method == "joint" and np.allclose(res.triplets[(6, 7, 8)], q)
 
 
 @pytest.mark.skipif(_mrclam_dir() is None or not (_mrclam_dir().parent / "MRCLAM_Dataset5").is_dir(),

@@ -155,8 +155,8 @@ def _truth_score(post, L):
 
 def test_robots_without_odometry_make_a_map_with_the_kinematic_prior():
     meas, L = _world(0, 2)
-    post = joint.solve(joint.JointMeasurements(tuple(meas), tuple(range(6))), kinematic=SIM,
-                       kinematic_chunks=(10, 20, 40))
+    post = joint.solve(joint.JointMeasurements(tuple(meas), tuple(range(6))),
+                       joint.SolveParams(kinematic=SIM, kinematic_chunks=(10, 20, 40)))
     assert post.method == "joint" and "kinematic_prior" in post.flags
     assert post.robot_flags == {0: "kinematic", 1: "kinematic"}
     assert set(post.info["kinematic_starts"]) == {0, 1}
@@ -173,15 +173,16 @@ def test_a_robot_whose_map_disagrees_is_left_out_unverified():
     lm[r.bearing_landmark == 0], lm[r.bearing_landmark == 3] = 3, 0
     lm[r.bearing_landmark == 1], lm[r.bearing_landmark == 4] = 4, 1
     meas[2] = dataclasses.replace(r, bearing_landmark=lm)
-    post = joint.solve(joint.JointMeasurements(tuple(meas), tuple(range(6))), kinematic=SIM,
-                       kinematic_chunks=(10, 20, 40))
+    post = joint.solve(joint.JointMeasurements(tuple(meas), tuple(range(6))),
+                       joint.SolveParams(kinematic=SIM, kinematic_chunks=(10, 20, 40)))
     assert post.robot_flags == {0: "kinematic", 1: "kinematic", 2: "unverified"}
     assert "unverified" in post.flags and post.method == "joint"
     assert _truth_score(post, L).mean() > -0.2
     # without the check the robot enters the joint solve, whose residual check drops it here
     # (a wrong minimum of the whole run does not always show in the residuals: docs/joint.md)
-    loose = joint.solve(joint.JointMeasurements(tuple(meas), tuple(range(6))), kinematic=SIM,
-                        kinematic_chunks=(10, 20, 40), agree=None)
+    loose = joint.solve(joint.JointMeasurements(tuple(meas), tuple(range(6))),
+                        joint.SolveParams(kinematic=SIM, kinematic_chunks=(10, 20, 40),
+                                          agree=None))
     assert loose.robot_flags[2] == "local_minimum"
 
 
@@ -189,8 +190,8 @@ def test_the_kinematic_covariance_factor_scales_only_maps_with_a_run_without_odo
     meas, _ = _world(0, 2)
     m = joint.JointMeasurements(tuple(meas), tuple(range(6)))
     kw = dict(kinematic=SIM, kinematic_chunks=(20,))
-    one = joint.solve(m, inflate_kinematic=1.0, **kw)
-    four = joint.solve(m, inflate_kinematic=4.0, **kw)
+    one = joint.solve(m, joint.SolveParams(inflate_kinematic=1.0, **kw))
+    four = joint.solve(m, joint.SolveParams(inflate_kinematic=4.0, **kw))
     # the same fit (deterministic), its covariance times the factor
     np.testing.assert_array_equal(one.points, four.points)
     np.testing.assert_allclose(four.modes[0].covariance, 4.0 * one.modes[0].covariance,
@@ -200,7 +201,7 @@ def test_the_kinematic_covariance_factor_scales_only_maps_with_a_run_without_odo
     rng = np.random.default_rng(3)
     run = random_trajectory_run(rng, n_landmarks=5, n_poses=30, fov_deg=360)
     odo = joint.simulated_measurements(run)
-    a, b = joint.solve(odo, seed=0), joint.solve(odo, seed=0, inflate_kinematic=4.0)
+    a, b = joint.solve(odo, seed=0), joint.solve(odo, joint.SolveParams(inflate_kinematic=4.0), seed=0)
     np.testing.assert_array_equal(a.modes[0].covariance, b.modes[0].covariance)
     assert b.info["covariance_scale"] == 1.0
 
@@ -323,8 +324,8 @@ def test_auto_inflation_widens_by_the_measured_overdispersion():
     meas, _ = _world(0, 2)
     m = joint.JointMeasurements(tuple(meas), tuple(range(6)))
     kw = dict(kinematic=SIM, kinematic_chunks=(20,))
-    one = joint.solve(m, inflate_kinematic=1.0, **kw)
-    auto = joint.solve(m, inflate_kinematic="auto", **kw)
+    one = joint.solve(m, joint.SolveParams(inflate_kinematic=1.0, **kw))
+    auto = joint.solve(m, joint.SolveParams(inflate_kinematic="auto", **kw))
     kappa = auto.info["overdispersion"]
     assert kappa == joint.overdispersion(one, [0, 1], seed=0)
     assert auto.info["covariance_scale"] == max(1.0, kappa)
@@ -332,20 +333,19 @@ def test_auto_inflation_widens_by_the_measured_overdispersion():
                                max(1.0, kappa) * one.modes[0].covariance, rtol=1e-12)
     assert ("overdispersed" in auto.flags) == (kappa > joint.OVERDISPERSED)
     with pytest.raises(ValueError, match="inflate_kinematic"):
-        joint.solve(m, inflate_kinematic="twice", **kw)
+        joint.SolveParams(inflate_kinematic="twice", **kw)
 
 
 def test_bad_options_are_refused_by_name():
     meas, _ = _world(2, 1, n_poses=10)
-    m = joint.JointMeasurements(tuple(meas), tuple(range(6)))
     with pytest.raises(ValueError, match="without_odometry"):
-        joint.solve(m, without_odometry="ignore")
+        joint.SolveParams(without_odometry="ignore")
     with pytest.raises(ValueError, match="kinematic"):
-        joint.solve(m, kinematic={"speed": 1})
+        joint.SolveParams(kinematic={"speed": 1})
     with pytest.raises(ValueError, match="inflate_kinematic"):
-        joint.solve(m, inflate_kinematic=-1.0)
+        joint.SolveParams(inflate_kinematic=-1.0)
     with pytest.raises(ValueError, match="kinematic_chunks"):
-        joint.solve(m, kinematic_chunks=(1,))
+        joint.SolveParams(kinematic_chunks=(1,))
     with pytest.raises(ValueError, match="sigma_turn"):
         joint_start.KinematicPrior(sigma_turn=-1)
     with pytest.raises(ValueError, match="c_xy"):

@@ -36,6 +36,7 @@ from qfg.combine import prior_state_distribution
 from qfg.datasets.mrclam.joint_map import mrclam_marginals, mrclam_runs
 from qfg.graph import truth_states
 from qfg.harness.studies import mrclam as study
+from qfg.joint import SolveParams
 from qfg.partitions import get as get_partition
 
 
@@ -70,7 +71,7 @@ def pipeline(path, seed=0):
     return out
 
 
-def run(path, *, seed=0, samples=2000, cameras=True, **options):
+def run(path, *, seed=0, samples=2000, cameras=True, run_options=None, params=None):
     part = get_partition("edc")
     ds, swaps = study.prepare(path)
     pr = study.make_prior(ds, "arena")
@@ -89,7 +90,7 @@ def run(path, *, seed=0, samples=2000, cameras=True, **options):
     t0 = time.perf_counter()
     c0 = time.process_time()
     res = mrclam_marginals(ds, keys, cam_h, prior_states=q_c, camera_prior_states=q_x,
-                           samples=samples, seed=seed, **options)
+                           samples=samples, seed=seed, run_options=run_options, params=params)
     wall = time.perf_counter() - t0
     cpu = time.process_time() - c0
     P = np.array([res.triplets[k] for k in keys])
@@ -108,7 +109,7 @@ def run(path, *, seed=0, samples=2000, cameras=True, **options):
             ok = np.asarray(h.truth.camera_states) >= 0
             if h.groundtruth_valid is not None:
                 ok &= np.asarray(h.groundtruth_valid, bool)
-            Pc.append(C[ok])
+            Pc.append(C.probabilities[ok])
             gc.append(np.asarray(h.truth.camera_states)[ok])
         Pc, gc = np.concatenate(Pc), np.concatenate(gc).astype(int)
         row = {"dataset": ds.name, "kind": "camera", "method": res.method, **score(Pc, gc),
@@ -277,7 +278,7 @@ def main(argv=None):
         return
     if a.per_pass and not a.sweep:
         return main_curve(a)
-    opts = {}
+    opts = {}   # the solve's options given on the command line (qfg.joint.SolveParams)
     if a.inflate is not None:
         opts["inflate"] = a.inflate
     if a.starts is not None:
@@ -295,7 +296,8 @@ def main(argv=None):
           "truth < 1% | ECE | flagged | wall (s) | CPU (s) | flags |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for d in study.dataset_dirs(a.data, a.datasets):
-        got = run(d, seed=a.seed, samples=a.samples, cameras=not a.no_cameras, **opts)
+        got = run(d, seed=a.seed, samples=a.samples, cameras=not a.no_cameras,
+                  params=SolveParams(**opts))
         if got[0]["method"] == "none" and not a.no_fallback:
             got += pipeline(d, seed=a.seed)
         for r in got:

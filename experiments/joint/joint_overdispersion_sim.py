@@ -42,8 +42,9 @@ def world(seed: int, odometry: bool) -> list:
                   for _ in range(2)]
     meas = tuple(joint.simulated_measurements(r, odometry=odometry, robot=k).runs[0]
                  for k, r in enumerate(runs))
-    post = joint.solve(joint.JointMeasurements(meas, tuple(range(6))), kinematic=SIM,
-                       kinematic_chunks=(20, 40), inflate_kinematic=1.0)
+    post = joint.solve(joint.JointMeasurements(meas, tuple(range(6))),
+                       joint.SolveParams(kinematic=SIM, kinematic_chunks=(20, 40),
+                                         inflate_kinematic=1.0))
     if post.method == "none":
         return [seed, 0, float("nan")] + [float("nan")] * 4
     kept = [r for r, f in post.robot_flags.items() if f in ("ok", "kinematic")]

@@ -45,7 +45,7 @@ def main(argv=None):
         run = random_trajectory_run(np.random.default_rng(seed), n_landmarks=a.landmarks,
                                     n_poses=a.poses, fov_deg=360)
         meas = joint.simulated_measurements(run)
-        pg = joint.solve(meas, sir_rays=0)
+        pg = joint.solve(meas, joint.SolveParams(sir_rays=0))
         ps = joint.solve(meas)
         ok = pg.constrained
         tri = np.array([t for t in itertools.permutations(range(len(ok)), 3) if ok[list(t)].all()])

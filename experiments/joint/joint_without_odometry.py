@@ -113,7 +113,8 @@ def joint_map(d: int, samples: int = 2000, save=None, factors=(1.0, 2.0, 4.0, 8.
     t0 = time.perf_counter()
     meas = mrclam_runs(ds, min_move=0.0, min_turn_deg=0.0)
     runs = tuple(dataclasses.replace(r, odometry=None, odometry_sigma=None) for r in meas.runs)
-    post = J.solve(J.JointMeasurements(runs, meas.landmark_ids), seed=0, inflate_kinematic=1.0)
+    post = J.solve(J.JointMeasurements(runs, meas.landmark_ids),
+                   J.SolveParams(inflate_kinematic=1.0), seed=0)
     wall = time.perf_counter() - t0
     q = prior_states(make_prior(ds, "arena"))
     ids = list(ds.landmark_ids)

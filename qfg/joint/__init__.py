@@ -8,7 +8,8 @@ between consecutive poses with its per-step noise. Output: a :class:`JointPoster
 landmark positions (and the poses), and from samples of it the state distribution of every
 ordered landmark triplet (:func:`triplet_marginals`, a labelled
 :class:`qfg.inference.results.Marginals` keyed by landmark ids) and of the cameras
-(:func:`camera_marginals`).
+(:func:`camera_marginals`, labelled the same way). The options of the solve are one frozen
+:class:`SolveParams` (``solve(measurements, SolveParams(starts=1), seed=0)``).
 
 The method (docs/joint.md has the math and the measurements behind each default):
 
@@ -48,10 +49,11 @@ solver-based pipeline must answer (on MRCLAM,
 
 Modules, in the order data flows through them: ``inputs`` (:class:`RobotRun`,
 :class:`JointMeasurements`, :func:`odometry_steps`, :func:`simulated_measurements`),
-``start`` (where each robot's solve starts, with odometry and without), ``solver``
-(:func:`solve`), ``posterior`` (:class:`JointPosterior`, :class:`Mode`), ``sampling``
-(:func:`sample_landmarks`, :func:`reference_samples`), ``states`` (:func:`triplet_marginals`,
-:func:`camera_marginals`), ``moments`` (gauge-free moments and calibration checks:
+``params`` (:class:`SolveParams`, the solve's options), ``start`` (where each robot's solve
+starts, with odometry and without), ``solver`` (:func:`solve`), ``posterior``
+(:class:`JointPosterior`, :class:`Mode`), ``sampling`` (:func:`sample_landmarks`,
+:func:`reference_samples`), ``states`` (:func:`triplet_marginals`, :func:`camera_marginals`),
+``moments`` (gauge-free moments and calibration checks:
 :func:`ab_frame_moments`, :func:`ab_frame_z2`, :func:`landmark_moments`,
 :func:`aligned_errors`, :func:`overdispersion`, :func:`scale_covariance`). The MRCLAM adapter
 (its runs as :class:`JointMeasurements`, the joint map as its reference) is
@@ -78,12 +80,13 @@ from .moments import (
     overdispersion,
     scale_covariance,
 )
+from .params import SolveParams
 from .posterior import JointPosterior, Mode
 from .sampling import reference_samples, sample_landmarks
 from .solver import KINEMATIC_INFLATE, OUTLIER, OUTLIER_SHARE, OVERDISPERSED, solve
 from .states import FLOOR, camera_marginals, triplet_marginals
 
-__all__ = ["RobotRun", "JointMeasurements", "Mode", "JointPosterior", "solve",
+__all__ = ["RobotRun", "JointMeasurements", "Mode", "JointPosterior", "SolveParams", "solve",
            "sample_landmarks", "triplet_marginals", "camera_marginals", "odometry_steps",
            "simulated_measurements",
            "reference_samples", "ab_frame_moments", "ab_frame_z2", "landmark_moments",

@@ -17,31 +17,21 @@ import time as _time
 import numpy as np
 
 from .. import nonlinear as _nl
-from .._validate import as_rng, non_negative, positive_int
+from .._validate import as_rng
 from . import start as _start
 from ._laplace import _marginals, _points_cov, _weak_info
 from .inputs import JointMeasurements
 from .moments import overdispersion, scale_covariance
+from .params import KINEMATIC_INFLATE, OUTLIER, SolveParams, _removed_options
 from .posterior import JointPosterior, Mode
 from .start import _apply
 
 __all__ = ["solve", "OUTLIER", "OUTLIER_SHARE", "KINEMATIC_INFLATE", "OVERDISPERSED"]
 
-#: Bearings beyond this many sigmas at a fit are gross errors (misread barcodes and the like):
-#: the Huber kernel bounds their pull but does not remove it, so they are left out and the fit
-#: redone (docs/joint.md, "Outlier rejection").
-OUTLIER = 4.0
 #: A run with more than this share of its bearings beyond :data:`OUTLIER` disagrees with the
 #: map: gross errors are rare in the data (docs/mrclam.md), so a run with many of them sits in
 #: a wrong minimum rather than being unlucky in its bearings.
 OUTLIER_SHARE = 0.1
-#: Factor on the covariance of a map that holds a run solved with the kinematic prior (no
-#: odometry), or ``"auto"``: the robots' own maps' scatter about the joint map
-#: (:func:`overdispersion`) when above 1. The kinematic prior is a guess at the motion, and
-#: the Laplace approximation of such a map is more certain of its relative landmark positions
-#: than their errors warrant; the robots' own maps measure how much more without ground truth
-#: (docs/joint.md, "Without odometry").
-KINEMATIC_INFLATE = "auto"
 #: A map whose robots' own maps scatter about it by more than this factor (in variance) over
 #: what its covariance allows is flagged ``overdispersed`` (:func:`overdispersion`).
 OVERDISPERSED = 2.0
@@ -67,90 +57,47 @@ def _failed(check, residual_limit, outlier) -> bool:
 
 
 
-def solve(measurements: JointMeasurements, *, chunk: int = 100, min_rays: int = 3,
-          min_parallax_deg: float = 10.0, starts: int = 3, robust: float = _nl.HUBER_K,
-          residual_limit: float = 2.0, landmark_limit: float = 3.0, mode_cost: float = 10.0,
-          inflate: float = 1.0, sir_rays: int = 20, max_iterations: int = 100,
-          outlier: float = OUTLIER, without_odometry: str = "kinematic",
-          inflate_kinematic: float | str = KINEMATIC_INFLATE,
-          kinematic: _start.KinematicPrior = _start.KINEMATIC,
-          kinematic_chunks=(25, 50, 100), agree: float | None = _start.AGREE,
-          too_close: float = _start.TOO_CLOSE, seed=0, progress=None) -> JointPosterior:
+def solve(measurements: JointMeasurements, params: SolveParams | None = None, *, seed=0,
+          progress=None, **removed) -> JointPosterior:
     """The joint posterior of :class:`JointMeasurements` (:mod:`qfg.joint`, steps 1-4).
 
     Args:
-        chunk: poses per incremental batch of a run.
-        min_rays, min_parallax_deg: a landmark is initialised once it has this many rays with
-            this much parallax (largest angle between two of its rays, modulo 180 degrees).
-        starts: joint solves (1: the incremental start only; 2 adds every landmark's depth
-            halved, 3 also doubled).
-        robust: Huber threshold on the bearings (sigmas; 0 for plain least squares).
-        outlier: bearings with a whitened residual above it are left out and the fit redone,
-            at the end of each run's batches and after the joint solve (0: keep all).
-        residual_limit: a robot whose median |whitened bearing residual| exceeds it, or with
-            more than :data:`OUTLIER_SHARE` of its bearings beyond ``outlier``, is in a wrong
-            local minimum (a Gaussian gives a median of 0.67).
-        landmark_limit: a landmark whose median |whitened residual| exceeds it is
-            ``inconsistent``.
-        mode_cost: another start's minimum within this much cost of the best is kept as a mode.
-        inflate: factor on every covariance (1: the Laplace approximation as is).
-        inflate_kinematic: a further factor on the covariance when a run solved with the
-            kinematic prior is in the map (:data:`KINEMATIC_INFLATE`; 1: none), or ``"auto"``:
-            the robots' own maps' scatter about the joint map (:func:`overdispersion`) when
-            it exceeds 1 (flag ``overdispersed`` above :data:`OVERDISPERSED`). The scatter is
-            measured on every map of two or more robots (``info["overdispersion"]``; NaN when
-            too few triplets are placed by two of them) and reported, not acted on, when
-            every run has odometry.
-        sir_rays: landmarks with fewer rays are ``weak`` (sampled from their exact conditional).
-        without_odometry: ``"kinematic"``: a run without odometry is solved with the
-            ``kinematic`` motion prior in its place (:mod:`qfg.joint.start`), started at each
-            of ``kinematic_chunks`` batch sizes (the fit of least cost kept), and used only if
-            its map agrees with other robots' (``agree``); ``"skip"``: left out (flag
-            ``no_odometry``).
-        agree: a run without odometry is kept only if it is in the largest group of robots
-            whose maps agree pairwise (:func:`qfg.joint.start.agreeing_group` with this
-            tolerance); a fit without odometry can pass every residual check in a wrong
-            minimum, so a lone run without odometry is left out (flag ``unverified``). None:
-            no check (every such run kept, at the user's risk).
-        too_close: a pose fitted closer to a landmark it sees than this share of the median
-            range of all bearings is moved off it (:func:`qfg.joint.start.escape_close`; 0:
-            not checked); ``info["too_close"]`` counts such bearings, ``info["too_close_dropped"]``
-            those left out because the fit returned to them.
+        params: the options (:class:`qfg.joint.SolveParams`, each documented there); None: the
+            defaults, ``SolveParams()``.
         seed: for the starts' order of tie-breaking (the solve is otherwise deterministic).
         progress: a callable told each phase in one line (each robot's start, the joint
             solve, the covariance), for a user watching a long solve; None: silent.
+
+    An option passed as a keyword of its own (``solve(meas, starts=1)``, the form before
+    :class:`SolveParams`) is a ``TypeError`` that names :class:`SolveParams`.
+
+    >>> import numpy as np
+    >>> from qfg.simulation import random_trajectory_run
+    >>> from qfg.joint import SolveParams, simulated_measurements
+    >>> run = random_trajectory_run(np.random.default_rng(0), n_landmarks=5, n_poses=30,
+    ...                             fov_deg=360)
+    >>> solve(simulated_measurements(run), SolveParams(starts=1), seed=0).info["starts"]
+    1
     """
     if not isinstance(measurements, JointMeasurements):
         raise ValueError(f"measurements: expected JointMeasurements, got "
                          f"{type(measurements).__name__}")
-    chunk = positive_int("chunk", chunk, minimum=2)
-    min_rays = positive_int("min_rays", min_rays, minimum=2)
-    min_par = np.deg2rad(non_negative("min_parallax_deg", min_parallax_deg))
-    starts = positive_int("starts", starts)
-    non_negative("robust", robust)
-    non_negative("residual_limit", residual_limit)
-    non_negative("mode_cost", mode_cost)
-    inflate = non_negative("inflate", inflate)
+    if removed:
+        raise _removed_options("solve", removed)
+    if params is None:
+        params = SolveParams()
+    elif not isinstance(params, SolveParams):
+        raise ValueError(f"params: expected a qfg.joint.SolveParams or None, got "
+                         f"{type(params).__name__}")
+    chunk, min_rays, starts = params.chunk, params.min_rays, params.starts
+    min_par = np.deg2rad(params.min_parallax_deg)
+    robust, outlier, max_iterations = params.robust, params.outlier, params.max_iterations
+    residual_limit, landmark_limit = params.residual_limit, params.landmark_limit
+    mode_cost, inflate, sir_rays = params.mode_cost, params.inflate, params.sir_rays
+    inflate_kinematic = params.inflate_kinematic
     auto = isinstance(inflate_kinematic, str)
-    if auto and inflate_kinematic != "auto":
-        raise ValueError(f"inflate_kinematic: expected a factor >= 0 or 'auto', got "
-                         f"{inflate_kinematic!r}")
-    if not auto:
-        inflate_kinematic = non_negative("inflate_kinematic", inflate_kinematic)
-    if without_odometry not in ("kinematic", "skip"):
-        raise ValueError(f"without_odometry: expected 'kinematic' or 'skip', got "
-                         f"{without_odometry!r}")
-    if not isinstance(kinematic, _start.KinematicPrior):
-        raise ValueError(f"kinematic: expected a qfg.joint.start.KinematicPrior, got "
-                         f"{type(kinematic).__name__}")
-    kinematic_chunks = tuple(positive_int("kinematic_chunks", c, minimum=2)
-                             for c in np.atleast_1d(kinematic_chunks).tolist())
-    if agree is not None:
-        agree = non_negative("agree", agree)
-    too_close = non_negative("too_close", too_close)
-    if too_close >= 1:
-        raise ValueError(f"too_close: expected a share of the median range in [0, 1), got "
-                         f"{too_close!r}")
+    without_odometry, kinematic = params.without_odometry, params.kinematic
+    kinematic_chunks, agree, too_close = params.kinematic_chunks, params.agree, params.too_close
     as_rng(seed)
     if progress is not None and not callable(progress):
         raise ValueError(f"progress: expected a callable or None, got {type(progress).__name__}")

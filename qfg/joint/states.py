@@ -1,7 +1,8 @@
 """Qualitative states from a :class:`qfg.joint.JointPosterior`: :func:`triplet_marginals` (the
 state distribution of every ordered landmark triplet, a labelled
 :class:`qfg.inference.results.Marginals` keyed by landmark ids) and :func:`camera_marginals`
-(the state of camera poses in triplet frames), each counted over samples of the posterior and
+(the state of camera poses in triplet frames, a ``Marginals`` keyed by those triplets), both
+method ``"joint"``, each counted over samples of the posterior and
 mixed toward the prior's states where the map cannot say (weights ``floor``, ``widen``, 1).
 """
 
@@ -50,8 +51,9 @@ def triplet_marginals(posterior: JointPosterior, triplets=None, *, partition="ed
     1 for triplets with an unconstrained landmark.
 
     Returns a :class:`qfg.inference.results.Marginals` keyed by landmark-id triplets, method
-    ``"joint"`` (or ``"joint:none"`` when nothing was solved), ``info["flagged"]`` (n,) bool,
-    ``info["widen"]`` (n,) the weight given to the prior, ``info["flags"]``.
+    ``"joint"``, ``info["flagged"]`` (n,) bool, ``info["widen"]`` (n,) the weight given to the
+    prior, ``info["flags"]`` (the posterior's). When nothing was solved
+    (``posterior.method == "none"``) every row is the prior and every row is flagged.
     """
     from ..inference.results import Marginals
 
@@ -92,7 +94,7 @@ def triplet_marginals(posterior: JointPosterior, triplets=None, *, partition="ed
         w[:] = 1.0
     P = _mix(P, q, w)
     keys = tuple(tuple(int(ids[i]) for i in t) for t in tri_idx.tolist())
-    return Marginals(keys, part.name, P, "joint" if posterior.method != "none" else "joint:none",
+    return Marginals(keys, part.name, P, "joint",
                      {"flagged": w > floor, "widen": w, "flags": posterior.flags})
 
 
@@ -120,12 +122,20 @@ def _safe_frame(C, A, B):
 
 def camera_marginals(posterior: JointPosterior, robot, pose_index, triplets, *,
                      partition="edc", samples: int = 500, seed=0, prior_states=None,
-                     floor: float = FLOOR) -> np.ndarray:
-    """State distributions (n, m) of camera poses in triplet frames: row i is the state of pose
-    ``pose_index[i]`` of ``robot`` in the AB frame of ``triplets[i]`` (landmark ids), from
-    samples of the joint Gaussian of that pose and the landmarks (best mode). Rows whose robot
-    was not solved, or whose A or B is unconstrained, are ``prior_states`` (default uniform);
-    every row is mixed with it by ``floor``."""
+                     floor: float = FLOOR) -> "Marginals":
+    """State distributions of camera poses in triplet frames: row i is the state of pose
+    ``pose_index[i]`` of ``robot`` in the AB frame of ``triplets[i]`` (landmark ids
+    ``(A, B, C)``), from samples of the joint Gaussian of that pose and the landmarks (best
+    mode). Rows whose robot was not solved, or whose A or B is unconstrained, are
+    ``prior_states`` (default uniform); every row is mixed with it by ``floor``.
+
+    Returns a :class:`qfg.inference.results.Marginals`: rows (n, m) in the order of
+    ``pose_index``, keyed by ``triplets`` (a triplet given for several poses is one key: look
+    such rows up by position, ``res[i]``, or in ``res.probabilities``), method ``"joint"``,
+    ``info["robot"]`` and ``info["pose_index"]`` (n,).
+    """
+    from ..inference.results import Marginals
+
     part = _partitions.get(partition)
     m = part.n_states
     pose_index = np.asarray(pose_index, dtype=np.intp).reshape(-1)
@@ -133,13 +143,19 @@ def camera_marginals(posterior: JointPosterior, robot, pose_index, triplets, *,
     if len(tl) != pose_index.size:
         raise ValueError(f"triplets: expected {pose_index.size} triplets (one per pose), "
                          f"got {len(tl)}")
+    if any(len(t) != 3 for t in tl):
+        raise ValueError("triplets: expected (A, B, C) triplets of landmark ids")
     q = np.full(m, 1.0 / m) if prior_states is None else np.asarray(prior_states, float)
     out = np.tile(q, (pose_index.size, 1))
+
+    def labelled(P):
+        return Marginals(tuple(tl), part.name, P, "joint",
+                         {"robot": robot, "pose_index": pose_index})
     if robot not in posterior.robot_flags:
         raise KeyError(f"robot: {robot} is not in this posterior")
     if (posterior.method == "none" or posterior._pose_offset is None
             or robot not in posterior._pose_offset or not pose_index.size):
-        return _mix(out, q, np.full(len(out), 1.0))
+        return labelled(_mix(out, q, np.full(len(out), 1.0)))
     rng = as_rng(seed)
     pr, fit = posterior._problem, posterior._fit
     ok = np.flatnonzero(posterior.constrained)
@@ -170,5 +186,5 @@ def camera_marginals(posterior: JointPosterior, robot, pose_index, triplets, *,
             A, B = z[:, 2 * a:2 * a + 2], z[:, 2 * b:2 * b + 2]
             s = part.state_of(poses_to_frame(X, A, B)[:, :2])
             out[i] = np.bincount(s[s >= 0], minlength=m)[:m] / samples
-    return _mix(out, q, np.full(len(out), non_negative("floor", floor)))
+    return labelled(_mix(out, q, np.full(len(out), non_negative("floor", floor))))
 

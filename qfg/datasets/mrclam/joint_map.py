@@ -25,16 +25,19 @@ import numpy as np
 from ... import partitions as _partitions
 from ..._validate import as_rng, non_negative
 from ...geometry import wrap_angle
+from ...inference.results import Marginals
 from ...joint import (
     FLOOR,
     JointMeasurements,
     JointPosterior,
     RobotRun,
+    SolveParams,
     camera_marginals,
     odometry_steps,
     solve,
     triplet_marginals,
 )
+from ...joint.params import _removed_options
 from ...joint.start import _apply, similarity
 from ._constants import DEFAULT_ODOMETRY_LEAD, DEFAULT_SIGMA_BEARING
 from ._data import repeated_views
@@ -174,8 +177,11 @@ class MRCLAMJoint:
 
     Attributes:
         triplets: :class:`~qfg.inference.results.Marginals` keyed by subject-number triplets.
-        cameras: list of (n_views, m) arrays, one per requested history (or None when none
-            were requested).
+        cameras: list of :class:`~qfg.inference.results.Marginals` (n_views, m), one per
+            requested history, keyed by the history's triplet of subject numbers, method
+            ``"joint"``, ``info["robot"]`` and ``info["pose_index"]`` (the keyframe of each
+            view; None for a robot the map was not given) (or None when no history was
+            requested).
         method: which method answered (``"joint"``, or ``"none"``: nothing could be solved,
             e.g. a lone robot without odometry (``posterior.flags`` say why); the solver-based
             pipeline must answer).
@@ -192,19 +198,25 @@ class MRCLAMJoint:
 def mrclam_marginals(dataset, triplets=None, histories=None, *, robots=None, prior_states=None,
                      camera_prior_states=None, samples: int = 2000, camera_samples: int = 300,
                      seed=0, partition="edc", floor: float = FLOOR, widen: float = 0.5,
-                     run_options=None, progress=None, **solve_options) -> MRCLAMJoint:
+                     run_options=None, params: SolveParams | None = None, progress=None,
+                     **removed) -> MRCLAMJoint:
     """The joint method on one MRCLAM dataset: triplet state distributions (every ordered
     triplet of the dataset's landmarks, or ``triplets`` of subject numbers) and, for each
     history in ``histories`` (objects with ``robot``, ``views`` (time stamps) and ``landmarks``,
     e.g. :class:`qfg.datasets.mrclam.MRCLAMHistory`), the camera state of each of its views.
 
     ``prior_states`` / ``camera_prior_states``: the state distributions of the prior alone (for
-    the floor and for what cannot be solved); ``run_options`` go to :func:`mrclam_runs`, the
-    rest to :func:`qfg.joint.solve` (``progress``: a callable told each phase, as there).
+    the floor and for what cannot be solved); ``run_options`` go to :func:`mrclam_runs`;
+    ``params`` (a :class:`qfg.joint.SolveParams`, None: its defaults), ``seed`` and
+    ``progress`` (a callable told each phase) to :func:`qfg.joint.solve`. A solve option
+    passed as a keyword of its own (the form before :class:`qfg.joint.SolveParams`) is a
+    ``TypeError`` naming it.
     When nothing can be solved (e.g. one robot without odometry: its fit
     cannot be checked against another's), ``method`` is ``"none"`` and every row is the prior:
     answer with the solver pipeline instead (``qfg mrclam --method full``).
     """
+    if removed:
+        raise _removed_options("mrclam_marginals", removed)
     t0 = _time.perf_counter()
     keep = None
     if histories:
@@ -212,7 +224,7 @@ def mrclam_marginals(dataset, triplets=None, histories=None, *, robots=None, pri
         for h in histories:
             keep.setdefault(int(h.robot), set()).update(float(t) for t in np.asarray(h.views))
     meas = mrclam_runs(dataset, robots, keep_times=keep, **(run_options or {}))
-    post = solve(meas, seed=seed, progress=progress, **solve_options)
+    post = solve(meas, params, seed=seed, progress=progress)
     if progress is not None:
         progress("joint: the states of " + ("every ordered triplet" if triplets is None else
                                              f"{len(triplets)} ordered triplet"
@@ -231,10 +243,13 @@ def mrclam_marginals(dataset, triplets=None, histories=None, *, robots=None, pri
             except KeyError:
                 run = None
             m = _partitions.get(partition).n_states
+            part_name = _partitions.get(partition).name
             if run is None:
                 q = (np.full(m, 1 / m) if camera_prior_states is None
                      else np.asarray(camera_prior_states, float))
-                cams.append(np.tile(q, (len(h.views), 1)))
+                cams.append(Marginals((tuple(h.landmarks),) * len(h.views), part_name,
+                                      np.tile(q, (len(h.views), 1)), "joint",
+                                      {"robot": rn, "pose_index": None}))
                 continue
             pi = np.searchsorted(run.times, np.asarray(h.views, float))
             pi = np.clip(pi, 0, run.n_poses - 1)
