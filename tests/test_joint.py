@@ -283,7 +283,7 @@ def test_joint_matches_long_run_sampling_of_the_exact_posterior():
     n = 300
 
     def states(S):
-        return joint_states._state_counts(S, tri, EDC) / len(S)
+        return joint_states.state_counts(S, tri, EDC) / len(S)
 
     def tv(a, b):
         return 0.5 * np.abs(a - b).sum(1).mean()

@@ -51,7 +51,7 @@ def main(argv=None):
         tri = np.array([t for t in itertools.permutations(range(len(ok)), 3) if ok[list(t)].all()])
 
         def st(S, tri=tri):
-            return joint_states._state_counts(S, tri, edc) / len(S)
+            return joint_states.state_counts(S, tri, edc) / len(S)
 
         t0 = time.perf_counter()
         R = st(joint.reference_samples(pg, a.chains, steps=a.steps, seed=10))

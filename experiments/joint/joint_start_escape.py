@@ -31,7 +31,7 @@ from qfg.datasets import mrclam
 from qfg.datasets.mrclam.joint_map import mrclam_runs
 from qfg.harness.studies.mrclam import prepare
 from qfg.joint import start as S
-from qfg.joint.solver import _robot_checks
+from qfg.joint.solver import robot_checks
 
 
 def starts(d: int, chunks=(25, 50, 100)) -> list[dict]:
@@ -54,8 +54,8 @@ def starts(d: int, chunks=(25, 50, 100)) -> list[dict]:
                 _, f1, dropped, close = S.escape_close(pr, f0, S.TOO_CLOSE, 200)
                 before, after = np.full_like(truth, np.nan), np.full_like(truth, np.nan)
                 before[ok], after[ok] = f0.points, f1.points
-                c0 = _robot_checks(pr, f0, offs, [r], J.OUTLIER)[r.robot]
-                c1 = _robot_checks(pr, f1, offs, [r], J.OUTLIER)[r.robot]
+                c0 = robot_checks(pr, f0, offs, [r], J.OUTLIER)[r.robot]
+                c1 = robot_checks(pr, f1, offs, [r], J.OUTLIER)[r.robot]
                 row.update(cost=(f0.cost, f1.cost), close=close, dropped=dropped,
                            error_m=(_error_m(before, truth), _error_m(after, truth)),
                            check=(tuple(map(float, c0)), tuple(map(float, c1))))

@@ -37,7 +37,7 @@ OUTLIER_SHARE = 0.1
 OVERDISPERSED = 2.0
 
 
-def _robot_checks(pr, fit, offs, runs, outlier):
+def robot_checks(pr, fit, offs, runs, outlier):
     """Per run of a fit: (median |whitened bearing residual|, share of bearings beyond
     ``outlier``), over every bearing of ``pr`` (the problem before outliers were dropped, so
     that dropping cannot hide a run that disagrees with the map)."""
@@ -160,7 +160,7 @@ def solve(measurements: JointMeasurements, params: SolveParams | None = None, *,
             if fit is None:
                 continue
             pr1, offs1, ok1 = _start.problem_of([r], lm_index, have, r.robot, robust=robust)
-            chk = _robot_checks(pr1, _nl.Fit(poses, points[ok1], 0.0, 0, True, None, None),
+            chk = robot_checks(pr1, _nl.Fit(poses, points[ok1], 0.0, 0, True, None, None),
                                 offs1, [r], outlier)[r.robot]
             if not _failed(chk, residual_limit, outlier):
                 per[r.robot] = (poses, points, have)
@@ -228,7 +228,7 @@ def solve(measurements: JointMeasurements, params: SolveParams | None = None, *,
         pr_all = pr
         pr, fit, n_out = _start.drop_outliers(pr, fit, outlier, max_iterations)
         pr, fit, n_close_out, n_close = _start.escape_close(pr, fit, too_close, max_iterations)
-        chk = _robot_checks(pr_all, fit, offs, use, outlier)
+        chk = robot_checks(pr_all, fit, offs, use, outlier)
         med = {r: c[0] for r, c in chk.items()}
         bad = [r for r, c in chk.items() if _failed(c, residual_limit, outlier)]
         if bad and len(use) > 1:

@@ -83,7 +83,7 @@ def triplet_marginals(posterior: JointPosterior, triplets=None, *, partition="ed
         S = sample_landmarks(posterior, samples, seed)
         solvable = posterior.constrained[tri_idx].all(axis=1)
         idx = np.flatnonzero(solvable)
-        P[idx] = _state_counts(S, tri_idx[idx], part) / samples
+        P[idx] = state_counts(S, tri_idx[idx], part) / samples
         bad = (lf[tri_idx] == "inconsistent").any(axis=1)
         if "local_minimum" in posterior.flags and all(
                 v != "local_minimum" for v in posterior.robot_flags.values()):
@@ -98,8 +98,10 @@ def triplet_marginals(posterior: JointPosterior, triplets=None, *, partition="ed
                      {"flagged": w > floor, "widen": w, "flags": posterior.flags})
 
 
-def _state_counts(S, tri, part, chunk: int = 256):
-    """Counts (T, m) of each triplet's state over the samples S (n, L, 2)."""
+def state_counts(S, tri, part, chunk: int = 256):
+    """Counts (T, m) of each triplet's state over the samples ``S`` (n, L, 2) of the landmarks'
+    world positions: ``tri`` (T, 3) ordered landmark indices, ``part`` the partition; rows sum to
+    n. Chunked over the triplets so that the (n, chunk) frames stay small."""
     m = part.n_states
     out = np.zeros((len(tri), m))
     for a in range(0, len(tri), chunk):
