@@ -55,7 +55,7 @@ def test_script_uses_public_names_only(path):
 
 def test_the_checker_sees_private_names(tmp_path):
     f = tmp_path / "s.py"
-    f.write_text("from qfg.solvers._options import x\nfrom qfg import joint\njoint.robot_checks\n"
+    f.write_text("from qfg.solvers._options import x\nfrom qfg import joint\njoint._hidden\n"
                  "import qfg.inference.exact as ex\nex._clique_sizes\nfrom qfg.joint import _y\n")
     assert len(list(_offences(f))) == 4
 
