@@ -126,12 +126,12 @@ def test_quadrature_and_chunking():
     a = priors.WorldBoxPrior(n_rho=128).log_density(x)
     b = priors.WorldBoxPrior(n_rho=2048).log_density(x)
     assert np.max(np.abs(a - b)) < 3e-3
-    old = priors._CHUNK_ELEMENTS
+    old = priors.box._CHUNK_ELEMENTS
     try:
-        priors._CHUNK_ELEMENTS = 1000
+        priors.box._CHUNK_ELEMENTS = 1000
         np.testing.assert_array_equal(priors.WorldBoxPrior(n_rho=128).log_density(x), a)
     finally:
-        priors._CHUNK_ELEMENTS = old
+        priors.box._CHUNK_ELEMENTS = old
     assert priors.WorldBoxPrior().log_density(x.reshape(3, 100, 3, 2)).shape == (3, 100)
 
 
