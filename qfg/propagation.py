@@ -41,10 +41,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._vocabulary import check_method, renamed_keywords
 from .composition import marginal as compose_marginal
 from .inference.exact import elimination_estimate, exact_marginals
 from .inference.results import GraphTooLargeError, Marginals, ZeroMassError
-from ._vocabulary import check_method, renamed_keywords
 from .metrics import information_score
 
 __all__ = [
@@ -605,8 +605,9 @@ def compare_unseen(g, truth=None, method: str = "junction", max_table: int | Non
     Returns one dict per unseen triplet (in ``g.triplets`` order) with ``triplet``, ``propagated``
     ((m,) from :func:`propagate`), ``reached``, ``isc``, ``exact`` ((m,) from
     :func:`exact_marginals` with ``method`` ``"junction"``, ``"contract"`` or ``"gtsam"``; None
-    when the graph is too big or has no mass; ``exact_error`` then says why), and ``truth`` (``truth[v]`` if an (n,)
-    array of states is given, e.g. from :func:`qfg.graph.truth_states`; else None).
+    when the graph is too big or has no mass; ``exact_error`` then says why), and ``truth``
+    (``truth[v]`` if an (n,) array of states is given, e.g. from :func:`qfg.graph.truth_states`;
+    else None).
 
     >>> import numpy as np
     >>> from qfg.graph import QualitativeFactorGraph

@@ -155,7 +155,7 @@ def test_a_removed_alias_names_its_replacement(module, name, new):
         getattr(module, name)
     msg = str(exc.value)
     assert "\n" not in msg and new in msg and "CHANGELOG.md" in msg
-    assert name not in module.__all__ and name not in getattr(qfg, "__all__")
+    assert name not in module.__all__ and name not in qfg.__all__
 
 
 def test_marginals_marginals_is_removed_in_favour_of_probabilities():

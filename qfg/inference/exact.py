@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._vocabulary import check_method, renamed_keywords
 from .junction import (
     FactorModel,
     JunctionTree,
@@ -26,7 +27,6 @@ from .junction import (
     contract_scaled,
     size_estimate,
 )
-from .._vocabulary import check_method, renamed_keywords
 from .memory import check_memory, memory_budget
 from .results import Assignment, GraphTooLargeError, Marginals, ZeroMassError
 

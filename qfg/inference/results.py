@@ -1,9 +1,10 @@
 """Labelled inference results and the errors of the exact engines.
 
-Every engine (exact junction tree, per-variable contraction, GTSAM, Algorithm 2, loopy BP) returns
-a :class:`Marginals`: the triplets, the partition name, its state names and the (n, m) array, so a
-result can be read without the (mutable) graph that produced it. Rows follow ``triplets`` (the graph's variable
-order at the time of the call); lookups go by triplet, ``res[(0, 1, 3)]``.
+Every method (exact junction tree, per-variable contraction, GTSAM, Algorithm 2, pooled
+composition, loopy BP, configuration inference) returns a :class:`Marginals`: the triplets, the
+partition name, its state names and the (n, m) array, so a result can be read without the
+(mutable) graph that produced it. Rows follow ``triplets`` (the graph's variable order at the
+time of the call); lookups go by triplet, ``res[(0, 1, 3)]``.
 """
 
 from __future__ import annotations
