@@ -613,7 +613,7 @@ def test_exact_engines_name_contradicting_priors(method):
 @pytest.mark.parametrize("call, name", [
     (lambda g: exact_marginals(g, max_table="x"), "max_table"),
     (lambda g: exact_marginals(g, max_table=-1), "max_table"),
-    (lambda g: exact_marginals(g, method="nope"), "engine"),
+    (lambda g: exact_marginals(g, method="nope"), "method"),
     (lambda g: loopy_bp(g, damping=1.5), "damping"),
     (lambda g: loopy_bp(g, max_iters=0), "max_iters"),
     (lambda g: loopy_bp(g, tol=float("nan")), "tol"),

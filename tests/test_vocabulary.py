@@ -69,6 +69,18 @@ def test_loopy_bp_reports_loopy_bp():
     assert loopy_bp(_graph()).method == "loopy-bp"
 
 
+def test_the_joint_map_reports_joint():
+    from qfg import joint
+    from qfg.simulation import random_trajectory_run
+
+    run = random_trajectory_run(np.random.default_rng(4), n_landmarks=4, n_poses=10,
+                                fov_deg=360.0)
+    post = joint.solve(joint.simulated_measurements(run), starts=1)
+    res = joint.triplet_marginals(post, samples=100, seed=0)
+    assert post.method == "joint" and res.method == "joint"
+    assert res.states == qfg.partitions.get("edc").labels
+
+
 def _edc_evidence():
     rng = np.random.default_rng(0)
     p = np.eye(20)[1] * 0.9 + 0.005
