@@ -58,8 +58,8 @@ def run():
     rows = []
     T, label = edc_tensor()
     g = six_four_graph(T)
-    t_c, mc = _time(lambda: np.asarray(exact_marginals(g, engine="contract")), 5)
-    t_g, mg = _time(lambda: np.asarray(exact_marginals(g, engine="gtsam")), 1)
+    t_c, mc = _time(lambda: np.asarray(exact_marginals(g, method="contract")), 5)
+    t_g, mg = _time(lambda: np.asarray(exact_marginals(g, method="gtsam")), 1)
     diff = float(np.abs(mc - mg).max())
     rows.append({"name": "exact marginals, 6 triplets / 4 factors, gtsam", "value": t_g,
                  "unit": "s", "note": f"{label}; DiscreteMarginals, all 6 marginals"})

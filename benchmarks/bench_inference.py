@@ -219,7 +219,7 @@ def compare(graphs):
         print(f"   graph {gi}: {g.n_triplets} triplets, {g.n_factors} factors, width {width}",
               file=sys.stderr, flush=True)
         engines = {"junction": lambda g=g: np.asarray(exact_marginals(g)),
-                   "contract": lambda g=g: np.asarray(exact_marginals(g, engine="contract"))}
+                   "contract": lambda g=g: np.asarray(exact_marginals(g, method="contract"))}
         if have_pgmpy:
             models = _pgmpy_models(g)
             n, m = g.n_triplets, g.m
@@ -230,7 +230,7 @@ def compare(graphs):
             if slow:
                 engines["pgmpy_ve"] = lambda models=models, n=n, m=m: pgmpy_ve(models, n, m)
         if slow:
-            engines["gtsam"] = lambda g=g: np.asarray(exact_marginals(g, engine="gtsam"))
+            engines["gtsam"] = lambda g=g: np.asarray(exact_marginals(g, method="gtsam"))
         times = {k: [] for k in engines}
         ans = {}
         for rep in range(REPEATS):

@@ -4,7 +4,8 @@ Plain functions over the graph object (networkx style); the graph module imports
 
 * :func:`exact_marginals` (re-exported from :mod:`qfg.inference`): marginals of the normalized
   product of all factors, one junction-tree calibration (or GTSAM / per-variable contraction).
-* :func:`propagate`: the paper's label-correcting Algorithm 2.
+* :func:`propagate`: the paper's label-correcting Algorithm 2 (``method="best"``) or pooled
+  composition (``method="pooled"``).
 * :func:`topology_scores`: Algorithm 3 with the information decay model (eqs. decay1, decay2).
 * :func:`composition_levels`: eqs. cl1, cl2 and the normalized cl3.
 
@@ -40,28 +41,38 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._vocabulary import check_method, renamed_keywords
 from .composition import marginal as compose_marginal
 from .inference.exact import elimination_estimate, exact_marginals
 from .inference.results import GraphTooLargeError, Marginals, ZeroMassError
 from .metrics import information_score
 
 __all__ = [
-    "GraphTooLargeError", "ZeroMassError", "Marginals", "PropagationResult", "ScoreResult",
-    "LevelResult", "BPResult", "exact_marginals", "elimination_estimate", "propagate",
-    "topology_scores", "composition_levels", "compare_unseen", "propagate_pooled",
-    "PROPAGATION_RULES",
+    "GraphTooLargeError", "ZeroMassError", "Marginals", "ScoreResult", "LevelResult",
+    "exact_marginals", "elimination_estimate", "propagate", "topology_scores",
+    "composition_levels", "compare_unseen", "PROPAGATION_METHODS",
 ]
 
-#: The result types of :func:`propagate` and :func:`qfg.inference.loopy_bp` (formerly their own
-#: dataclasses) are :class:`~qfg.inference.Marginals`; the old names stay importable.
-PropagationResult = Marginals
-BPResult = Marginals
+#: names removed in 0.6.0 (CHANGELOG.md) -> what replaces them
+_REMOVED = {
+    "PropagationResult": "qfg.inference.Marginals",
+    "BPResult": "qfg.inference.Marginals",
+    "propagate_pooled": 'propagate(g, method="pooled")',
+    "PROPAGATION_RULES": "PROPAGATION_METHODS",
+}
+
+
+def __getattr__(name):
+    if name in _REMOVED:
+        raise AttributeError(f"qfg.propagation.{name} was removed: use {_REMOVED[name]} "
+                             "(CHANGELOG.md, 0.6.0)")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 @dataclass(frozen=True)
 class ScoreResult:
     """Result of :func:`topology_scores` (Algorithm 3): ``scores`` (n,) TSC in [0, 1] (0 where
-    unreachable); ``order``, ``updated_by``, ``reached``, ``seen`` as in :class:`PropagationResult`."""
+    unreachable); ``order``, ``updated_by``, ``reached``, ``seen`` as in :func:`propagate`'s result."""
 
     scores: np.ndarray
     order: np.ndarray
@@ -138,12 +149,12 @@ def _label_correcting(g, sources_value, propose, close_used=False):
     return values, np.array(order, dtype=np.intp), updated_by, updated
 
 
-#: How :func:`propagate` forms a reached triplet's value: the paper's best proposal, or the mean
-#: of all proposals of the nearest level (:func:`propagate_pooled`).
-PROPAGATION_RULES = ("best", "mean")
+#: How :func:`propagate` forms a reached triplet's value (``method=``): the paper's best proposal
+#: (Algorithm 2), or the mean of all proposals of the nearest level (pooled composition).
+PROPAGATION_METHODS = ("best", "pooled")
 
 
-def propagate_pooled(g) -> Marginals:
+def _propagate_pooled(g) -> Marginals:
     """Breadth-first propagation by pooled composition.
 
     Round r = 1, 2, ...: every factor with both updated and non-updated triplets proposes, for
@@ -157,7 +168,7 @@ def propagate_pooled(g) -> Marginals:
     Unlike Algorithm 2, which keeps the single proposal with the best information score, no
     proposal is chosen for being sharp, and values come from the fewest composition steps: a
     linear mean of distributions never puts more on a state than its sharpest member does.
-    Returns :class:`~qfg.inference.Marginals` (``method="pooled_composition"``,
+    Returns :class:`~qfg.inference.Marginals` (``method="pooled"``,
     ``info``: ``level`` (n,) rounds from the seen triplets (0 seen, -1 unreachable),
     ``n_proposals`` (n,), ``reached``, ``seen``).
 
@@ -168,8 +179,8 @@ def propagate_pooled(g) -> Marginals:
     >>> for t, p in [((0, 1, 2), [0.9, 0.1]), ((1, 2, 3), None), ((0, 1, 3), None)]:
     ...     _ = g.add_triplet(t, p)
     >>> _ = g.discover_compositions()
-    >>> r = propagate_pooled(g)
-    >>> r.marginals.round(2).tolist(), r.info["level"].tolist()
+    >>> r = propagate(g, method="pooled")
+    >>> r.probabilities.round(2).tolist(), r.info["level"].tolist()
     ([[0.9, 0.1], [0.9, 0.1], [0.9, 0.1]], [0, 1, 1])
 
     (Algorithm 2 gives the last triplet 0.99, counting triplet 0 twice; here both unseen
@@ -212,7 +223,7 @@ def propagate_pooled(g) -> Marginals:
         values[new] = sums[new] / cnt[new, None]
         level[new] = r
         n_props[new] = cnt[new]
-    return Marginals(tuple(g.triplets), g.partition, values, "pooled_composition",
+    return Marginals(tuple(g.triplets), g.partition, values, "pooled",
                      {"level": level, "n_proposals": n_props, "reached": level > 0,
                       "seen": g.seen, "isc": information_score(values)})
 
@@ -405,14 +416,16 @@ def _best_first_loop(g, close_used: bool):
     return values, np.array(order, dtype=np.intp), updated_by, updated
 
 
-def propagate(g, close_used: bool = False, rule: str = "best", *, _reference: bool = False
+@renamed_keywords(rule="method")
+def propagate(g, close_used: bool = False, method: str = "best", *, _reference: bool = False
               ) -> Marginals:
-    """Algorithm 2 (label-correcting propagation by composition).
+    """Algorithm 2 (label-correcting propagation by composition), or pooled composition.
 
-    ``rule="mean"`` returns :func:`propagate_pooled` instead (breadth-first rounds: no factor is
-    closed, so ``close_used=True`` with it is a ValueError).
+    ``method``: ``"best"`` (default, Algorithm 2, below) or ``"pooled"`` (pooled composition,
+    :func:`_propagate_pooled`: breadth-first rounds, no factor is closed, so
+    ``close_used=True`` with it is a ValueError). The result's ``method`` is the same string.
 
-    Returns a :class:`~qfg.inference.Marginals` (``method="label_correcting"``): ``marginals``
+    Returns a :class:`~qfg.inference.Marginals` (``method="best"``): probabilities
     (n, m) -- the prior for seen triplets, the kept composition marginal for reached ones,
     uniform for unreachable ones -- and in ``info`` (also attributes): ``isc`` (n,) information
     score of each row, ``order`` (u,) non-seen triplets in update order, ``updated_by`` (n,)
@@ -432,19 +445,18 @@ def propagate(g, close_used: bool = False, rule: str = "best", *, _reference: bo
     ...     _ = g.add_triplet(t, p)
     >>> _ = g.discover_compositions()
     >>> r = propagate(g)
-    >>> r.marginals.round(2).tolist(), r.order.tolist(), r.updated_by.tolist()
+    >>> r.probabilities.round(2).tolist(), r.order.tolist(), r.updated_by.tolist()
     ([[0.9, 0.1], [0.9, 0.1], [0.99, 0.01]], [1, 2], [-1, 0, 0])
 
     Triplet 2 is composed from triplet 0 and from triplet 1, itself a copy of triplet 0: the
     evidence is counted twice (0.99), where the exact marginal is 0.9 -- an approximation.
     """
-    if rule not in PROPAGATION_RULES:
-        raise ValueError(f"rule: expected one of {PROPAGATION_RULES}, got {rule!r}")
-    if rule == "mean":
+    check_method(method, PROPAGATION_METHODS, {"mean": "pooled"})
+    if method == "pooled":
         if close_used:
-            raise ValueError("close_used: applies to rule='best' only (rule='mean' pools every "
-                             "proposal of a round; no factor is closed)")
-        return propagate_pooled(g)
+            raise ValueError("close_used: applies to method='best' only (method='pooled' pools "
+                             "every proposal of a round; no factor is closed)")
+        return _propagate_pooled(g)
     T = g.table
     m = g.m
     fvars = g.factor_vars
@@ -478,7 +490,7 @@ def propagate(g, close_used: bool = False, rule: str = "best", *, _reference: bo
         marg = np.array([np.full(m, 1.0 / m) if v is None else v for v in values]).reshape(-1, m)
     else:
         marg, order, updated_by, reached = _best_first(g, close_used)
-    return Marginals(tuple(g.triplets), g.partition, marg, "label_correcting",
+    return Marginals(tuple(g.triplets), g.partition, marg, "best",
                      {"isc": information_score(marg), "order": order, "updated_by": updated_by,
                       "reached": reached, "seen": g.seen, "close_used": bool(close_used)})
 
@@ -585,14 +597,17 @@ def composition_levels(g, close_used: bool = False) -> LevelResult:
 
 
 # ----------------------------------------------------------------------------- reporting
-def compare_unseen(g, truth=None, engine: str = "junction", max_table: int | None = None
+@renamed_keywords(engine="method")
+def compare_unseen(g, truth=None, method: str = "junction", max_table: int | None = None
                    ) -> list[dict]:
     """For each unseen triplet: the Algorithm 2 estimate, the exact marginal and the truth.
 
     Returns one dict per unseen triplet (in ``g.triplets`` order) with ``triplet``, ``propagated``
-    ((m,) from :func:`propagate`), ``reached``, ``isc``, ``exact`` ((m,) or None when the graph is
-    too big or has no mass; ``exact_error`` then says why), and ``truth`` (``truth[v]`` if an (n,)
-    array of states is given, e.g. from :func:`qfg.graph.truth_states`; else None).
+    ((m,) from :func:`propagate`), ``reached``, ``isc``, ``exact`` ((m,) from
+    :func:`exact_marginals` with ``method`` ``"junction"``, ``"contract"`` or ``"gtsam"``; None
+    when the graph is too big or has no mass; ``exact_error`` then says why), and ``truth``
+    (``truth[v]`` if an (n,) array of states is given, e.g. from :func:`qfg.graph.truth_states`;
+    else None).
 
     >>> import numpy as np
     >>> from qfg.graph import QualitativeFactorGraph
@@ -612,12 +627,12 @@ def compare_unseen(g, truth=None, engine: str = "junction", max_table: int | Non
     res = propagate(g)
     exact, why = None, ""
     try:
-        exact = exact_marginals(g, engine=engine, max_table=max_table)
+        exact = exact_marginals(g, method=method, max_table=max_table)
     except (GraphTooLargeError, ZeroMassError) as exc:
         why = str(exc)
     rows = []
     for v in np.flatnonzero(~g.seen):
-        rows.append({"triplet": g.triplets[v], "propagated": res.marginals[v],
+        rows.append({"triplet": g.triplets[v], "propagated": res.probabilities[v],
                      "reached": bool(res.reached[v]), "isc": float(res.isc[v]),
                      "exact": None if exact is None else exact[v], "exact_error": why,
                      "truth": None if truth is None else int(truth[v])})

@@ -44,7 +44,7 @@ def _all_triplets(n):
             if len({a, b, c}) == 3]
 
 
-def _brute_force(evidence, triplets, n, draws, floor=FLOOR, seed=0, tau=TEMPER["state"]):
+def _brute_force(evidence, triplets, n, draws, floor=FLOOR, seed=0, tau=TEMPER["config-state"]):
     """Importance sampling from the prior: weights prod_t ((1 - eps) P'_t(s_t) / q(s_t) + eps),
     P'_t = q (P_t / q)^tau normalized (the default tempering of state likelihoods)."""
     from qfg.combine import temper
@@ -203,7 +203,7 @@ def test_unsettled_rows_are_the_ones_the_populations_disagree_on_and_warned_abou
 def test_labelled_result_for_every_triplet(posterior):
     res = posterior.marginals()
     assert list(res.triplets) == _all_triplets(4)
-    assert res.partition == "edc" and res.method == "configurations-state"
+    assert res.partition == "edc" and res.method == "config-state"
     assert res.info["seen"].sum() == 2
     assert res.info["seen"][list(res.triplets).index((1, 2, 3))]
     assert np.allclose(res.probabilities.sum(axis=1), 1.0)
@@ -249,15 +249,15 @@ def test_bad_input():
         infer_configurations({(0, 1, 2): Est()})
     with pytest.raises(ValueError, match="n_particles"):
         infer_configurations(EVIDENCE, n_particles=1001, n_groups=4)
-    with pytest.raises(ValueError, match="likelihood"):
-        infer_configurations(EVIDENCE, likelihood="exact")
+    with pytest.raises(ValueError, match="method"):
+        infer_configurations(EVIDENCE, method="exact")
     with pytest.raises(ValueError, match="PositionSummary"):
-        infer_configurations(EVIDENCE, likelihood="metric")
+        infer_configurations(EVIDENCE, method="config-metric")
     with pytest.raises(ValueError, match="options"):
         infer_configurations(EVIDENCE, particles=10)
     lr = summarize_position((np.array([[0.5, 0.5]]), np.ones(1)), partition="lr")
     with pytest.raises(ValueError, match="partition 'lr'"):
-        infer_configurations({(0, 1, 2): lr}, likelihood="metric")
+        infer_configurations({(0, 1, 2): lr}, method="config-metric")
 
 
 # ----------------------------------------------------------------------------- metric evidence
@@ -283,7 +283,7 @@ def test_metric_evidence_places_c_where_the_solver_did():
     where = np.array([0.6, 2.0])
     xy = where + 0.05 * rng.standard_normal((2000, 2))
     s = summarize_position((xy, np.full(2000, 1 / 2000)), seed=0)
-    post = infer_configurations({(0, 1, 2): s}, likelihood="metric", seed=4, n_particles=2000,
+    post = infer_configurations({(0, 1, 2): s}, method="config-metric", seed=4, n_particles=2000,
                                 floor=1e-3)
     X = post.positions
     c = to_frame(X[:, 2], X[:, 0], X[:, 1])
@@ -308,7 +308,7 @@ def test_log_likelihoods_are_the_floored_tempered_ratio_at_any_configuration():
     part = get("edc")
     for r, (t, v) in enumerate(post.evidence.items()):
         s = part.state_of(to_frame(X[:, t[2]], X[:, t[0]], X[:, t[1]]))
-        want = np.log((1 - FLOOR) * (temper(v, q, TEMPER["state"]) / q)[s] + FLOOR)
+        want = np.log((1 - FLOOR) * (temper(v, q, TEMPER["config-state"]) / q)[s] + FLOOR)
         np.testing.assert_allclose(got[r], want, rtol=1e-12)
     th = 0.7
     R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])

@@ -39,7 +39,7 @@ def _brute_force_log_cpo(evidence, n, draws=200_000, seed=0):
     logL = []
     for t, v in evidence.items():
         s = _states(X, [t])[:, 0]
-        vt = temper(v, q, TEMPER["state"])
+        vt = temper(v, q, TEMPER["config-state"])
         logL.append(np.log((1 - FLOOR) * vt[s] / q[s] + FLOOR))
     logL = np.array(logL)
     tot = logL.sum(axis=0)

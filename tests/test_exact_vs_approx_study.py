@@ -38,7 +38,7 @@ def test_same_graphs_as_the_propagation_study_and_exact_rows_exact(tmp_path):
     b_all = {(r["scenario"], r["triplet"]): r for r in prow}
     assert set(a_all) == set(b_all)
     for k, r in a_all.items():
-        for m in ("prior", "solver", "alg2", "pooled", "cfg_state", "cfg_metric"):
+        for m in ("prior", "solver", "alg2", "pooled", "config-state", "config-metric"):
             assert r[f"{m}_ls"] == b_all[k][f"{m}_ls"] and r[f"{m}_pit"] == b_all[k][f"{m}_pit"]
     assert (tmp_path / "e" / "scores.md").exists()
     assert (tmp_path / "e" / "table.md").exists()

@@ -81,7 +81,7 @@ def test_one_pass_equals_brute_force_and_contraction(seed):
         return
     J = exact_marginals(g)
     np.testing.assert_allclose(np.asarray(J), B, atol=1e-12)
-    np.testing.assert_allclose(np.asarray(exact_marginals(g, engine="contract")), B, atol=1e-12)
+    np.testing.assert_allclose(np.asarray(exact_marginals(g, method="contract")), B, atol=1e-12)
     np.testing.assert_allclose(np.asarray(exact_marginals(g, log_domain=True)), B, atol=1e-12)
     assert J.info["log_partition"] == pytest.approx(logz, abs=1e-10)
 
@@ -226,9 +226,9 @@ def test_gtsam_engine_refuses_instead_of_overflowing(n):
     g = full_map(n, tensor=np.ones((20, 20, 20)))
     for engine in ("gtsam", "contract", "junction"):
         with pytest.raises(GraphTooLargeError, match="refused before any work"):
-            exact_marginals(g, engine=engine)
+            exact_marginals(g, method=engine)
         with pytest.raises(GraphTooLargeError, match="max_table"):
-            exact_marginals(g, engine=engine, max_table=2 ** 26)
+            exact_marginals(g, method=engine, max_table=2 ** 26)
 
 
 def test_refusal_follows_max_table():
@@ -255,7 +255,7 @@ def test_zero_mass_is_one_error_for_every_engine(engine):
     """Issue 12 item 8: GTSAM raised RuntimeError('Product factor is 0.0')."""
     g = two_contradicting_priors()
     with pytest.raises(ZeroMassError, match="no mass") as info:
-        exact_marginals(g, engine=engine)
+        exact_marginals(g, method=engine)
     assert info.value.local_factors == (((0, 1, 2), (1, 2, 3), (0, 1, 3)),)
     assert set(info.value.triplets) == set(g.triplets)
 
@@ -263,7 +263,7 @@ def test_zero_mass_is_one_error_for_every_engine(engine):
 def test_compare_unseen_with_gtsam_on_zero_mass():
     from qfg.propagation import compare_unseen
 
-    rows = compare_unseen(two_contradicting_priors(), engine="gtsam")
+    rows = compare_unseen(two_contradicting_priors(), method="gtsam")
     assert rows[0]["exact"] is None and "no mass" in rows[0]["exact_error"]
 
 
@@ -295,7 +295,7 @@ def test_max_table_is_validated_even_on_an_empty_graph(bad):
               full_map(4, partition=None, tensor=np.ones((2, 2, 2)))):
         for engine in ("junction", "contract", "gtsam"):
             with pytest.raises(ValueError, match="max_table"):
-                exact_marginals(g, engine=engine, max_table=bad)
+                exact_marginals(g, method=engine, max_table=bad)
 
 
 # ------------------------------------------------------------------ MAP and K-best
@@ -370,8 +370,8 @@ def test_marginals_are_labelled_and_outlive_the_graph():
         with pytest.raises(AttributeError):
             r.partition = "edc"                            # frozen
     p, b = results[1], results[2]
-    assert p.method == "label_correcting" and p.isc.shape == (len(p),) and "reached" in p.info
-    assert b.method == "loopy_bp" and isinstance(b.converged, bool) and b.iterations >= 1
+    assert p.method == "best" and p.isc.shape == (len(p),) and "reached" in p.info
+    assert b.method == "loopy-bp" and isinstance(b.converged, bool) and b.iterations >= 1
 
 
 def test_marginals_carry_the_partition_name():
@@ -513,8 +513,8 @@ g = _band(30, 5)
 out.append(run(lambda: map_assignment(g, memory=budget)))
 g10 = _band(10, 5)
 out.append(run(lambda: exact_marginals(g10, log_domain=True, memory=budget)))
-out.append(run(lambda: exact_marginals(g10, engine="gtsam", memory=budget)))
-out.append(run(lambda: exact_marginals(g10, engine="contract", memory=budget)))
+out.append(run(lambda: exact_marginals(g10, method="gtsam", memory=budget)))
+out.append(run(lambda: exact_marginals(g10, method="contract", memory=budget)))
 from qfg.graph import full_map
 # loopy BP: 11,880 factors' messages (11 MB) under a 5 MB budget
 g12 = full_map(12, partition=None, tensor=np.ones((20, 20, 20)))

@@ -84,8 +84,8 @@ def test_gtsam_and_contract_agree_on_random_loopy_graphs(seed):
     assert g.n_triplets <= 10
     G = g.to_networkx()
     has_loop = len(nx.cycle_basis(G)) > 0
-    a = exact_marginals(g, engine="gtsam")
-    b = exact_marginals(g, engine="contract")
+    a = exact_marginals(g, method="gtsam")
+    b = exact_marginals(g, method="contract")
     np.testing.assert_allclose(a, b, atol=1e-9)
     np.testing.assert_allclose(b, brute_marginals(g), atol=1e-9)
     assert has_loop
@@ -106,7 +106,7 @@ def test_exact_unreachable_and_isolated_are_uniform_and_seen_isolated_keeps_prio
     g.add_triplet((7, 8, 9))                          # isolated unseen
     g.add_triplet((7, 9, 8), [0.1, 0.1, 0.8])         # isolated seen
     for engine in ("junction", "gtsam", "contract"):
-        M = exact_marginals(g, engine=engine)
+        M = exact_marginals(g, method=engine)
         np.testing.assert_allclose(M[3], np.full(3, 1 / 3))
         np.testing.assert_allclose(M[4], [0.1, 0.1, 0.8])
 
@@ -115,11 +115,11 @@ def test_exact_too_big_raises_with_size():
     g = full_map(6, tensor=np.ones((20, 20, 20)))
     for engine in ("junction", "gtsam", "contract"):
         with pytest.raises(GraphTooLargeError, match="entries"):
-            exact_marginals(g, engine=engine)
+            exact_marginals(g, method=engine)
     with pytest.raises(GraphTooLargeError, match="entries"):
-        exact_marginals(g, engine="contract", max_table=10**4)
-    with pytest.raises(ValueError, match="engine"):
-        exact_marginals(g, engine="magic")
+        exact_marginals(g, method="contract", max_table=10**4)
+    with pytest.raises(ValueError, match="method"):
+        exact_marginals(g, method="magic")
 
 
 # ------------------------------------------------------------------ Algorithm 2
@@ -141,7 +141,7 @@ def test_one_factor_two_seen_label_correcting_equals_exact(seed, m):
             continue
         exact = joint.sum(axis=tuple(a for a in range(3) if a != target)) / joint.sum()
         r = propagate(g)
-        np.testing.assert_allclose(r.marginals[target], exact, atol=1e-12)
+        np.testing.assert_allclose(r.probabilities[target], exact, atol=1e-12)
         np.testing.assert_allclose(exact_marginals(g)[target], exact, atol=1e-12)
         assert r.order.tolist() == [target] and r.updated_by[target] == 0
 
@@ -189,8 +189,8 @@ def test_priority_queue_equals_naive_algorithm2(seed):
     assert all(r.updated_by[v] == f for v, f in by.items())
     for v, p in enumerate(vals):
         expect = np.full(3, 1 / 3) if p is None else p
-        np.testing.assert_allclose(r.marginals[v], expect, atol=1e-12)
-    np.testing.assert_allclose(r.isc, information_score(r.marginals))
+        np.testing.assert_allclose(r.probabilities[v], expect, atol=1e-12)
+    np.testing.assert_allclose(r.isc, information_score(r.probabilities))
 
 
 def test_unreachable_triplets_are_uniform():
@@ -203,13 +203,13 @@ def test_unreachable_triplets_are_uniform():
     g.discover_compositions()
     r = propagate(g)
     for v in (3, 4, 5, 6):
-        np.testing.assert_allclose(r.marginals[v], np.full(3, 1 / 3))
+        np.testing.assert_allclose(r.probabilities[v], np.full(3, 1 / 3))
         assert not r.reached[v] and r.updated_by[v] == -1
         assert r.isc[v] == pytest.approx(0.0, abs=1e-12)
     assert r.reached[:3].all()
     # a triplet without any factor is uniform for every method (the unseen component is not:
     # under the exact model it carries the tensor's own marginals)
-    np.testing.assert_allclose(loopy_bp(g).marginals[6], np.full(3, 1 / 3), atol=1e-12)
+    np.testing.assert_allclose(loopy_bp(g).probabilities[6], np.full(3, 1 / 3), atol=1e-12)
     np.testing.assert_allclose(exact_marginals(g)[6], np.full(3, 1 / 3), atol=1e-12)
 
 
@@ -218,10 +218,10 @@ def test_propagate_deterministic_and_seen_kept():
     T = rand_T(rng, 4)
     g = random_graph(rng, T, n_land=6, frac=0.3)
     r1, r2 = propagate(g), propagate(g)
-    np.testing.assert_array_equal(r1.marginals, r2.marginals)
+    np.testing.assert_array_equal(r1.probabilities, r2.probabilities)
     np.testing.assert_array_equal(r1.order, r2.order)
     P = g.prior_matrix()
-    np.testing.assert_allclose(r1.marginals[g.seen], P[g.seen])
+    np.testing.assert_allclose(r1.probabilities[g.seen], P[g.seen])
     assert set(r1.order.tolist()).isdisjoint(np.flatnonzero(g.seen).tolist())
 
 
@@ -295,7 +295,7 @@ def test_loopy_bp_exact_on_trees(seed):
     assert nx.is_forest(g.to_networkx())
     r = loopy_bp(g, max_iters=50, tol=1e-13)
     assert r.converged and r.iterations < 50
-    np.testing.assert_allclose(r.marginals, brute_marginals(g), atol=1e-9)
+    np.testing.assert_allclose(r.probabilities, brute_marginals(g), atol=1e-9)
 
 
 def test_loopy_bp_reports_non_convergence_and_damping_runs():
@@ -307,8 +307,8 @@ def test_loopy_bp_reports_non_convergence_and_damping_runs():
     assert r.iterations == 1 and not r.converged
     d = loopy_bp(g, damping=0.5, max_iters=500, tol=1e-8)
     assert d.iterations <= 500
-    np.testing.assert_allclose(d.marginals.sum(axis=1), 1.0)
-    assert np.all(d.marginals >= 0)
+    np.testing.assert_allclose(d.probabilities.sum(axis=1), 1.0)
+    assert np.all(d.probabilities >= 0)
 
 
 def test_isc_hand_worked_on_copy_tensor():
@@ -322,8 +322,8 @@ def test_isc_hand_worked_on_copy_tensor():
     h = -(0.9 * np.log(0.9) + 0.1 * np.log(0.1))
     assert r.isc[1] == pytest.approx(1 - h / np.log(2), abs=1e-12)
     assert r.isc[1] == pytest.approx(0.5310044064107189, abs=1e-12)
-    np.testing.assert_allclose(r.marginals[2], [0.81 / 0.82, 0.01 / 0.82], atol=1e-12)
-    np.testing.assert_allclose(exact_marginals(g, engine="gtsam")[2], [0.9, 0.1], atol=1e-12)
+    np.testing.assert_allclose(r.probabilities[2], [0.81 / 0.82, 0.01 / 0.82], atol=1e-12)
+    np.testing.assert_allclose(exact_marginals(g, method="gtsam")[2], [0.9, 0.1], atol=1e-12)
 
 
 def test_compare_unseen_and_truth_states():
@@ -350,10 +350,10 @@ def test_compare_unseen_and_truth_states():
     r = propagate(g)
     for row, v in zip(rows, (1, 2), strict=True):
         np.testing.assert_allclose(row["exact"], ex[v])
-        np.testing.assert_allclose(row["propagated"], r.marginals[v])
+        np.testing.assert_allclose(row["propagated"], r.probabilities[v])
         assert row["truth"] == truth[v]
     big = full_map(6, tensor=np.ones((20, 20, 20)))
-    rows = compare_unseen(big, engine="gtsam")
+    rows = compare_unseen(big, method="gtsam")
     assert rows[0]["exact"] is None and "entries" in rows[0]["exact_error"]
     with pytest.raises(ValueError, match="truth"):
         compare_unseen(g, truth=[0, 1])
@@ -366,7 +366,7 @@ def test_outputs_are_distributions_and_scores_bounded(seed, m, frac):
     g = random_graph(rng, rand_T(rng, m), n_land=5, frac=frac)
     r = propagate(g)
     b = loopy_bp(g, max_iters=30, warn=False)
-    for M in (r.marginals, b.marginals):
+    for M in (r.probabilities, b.probabilities):
         assert np.all(np.isfinite(M)) and np.all(M >= 0)
         np.testing.assert_allclose(M.sum(axis=1), 1.0, atol=1e-12)
     assert np.all((r.isc >= 0) & (r.isc <= 1))
@@ -389,10 +389,10 @@ def test_contradictory_priors_zero_mass():
     with pytest.raises(ZeroMassError):
         exact_marginals(g)
     r = propagate(g)
-    np.testing.assert_allclose(r.marginals[2], [0.5, 0.5])
+    np.testing.assert_allclose(r.probabilities[2], [0.5, 0.5])
     b = loopy_bp(g)
-    assert np.all(np.isfinite(b.marginals))
-    np.testing.assert_allclose(b.marginals.sum(axis=1), 1.0)
+    assert np.all(np.isfinite(b.probabilities))
+    np.testing.assert_allclose(b.probabilities.sum(axis=1), 1.0)
 
 
 def test_close_used_reading_closes_the_factor_after_one_update():
@@ -401,7 +401,7 @@ def test_close_used_reading_closes_the_factor_after_one_update():
     # f0 updates (1,2,3) and closes, so (0,1,3) is unreachable; f1 then updates (2,3,4) and closes
     assert r.order.tolist() == [1, 3]
     assert r.reached.tolist() == [True, True, False, True, False]
-    np.testing.assert_allclose(r.marginals[[2, 4]], 0.5)
+    np.testing.assert_allclose(r.probabilities[[2, 4]], 0.5)
     t = topology_scores(g, seen_score=1.0, close_used=True)
     np.testing.assert_allclose(t.scores, [1.0, 0.5, 0.0, 0.25, 0.0])
     c = composition_levels(g, close_used=True)

@@ -1,11 +1,11 @@
-"""propagate(rule="mean") / propagate_pooled against a plain loop over factors."""
+"""propagate(method="pooled") against a plain loop over factors."""
 
 import numpy as np
 import pytest
 
 from qfg.composition import marginal as compose
 from qfg.graph import full_map
-from qfg.propagation import propagate, propagate_pooled
+from qfg.propagation import propagate
 
 
 def _loop_reference(g):
@@ -40,12 +40,12 @@ def test_pooled_equals_the_factor_loop(seed):
     T = rng.random((4, 4, 4)) ** 3
     seen = {(0, 1, 2): rng.dirichlet(np.ones(4) * 0.5), (3, 1, 0): rng.dirichlet(np.ones(4))}
     g = full_map(5, partition=None, tensor=T, priors=seen)
-    got = propagate_pooled(g)
+    got = propagate(g, method="pooled")
     want = _loop_reference(g)
     np.testing.assert_allclose(np.asarray(got), want, atol=1e-12)
     assert np.all(got.info["level"][np.asarray(g.seen)] == 0)
     assert np.all(got.info["level"][~np.asarray(g.seen)] >= 1)
-    np.testing.assert_allclose(np.asarray(propagate(g, rule="mean")), want, atol=1e-12)
+    assert got.method == "pooled"
 
 
 def test_pooled_is_never_sharper_than_its_sharpest_proposal():
@@ -54,14 +54,14 @@ def test_pooled_is_never_sharper_than_its_sharpest_proposal():
     T = rng.random((4, 4, 4)) ** 4
     seen = {(0, 1, 2): np.array([0.97, 0.01, 0.01, 0.01]), (1, 2, 3): rng.dirichlet(np.ones(4))}
     g = full_map(4, partition=None, tensor=T, priors=seen)
-    P = np.asarray(propagate_pooled(g))
+    P = np.asarray(propagate(g, method="pooled"))
     best = np.asarray(propagate(g))
     assert P.max() <= max(best.max(), 0.97) + 1e-12
 
 
-def test_unknown_rule_is_named():
+def test_unknown_method_is_named():
     g = full_map(4, partition=None, tensor=np.ones((2, 2, 2)), priors={(0, 1, 2): [0.5, 0.5]})
-    with pytest.raises(ValueError, match="rule"):
-        propagate(g, rule="sharpest")
+    with pytest.raises(ValueError, match="method"):
+        propagate(g, method="sharpest")
     with pytest.raises(ValueError, match="close_used"):
-        propagate(g, close_used=True, rule="mean")
+        propagate(g, close_used=True, method="pooled")

@@ -246,12 +246,12 @@ def test_experiment_all_writes_no_tracked_file_without_update_docs(tmp_path, mon
 def test_map_methods_scored_on_seen_and_unseen_triplets(full_run):
     out, rows = full_run
     for r in rows:
-        for m in ("prior", "alg2", "pooled", "cfg_state", "cfg_metric"):
+        for m in ("prior", "alg2", "pooled", "config-state", "config-metric"):
             assert r[f"{m}_ls"] <= 0 and 0 <= r[f"{m}_pit"] <= 1 and 0 <= r[f"{m}_brier"] <= 2
         assert (r["solver_ls"] is None) == (not r["seen"])
     s = json.loads((out / "summary.json").read_text())
     got = {(t["triplets"], t["method"]) for t in s["scores"]}
-    assert ("seen", "solver") in got and ("unseen", "cfg_metric") in got
+    assert ("seen", "solver") in got and ("unseen", "config-metric") in got
     assert ("unseen", "solver") not in got
     assert (out / "scores.md").exists()
 

@@ -371,9 +371,9 @@ def test_solve_triplets_batch_returns_distributions(method, data, seed):
 # factor-graph inference
 
 GRAPH_METHODS = {
-    "junction": lambda g: exact_marginals(g, engine="junction"),
-    "contract": lambda g: exact_marginals(g, engine="contract"),
-    "gtsam": lambda g: exact_marginals(g, engine="gtsam"),
+    "junction": lambda g: exact_marginals(g, method="junction"),
+    "contract": lambda g: exact_marginals(g, method="contract"),
+    "gtsam": lambda g: exact_marginals(g, method="gtsam"),
     "propagate": propagate,
     "loopy_bp": lambda g: loopy_bp(g, max_iters=30),
 }
@@ -472,7 +472,7 @@ def test_positive_tensor_spanning_1e100_has_mass_on_a_loopy_map(method, seed):
 @given(gm=small_graphs(), engine=st.sampled_from(["junction", "contract", "gtsam"]))
 def test_compare_unseen_rows_are_distributions(gm, engine):
     g, m = _graph_case(engine, gm)
-    rows = compare_unseen(g, engine=engine)
+    rows = compare_unseen(g, method=engine)
     assert [r["triplet"] for r in rows] == [t for t, p in zip(g.triplets, g.priors, strict=True)
                                           if p is None]
     for r in rows:
@@ -613,7 +613,7 @@ def test_exact_engines_name_contradicting_priors(method):
 @pytest.mark.parametrize("call, name", [
     (lambda g: exact_marginals(g, max_table="x"), "max_table"),
     (lambda g: exact_marginals(g, max_table=-1), "max_table"),
-    (lambda g: exact_marginals(g, engine="nope"), "engine"),
+    (lambda g: exact_marginals(g, method="nope"), "method"),
     (lambda g: loopy_bp(g, damping=1.5), "damping"),
     (lambda g: loopy_bp(g, max_iters=0), "max_iters"),
     (lambda g: loopy_bp(g, tol=float("nan")), "tol"),

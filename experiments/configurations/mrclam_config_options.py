@@ -165,7 +165,7 @@ def main(argv=None) -> int:
         res = configuration_marginals(ev, prior=seen.prior,
                                       triplets=[tuple(t) for t in wanted.tolist()],
                                       partition=prep.partition.name,
-                                      likelihood="metric" if kind == "metric" else "state",
+                                      method="config-metric" if kind == "metric" else "config-state",
                                       check=maps.CONFIG_CHECK, **kw)
         P = np.asarray(res.probabilities, dtype=float)
         P = P / P.sum(axis=1, keepdims=True)

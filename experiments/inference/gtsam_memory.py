@@ -1,4 +1,4 @@
-"""Peak RSS of ``exact_marginals(engine="gtsam")`` per entry of the min-fill cliques, the basis of
+"""Peak RSS of ``exact_marginals(method="gtsam")`` per entry of the min-fill cliques, the basis of
 ``qfg.inference.exact.GTSAM_BYTES_PER_ENTRY``.
 
 A band map: triplets i < j < k of L landmarks within a window of w, every composition among
@@ -32,7 +32,7 @@ def main(L: int, w: int, m: int):
     cs = _clique_sizes(FactorModel.from_graph(g))
     base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     t = time.time()
-    exact_marginals(g, engine="gtsam", memory=2 ** 40)
+    exact_marginals(g, method="gtsam", memory=2 ** 40)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     per = (peak - base) / (sum(cs) + sum(sorted(cs)[-3:]))
     print(f"L={L} w={w} m={m} n={g.n_triplets} F={g.n_factors} clique entries {sum(cs):.3g} "

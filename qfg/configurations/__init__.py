@@ -11,12 +11,12 @@ with ``prior`` the world prior the single-triplet solvers used (:class:`qfg.prio
 landmarks i.i.d. uniform in a box, pairwise at least ``d_min`` apart) and, for seen triplet
 ``t = AB:C`` with solver posterior ``P_t(s) = P(s | H_t)`` under that prior,
 
-* state likelihood (``likelihood="state"``): ``L_t = (1 - eps) P_t(s_t) / q(s_t) + eps``, where
+* state likelihood (``method="config-state"``): ``L_t = (1 - eps) P_t(s_t) / q(s_t) + eps``, where
   ``s_t`` is C's state in the AB frame of X and ``q`` the state distribution of the same prior
   (:func:`qfg.combine.prior_state_distribution`): ``P_t / q`` is ``P(H_t | s)`` up to a constant,
   and its mean under the prior is 1, so the floor ``eps`` is a fraction of the prior: one wrong
   estimate multiplies the truth's weight by ``eps`` at worst instead of vetoing it;
-* metric likelihood (``likelihood="metric"``): ``L_t = (1 - eps) [(1 - b) r_t(c_t) + b P_t(s_t) /
+* metric likelihood (``method="config-metric"``): ``L_t = (1 - eps) [(1 - b) r_t(c_t) + b P_t(s_t) /
   q(s_t)] + eps`` with ``c_t`` C's AB-frame position and ``r_t(c) ≈ p(c | H_t) / prior(c)`` the
   solver's posterior density of C's position divided by the prior's, from a compact summary of
   the solver's weighted samples (:class:`PositionSummary`, :func:`summarize_position`: a kernel
@@ -67,7 +67,7 @@ from .evidence import one_ordering_per_set
 from .infer import (
     DEFAULTS,
     ESS_PRIOR,
-    LIKELIHOODS,
+    METHODS,
     TEMPER,
     configuration_marginals,
     infer_configurations,
@@ -87,8 +87,15 @@ from .posterior import (
     NotSettledWarning,
 )
 
+
+def __getattr__(name):
+    if name == "LIKELIHOODS":
+        raise AttributeError("qfg.configurations.LIKELIHOODS was removed: use METHODS "
+                             "(CHANGELOG.md, 0.6.0)")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 __all__ = ["PositionSummary", "summarize_position", "combine_positions", "ConfigurationPosterior",
            "infer_configurations", "configuration_marginals", "prior_states",
-           "one_ordering_per_set", "LeaveOneOutCheck", "CHECK_GRID", "prior_mixing_weight", "LIKELIHOODS",
+           "one_ordering_per_set", "LeaveOneOutCheck", "CHECK_GRID", "prior_mixing_weight", "METHODS",
            "DEFAULTS", "NotSettledWarning", "UNSETTLED_ERROR", "UNSETTLED_SHARE", "TEMPER",
            "ESS_PRIOR", "PRIOR_STATE_SAMPLES", "LOW_ESS"]

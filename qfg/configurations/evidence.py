@@ -114,7 +114,7 @@ def _evidence_items(evidence, part, pr, likelihood, ess=None):
             raise ValueError(f"evidence: triplet {tt}: expected non-negative finite "
                              "probabilities, not all zero")
         if likelihood == "metric" and summ is None:
-            raise ValueError(f"evidence: triplet {tt}: likelihood='metric' needs a "
+            raise ValueError(f"evidence: triplet {tt}: method='config-metric' needs a "
                              "PositionSummary (summarize_position) for every seen triplet")
         out[tt] = (v / v.sum(), summ if likelihood == "metric" else None,
                    ess_given.get(tt, n_eff))

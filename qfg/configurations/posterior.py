@@ -55,7 +55,8 @@ class ConfigurationPosterior:
         weights: (P,) normalized weights (equal after the final resampling).
         groups: (P,) int, the independent population of each particle.
         partition, prior: the partition and :class:`qfg.priors.WorldBoxPrior` used.
-        likelihood: ``"state"`` or ``"metric"``.
+        method: ``"config-state"`` or ``"config-metric"`` (the seen triplets' state or metric
+            likelihood; the marginals' ``method``).
         evidence: {triplet: (m,) vector or PositionSummary}, the seen triplets' evidence.
         diagnostics: dict -- ``n_stages``, ``betas``, ``ess`` (fraction of each stage's
             particles, before resampling), ``acceptance_landmark`` / ``acceptance_similarity``
@@ -65,7 +66,7 @@ class ConfigurationPosterior:
     :meth:`marginals` gives any triplets' state distributions, :meth:`update` adds evidence.
     """
 
-    def __init__(self, landmarks, X, groups, part, pr, likelihood, terms, options, diag, q):
+    def __init__(self, landmarks, X, groups, part, pr, method, terms, options, diag, q):
         self.landmarks = tuple(landmarks)
         self._index = {l: i for i, l in enumerate(self.landmarks)}
         X = np.array(X)
@@ -75,7 +76,7 @@ class ConfigurationPosterior:
         self.weights = np.full(X.shape[0], 1.0 / X.shape[0])
         self.weights.setflags(write=False)
         self.groups = np.asarray(groups)
-        self.partition, self.prior, self.likelihood = part, pr, likelihood
+        self.partition, self.prior, self.method = part, pr, method
         self._terms, self.options, self.diagnostics, self._q = terms, options, diag, q
 
     @property
@@ -85,7 +86,7 @@ class ConfigurationPosterior:
     def __repr__(self):
         return (f"ConfigurationPosterior(landmarks={len(self.landmarks)}, "
                 f"particles={self.positions.shape[0]}, seen={len(self._terms.triplets)}, "
-                f"likelihood={self.likelihood!r}, stages={self.diagnostics.get('n_stages')})")
+                f"method={self.method!r}, stages={self.diagnostics.get('n_stages')})")
 
     def _indices(self, triplets):
         out = np.zeros((len(triplets), 3), dtype=np.intp)
@@ -271,8 +272,7 @@ class ConfigurationPosterior:
         info.update(mc_error=se, mc_error_max=float(np.max(se)) if se.size else 0.0,
                     unsettled=unsettled, seen=np.array([t in seen for t in ts], dtype=bool),
                     configurations=self)
-        return Marginals(tuple(ts), self.partition.name, f, f"configurations-{self.likelihood}",
-                         info)
+        return Marginals(tuple(ts), self.partition.name, f, self.method, info)
 
     def loo_check(self) -> LeaveOneOutCheck:
         """Leave-one-out check of the model against the seen triplets (no ground truth).
@@ -319,17 +319,19 @@ class ConfigurationPosterior:
         lam, agreement = prior_mixing_weight(log_cpo)
         return LeaveOneOutCheck(tuple(t.triplets), log_cpo, lam, agreement)
 
-    def update(self, evidence, *, seed=None, landmarks=(), ess=None) -> "ConfigurationPosterior":
+    def update(self, evidence, *, seed=0, landmarks=(), ess=None) -> "ConfigurationPosterior":
         """A new posterior with more evidence, tempered in from these particles (cheaper than a
         restart when the new evidence is a small part of the whole).
 
         ``evidence``: {triplet: estimate} as in :func:`infer_configurations`; a triplet already
         seen has its old evidence replaced (the old likelihood tempered out while the new one
         comes in). Landmarks new to the map get positions drawn from the prior given the others.
+        ``seed``: int, SeedSequence or Generator (default 0).
         """
         o = self.options
         rng = as_rng(seed)
-        items = _evidence_items(evidence, self.partition, self.prior, self.likelihood, ess)
+        items = _evidence_items(evidence, self.partition, self.prior,
+                                self.method.removeprefix("config-"), ess)
         new_ids = [x for x in dict.fromkeys([*landmarks, *(x for t in items for x in t)])
                    if x not in self._index]
         ids = self.landmarks + tuple(new_ids)
@@ -345,7 +347,7 @@ class ConfigurationPosterior:
                             2, 0).astype(np.int8)
         new = _make_terms(items, index, self._q, o, 1)
         terms = _concat_terms(old, new) if len(old.triplets) else new
-        return _run(ids, X, terms, self.partition, self.prior, self.likelihood, o, self._q, rng,
+        return _run(ids, X, terms, self.partition, self.prior, self.method, o, self._q, rng,
                     self.groups)
 
 
@@ -366,7 +368,7 @@ def _prior_extension(pr, X, k, rng):
     return out
 
 
-def _run(ids, X, terms, part, pr, likelihood, options, q, rng, groups):
+def _run(ids, X, terms, part, pr, method, options, q, rng, groups):
     G = options["n_groups"]
     s = _Sampler(np.array(X, dtype=float), terms, part, pr, options["floor"], rng, G,
                  bool(options["block_moves"]))
@@ -383,6 +385,6 @@ def _run(ids, X, terms, part, pr, likelihood, options, q, rng, groups):
             "acceptance_similarity": float(np.mean(s.acc_sim)) if s.acc_sim else float("nan"),
             "acceptance_block": float(np.mean(s.acc_block)) if s.acc_block else float("nan"),
             "n_blocks": len(s.blocks),
-            "log_evidence": logz, "options": dict(options), "likelihood": likelihood,
+            "log_evidence": logz, "options": dict(options), "method": method,
             "n_seen": len(terms.triplets), "n_metric": int(terms.metric.sum())}
-    return ConfigurationPosterior(ids, s.X, groups, part, pr, likelihood, terms, options, diag, q)
+    return ConfigurationPosterior(ids, s.X, groups, part, pr, method, terms, options, diag, q)

@@ -13,7 +13,8 @@ same :class:`Marginals` type.
 """
 
 from .evidence import clamp, read_evid
-from .exact import ENGINES, elimination_estimate, exact_marginals, k_best, map_assignment
+from .exact import METHODS as EXACT_METHODS
+from .exact import elimination_estimate, exact_marginals, k_best, map_assignment
 from .junction import MAX_TABLE, FactorModel, JunctionTree, SizeEstimate, size_estimate
 from .loopy import (
     BP_DEGREE_WARN,
@@ -28,7 +29,14 @@ from .results import Assignment, GraphTooLargeError, Marginals, MissingKeyError,
 from .tasks import TaskResult, query, read_result, solve_task, write_result
 from .uai import read_uai, read_uai_graph, write_uai
 
-__all__ = ["exact_marginals", "map_assignment", "k_best", "elimination_estimate", "ENGINES",
+
+def __getattr__(name):
+    if name == "ENGINES":
+        raise AttributeError("qfg.inference.ENGINES was removed: use EXACT_METHODS "
+                             "(CHANGELOG.md, 0.6.0)")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+__all__ = ["exact_marginals", "map_assignment", "k_best", "elimination_estimate", "EXACT_METHODS",
            "FactorModel", "JunctionTree", "SizeEstimate", "size_estimate", "MAX_TABLE",
            "Marginals", "Assignment", "GraphTooLargeError", "ZeroMassError", "MissingKeyError",
            "write_uai", "read_uai", "read_uai_graph", "read_evid", "clamp", "MemoryBudgetError",

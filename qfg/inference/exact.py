@@ -1,7 +1,7 @@
-"""Exact inference on a :class:`~qfg.graph.QualitativeFactorGraph`: marginals (three engines), MAP
+"""Exact inference on a :class:`~qfg.graph.QualitativeFactorGraph`: marginals (three methods), MAP
 and the K most probable joint assignments.
 
-Engines of :func:`exact_marginals`:
+Methods of :func:`exact_marginals` (``method=``, the string the result's ``method`` reports):
 
 * ``"junction"`` (default): one calibration of a junction tree, every marginal read from it
   (:class:`~qfg.inference.junction.JunctionTree`).
@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._vocabulary import check_method, renamed_keywords
 from .junction import (
     FactorModel,
     JunctionTree,
@@ -29,16 +30,25 @@ from .junction import (
 from .memory import check_memory, memory_budget
 from .results import Assignment, GraphTooLargeError, Marginals, ZeroMassError
 
-__all__ = ["exact_marginals", "map_assignment", "k_best", "elimination_estimate", "ENGINES"]
+__all__ = ["exact_marginals", "map_assignment", "k_best", "elimination_estimate", "METHODS"]
 
-ENGINES = ("junction", "contract", "gtsam")
+#: The methods of :func:`exact_marginals` (``method=``), default first.
+METHODS = ("junction", "contract", "gtsam")
+
+
+def __getattr__(name):
+    if name == "ENGINES":
+        raise AttributeError("qfg.inference.exact.ENGINES was removed: use METHODS "
+                             "(CHANGELOG.md, 0.6.0)")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _result(g, P, method, **info) -> Marginals:
     return Marginals(tuple(g.triplets), g.partition, P, method, info)
 
 
-def exact_marginals(g, engine: str = "junction", max_table: int | None = None,
+@renamed_keywords(engine="method")
+def exact_marginals(g, method: str = "junction", max_table: int | None = None,
                     log_domain: bool = False, *, evidence=None, memory=None) -> Marginals:
     """Exact marginals ``P(S_v) = sum over the other variables of prod(factors) / Z``, labelled.
 
@@ -47,20 +57,20 @@ def exact_marginals(g, engine: str = "junction", max_table: int | None = None,
 
     Args:
         g: a :class:`~qfg.graph.QualitativeFactorGraph`.
-        engine: ``"junction"``, ``"contract"`` or ``"gtsam"`` (see the module docstring).
+        method: ``"junction"``, ``"contract"`` or ``"gtsam"`` (see the module docstring).
         max_table: optional limit on the largest clique (entries); above it
             :class:`GraphTooLargeError` names the estimate, before any work. None (default):
             only the memory budget limits.
-        log_domain: junction engine only: calibrate in the log domain from the start (it falls
+        log_domain: ``method="junction"`` only: calibrate in the log domain from the start (it falls
             back there by itself when linear arithmetic would underflow).
-        evidence: junction engine only: observed triplets, ``{triplet: state}`` (clamped
+        evidence: ``method="junction"`` only: observed triplets, ``{triplet: state}`` (clamped
             before planning; their rows are one-hot, ``info["log_partition"]`` is ``log Z(e)``).
-        memory: budget in bytes (:func:`~qfg.inference.memory.memory_budget`); the engine's
+        memory: budget in bytes (:func:`~qfg.inference.memory.memory_budget`); the method's
             estimated peak allocation above it -> :class:`~qfg.inference.memory.MemoryBudgetError`
             before any work.
 
-    Returns a :class:`~qfg.inference.results.Marginals` (``method`` = the engine; ``info``:
-    ``log_partition`` and ``largest_table`` for the junction engine).
+    Returns a :class:`~qfg.inference.results.Marginals` (``method`` = the method; ``info``:
+    ``log_partition`` and ``largest_table`` for ``"junction"``).
 
     >>> import numpy as np
     >>> from qfg.graph import QualitativeFactorGraph
@@ -73,15 +83,14 @@ def exact_marginals(g, engine: str = "junction", max_table: int | None = None,
     ([0.8, 0.2], (3, 2))
     """
     max_table = check_max_table(max_table)
-    if engine not in ENGINES:
-        raise ValueError(f"engine: expected one of {ENGINES}, got {engine!r}")
+    check_method(method, METHODS)
     budget = memory_budget(memory)
-    if evidence is not None and engine != "junction":
-        raise ValueError(f"evidence: supported by engine='junction' only, got engine={engine!r}")
+    if evidence is not None and method != "junction":
+        raise ValueError(f"evidence: supported by method='junction' only, got method={method!r}")
     n, m = g.n_triplets, g.m
     if n == 0:
-        return _result(g, np.zeros((0, m)), engine)
-    if engine == "junction":
+        return _result(g, np.zeros((0, m)), method)
+    if method == "junction":
         jt = JunctionTree(FactorModel.from_graph(g), max_table=max_table, evidence=evidence,
                           memory=budget)
         P, logz, domain = jt.calibrate(log_domain=bool(log_domain))
@@ -93,12 +102,12 @@ def exact_marginals(g, engine: str = "junction", max_table: int | None = None,
     if not est.complete:
         if max_table is not None:
             raise _too_large(est, max_table, "elimination order")
-        check_memory(8.0 * max(est.entries, est.lower_bound), budget, f"engine={engine!r}",
+        check_memory(8.0 * max(est.entries, est.lower_bound), budget, f"method={method!r}",
                      f"a clique over {est.width} variables, about {est.entries:.3g} entries",
                      entries=est.entries, width=est.width)
     out = np.full((n, m), 1.0 / m)
-    if engine == "gtsam":
-        check_memory(gtsam_estimate(model, est), budget, "engine='gtsam'",
+    if method == "gtsam":
+        check_memory(gtsam_estimate(model, est), budget, "method='gtsam'",
                      f"about {GTSAM_BYTES_PER_ENTRY} bytes per entry of its decision-tree "
                      f"factors over the cliques (largest {est.entries:.3g} entries)",
                      entries=est.entries, width=est.width)
@@ -113,7 +122,7 @@ GTSAM_BYTES_PER_ENTRY = 160
 
 
 def gtsam_estimate(model, est=None) -> float:
-    """Peak bytes of ``engine="gtsam"``: decision trees over the min-fill cliques, about
+    """Peak bytes of ``method="gtsam"``: decision trees over the min-fill cliques, about
     :data:`GTSAM_BYTES_PER_ENTRY` per entry (GTSAM orders by COLAMD, not min-fill; its cliques
     are no smaller than the min-fill ones on the graphs measured), the largest three at once
     plus every clique's conditional kept in the Bayes tree."""
@@ -239,7 +248,7 @@ def _exact_contract(g, out, max_table, model, budget):
                     entries=float(info.largest_intermediate), max_table=max_table)
             inter = sorted((float(x) for x in info.size_list), reverse=True)
             need = 8.0 * (sum(inter[:2]) + sum(np.size(o) for o in ops))
-            check_memory(need, budget, "engine='contract'",
+            check_memory(need, budget, "method='contract'",
                          f"an intermediate of {float(info.largest_intermediate):.3g} entries",
                          entries=float(info.largest_intermediate))
             plans.append((v, eq, info))

@@ -79,7 +79,7 @@ def loopy_bp(g, damping: float = 0.0, max_iters: int = 100, tol: float = 1e-9, *
     (:func:`~qfg.inference.memory.memory_budget`); the messages over it ->
     :class:`~qfg.inference.memory.MemoryBudgetError` before any work.
 
-    Returns a :class:`~qfg.inference.Marginals` (``method="loopy_bp"``; ``info``: ``converged``,
+    Returns a :class:`~qfg.inference.Marginals` (``method="loopy-bp"``; ``info``: ``converged``,
     ``iterations``, ``max_change`` (last largest message change), ``damping``, ``overlap``).
 
     >>> import numpy as np
@@ -90,7 +90,7 @@ def loopy_bp(g, damping: float = 0.0, max_iters: int = 100, tol: float = 1e-9, *
     ...     _ = g.add_triplet(t, p)
     >>> _ = g.discover_compositions()
     >>> r = loopy_bp(g)
-    >>> r.marginals.round(2).tolist(), r.converged
+    >>> r.probabilities.round(2).tolist(), r.converged
     ([[0.9, 0.1], [0.9, 0.1], [0.9, 0.1]], True)
     """
     import warnings
@@ -172,7 +172,7 @@ def loopy_bp(g, damping: float = 0.0, max_iters: int = 100, tol: float = 1e-9, *
         warnings.warn(f"loopy_bp: not converged after {it} iterations (largest message change "
                       f"{change:.3g} > tol={tol:g}); raise max_iters or damping",
                       NotConvergedWarning, stacklevel=2)
-    return Marginals(tuple(g.triplets), g.partition, _normalize_rows(b), "loopy_bp",
+    return Marginals(tuple(g.triplets), g.partition, _normalize_rows(b), "loopy-bp",
                      {"converged": bool(converged), "iterations": it, "max_change": change,
                       "damping": damping, "overlap": ov["overlap"]})
 

@@ -1,9 +1,10 @@
 """Labelled inference results and the errors of the exact engines.
 
-Every engine (exact junction tree, per-variable contraction, GTSAM, Algorithm 2, loopy BP) returns
-a :class:`Marginals`: the triplets, the partition name and the (n, m) array, so a result can be
-read without the (mutable) graph that produced it. Rows follow ``triplets`` (the graph's variable
-order at the time of the call); lookups go by triplet, ``res[(0, 1, 3)]``.
+Every method (exact junction tree, per-variable contraction, GTSAM, Algorithm 2, pooled
+composition, loopy BP, configuration inference) returns a :class:`Marginals`: the triplets, the
+partition name, its state names and the (n, m) array, so a result can be read without the
+(mutable) graph that produced it. Rows follow ``triplets`` (the graph's variable order at the
+time of the call); lookups go by triplet, ``res[(0, 1, 3)]``.
 """
 
 from __future__ import annotations
@@ -77,6 +78,26 @@ def _row_of(rows: dict, n: int, key) -> int:
                     f"{key!r}; for array indexing use .probabilities")
 
 
+def _state_names(partition, m: int) -> tuple:
+    """The state names of ``partition`` (its ``labels``, :func:`qfg.partitions.get`); for no
+    partition, one it does not know or one with another number of states: ``"1"`` .. ``"m"``,
+    the numbering the partitions use by default."""
+    if partition is not None:
+        from ..partitions import get
+
+        try:
+            labels = tuple(str(x) for x in get(partition).labels)
+        except ValueError:
+            labels = ()
+        if len(labels) == m:
+            return labels
+    return tuple(str(i + 1) for i in range(m))
+
+
+#: rows :meth:`Marginals.__str__` prints before it elides the rest
+STR_ROWS = 10
+
+
 def _frozen_array(a) -> np.ndarray:
     a = np.array(a, dtype=float)
     a.setflags(write=False)
@@ -91,23 +112,35 @@ class Marginals:
         triplets: tuple of ``(i, j, k)``, the row labels.
         partition: partition name of the states (columns), or None for an unlabelled tensor.
         probabilities: (n, m) float array, rows sum to 1 (read-only).
-        method: which engine made it (``"junction"``, ``"contract"``, ``"gtsam"``,
-            ``"label_correcting"``, ``"loopy_bp"``).
-        info: read-only mapping of engine-specific extras (e.g. ``log_partition``,
+        method: which method made it, the string its function's ``method=`` takes
+            (``"junction"``, ``"contract"``, ``"gtsam"``, ``"best"``, ``"pooled"``,
+            ``"loopy-bp"``, ``"config-state"``, ``"config-metric"``, ``"joint"``).
+        info: read-only mapping of method-specific extras (e.g. ``log_partition``,
             ``largest_table``, ``converged``, ``iterations``, ``isc``, ``reached``).
+        states: (m,) tuple of str, the column labels: the partition's state names
+            (``qfg.partitions.get(partition).labels``; ``"1"`` .. ``"m"`` without one). Given
+            by the partition unless passed.
 
     One indexing rule: ``res[(i, j, k)]`` is that triplet's (m,) row and ``res[v]`` (an int,
     ``0 <= v < n``) row ``v``; an absent key raises :class:`MissingKeyError` (a ``KeyError``),
     anything else (slices, masks, negative indices) a ``TypeError`` or ``KeyError``: array work
     goes through ``res.probabilities``. ``key in res`` follows the same rule. ``len(res)``,
     ``iter(res)`` (triplets), ``res.to_dict()``, ``np.asarray(res)``. Extras are also
-    attributes: ``res.converged`` = ``res.info["converged"]``.
+    attributes: ``res.converged`` = ``res.info["converged"]``. ``str(res)`` is a table with
+    the state names as columns.
 
-    >>> r = Marginals(((0, 1, 2), (1, 2, 3)), "lr", [[0.9, 0.1], [0.5, 0.5]], "exact")
+    >>> r = Marginals(((0, 1, 2), (1, 2, 3)), "lr", [[0.9, 0.1], [0.5, 0.5]], "junction")
     >>> r[(1, 2, 3)].tolist(), r[0].tolist(), len(r), np.asarray(r).shape, list(r)
     ([0.5, 0.5], [0.9, 0.1], 2, (2, 2), [(0, 1, 2), (1, 2, 3)])
     >>> (0, 1, 2) in r, 1 in r, 2 in r, (0, 1, 3) in r
     (True, True, False, False)
+    >>> r.states
+    ('L', 'R')
+    >>> print(r)
+    Marginals(method='junction', partition='lr', n=2, m=2)
+    triplet        L      R
+    (0, 1, 2)  0.900  0.100
+    (1, 2, 3)  0.500  0.500
     """
 
     triplets: tuple
@@ -115,6 +148,7 @@ class Marginals:
     probabilities: np.ndarray
     method: str = ""
     info: Mapping = field(default_factory=dict)
+    states: tuple | None = None
 
     def __post_init__(self):
         ts = tuple(tuple(int(x) for x in t) for t in self.triplets)
@@ -122,8 +156,16 @@ class Marginals:
         if P.ndim != 2 or P.shape[0] != len(ts):
             raise ValueError(f"probabilities: expected ({len(ts)}, m) rows for {len(ts)} triplets, "
                              f"got shape {P.shape}")
+        if self.states is None:
+            states = _state_names(self.partition, P.shape[1])
+        else:
+            states = tuple(str(x) for x in self.states)
+            if len(states) != P.shape[1]:
+                raise ValueError(f"states: expected {P.shape[1]} names (one per column), got "
+                                 f"{len(states)}")
         object.__setattr__(self, "triplets", ts)
         object.__setattr__(self, "probabilities", P)
+        object.__setattr__(self, "states", states)
         info = {}
         for k, v in dict(self.info).items():
             if isinstance(v, np.ndarray):
@@ -135,7 +177,7 @@ class Marginals:
 
     def __reduce__(self):  # picklable (processes, Dask): the read-only views are rebuilt
         return (type(self), (self.triplets, self.partition, np.asarray(self.probabilities),
-                             self.method, dict(self.info)))
+                             self.method, dict(self.info), self.states))
 
     # ------------------------------------------------------------- mapping-like
     def row(self, key) -> int:
@@ -171,12 +213,7 @@ class Marginals:
         """``{triplet: (m,) row}`` (copies)."""
         return {t: self.probabilities[v].copy() for v, t in enumerate(self.triplets)}
 
-    # ------------------------------------------------------------- compatibility
-    @property
-    def marginals(self) -> np.ndarray:
-        """The (n, m) array (the field name of the old result types)."""
-        return self.probabilities
-
+    # ------------------------------------------------------------- shape
     @property
     def shape(self) -> tuple:
         return self.probabilities.shape
@@ -189,6 +226,9 @@ class Marginals:
         # extras of the engines (converged, isc, order, ...) read as attributes
         if name.startswith("_"):
             raise AttributeError(name)
+        if name == "marginals":
+            raise AttributeError("Marginals.marginals was removed: use .probabilities or "
+                                 "np.asarray(res) (CHANGELOG.md, 0.6.0)")
         info = object.__getattribute__(self, "info")
         if name in info:
             return info[name]
@@ -197,7 +237,25 @@ class Marginals:
 
     def __repr__(self) -> str:
         return (f"Marginals(method={self.method!r}, partition={self.partition!r}, "
-                f"n={len(self)}, m={self.probabilities.shape[1]}, info={sorted(self.info)})")
+                f"n={len(self)}, m={self.probabilities.shape[1]}, states={self.states!r}, "
+                f"info={sorted(self.info)})")
+
+    def __str__(self) -> str:
+        """A table: one row per triplet (the first :data:`STR_ROWS`), one column per state."""
+        n, m = self.probabilities.shape
+        head = (f"Marginals(method={self.method!r}, partition={self.partition!r}, n={n}, "
+                f"m={m})")
+        names = [str(t) for t in self.triplets[:STR_ROWS]]
+        w0 = max([len("triplet"), *map(len, names)])
+        ws = [max(5, len(s)) for s in self.states]
+        lines = [head, "  ".join(["triplet".ljust(w0), *(s.rjust(w) for s, w in
+                                                          zip(self.states, ws, strict=True))])]
+        for name, row in zip(names, self.probabilities, strict=False):
+            lines.append("  ".join([name.ljust(w0), *(f"{p:.3f}".rjust(w) for p, w in
+                                                       zip(row, ws, strict=True))]))
+        if n > STR_ROWS:
+            lines.append(f"... ({n - STR_ROWS} more rows)")
+        return "\n".join(lines)
 
 
 @dataclass(frozen=True, eq=False)

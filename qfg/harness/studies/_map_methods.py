@@ -1,5 +1,5 @@
 """Map methods and proper scores shared by the exact-vs-approximate and the propagation studies
-(issue 21): configuration inference (``cfg_state``, ``cfg_metric``) next to the composition
+(issue 21): configuration inference (``config-state``, ``config-metric``) next to the composition
 methods, and the per-triplet scores both studies report for seen and unseen triplets.
 
 Scores per triplet and method (``qfg.metrics``): ``<m>_ls`` the log score ``log max(p_truth,
@@ -18,12 +18,12 @@ import numpy as np
 
 from qfg.metrics import brier, clustered_se, log_score, truth_under
 
-#: configuration-inference methods: name -> likelihood kind
-CONFIG = {"cfg_state": "state", "cfg_metric": "metric"}
+#: configuration-inference methods, named by their ``method=`` in :mod:`qfg.configurations`
+CONFIG = ("config-state", "config-metric")
 
 #: study parameters of the configuration methods (defaults of qfg.configurations where shared;
 #: each seen estimate is widened by the effective sample size of the solver's weights behind it,
-#: :func:`solver_ess`, with the library's ``ess_prior`` of each likelihood kind)
+#: :func:`solver_ess`, with the library's ``ess_prior`` of each method)
 PARAMS = {"map_methods": True, "config_particles": 2000, "config_floor": 0.01,
           "config_state_mix": 0.1, "config_components": 32}
 
@@ -75,7 +75,7 @@ def score_columns(name, P, truth, u) -> dict:
 
 def config_marginals(drawn, task, seed) -> tuple[dict, dict, dict]:
     """Configuration inference on a drawn study graph: ({method: (n, m)}, {method: seconds},
-    {method: diagnostics}) for the graph's triplets, both likelihood kinds (metric evidence from
+    {method: diagnostics}) for the graph's triplets, both methods (config-metric's evidence from
     ``drawn.hypotheses``; the prior is the solvers' default, ``"world"``)."""
     from qfg.configurations import infer_configurations, summarize_position
 
@@ -86,15 +86,15 @@ def config_marginals(drawn, task, seed) -> tuple[dict, dict, dict]:
     ss = np.random.SeedSequence(int(seed))
     seeds = ss.spawn(2)
     out, times, diag = {}, {}, {}
-    for (name, kind), s in zip(CONFIG.items(), seeds, strict=True):
+    for name, s in zip(CONFIG, seeds, strict=True):
         t0 = time.perf_counter()
-        if kind == "metric":
+        if name == "config-metric":
             ev = {t: summarize_position(drawn.hypotheses[t], p, partition=g.partition,
                                         n_components=int(task["config_components"]), seed=0)
                   for t, p in zip(g.triplets, g.priors, strict=True) if p is not None}
         else:
             ev = g
-        post = infer_configurations(ev, partition=g.partition, likelihood=kind,
+        post = infer_configurations(ev, partition=g.partition, method=name,
                                     landmarks=sorted({x for t in g.triplets for x in t}),
                                     seed=s, ess=ess, **opts)
         res = post.marginals(g.triplets)

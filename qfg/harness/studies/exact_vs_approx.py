@@ -13,9 +13,9 @@ triplets seen with fast-solver priors). For every graph:
 * Algorithm 2 in both readings of closing (:func:`qfg.propagation.propagate`, ``alg2``:
   membership, ``alg2c``: ``close_used=True``);
 * loopy BP without and with damping (``bp``: damping 0, ``bpd``: ``bp_damping``);
-* the pooled rule (``pooled``: :func:`qfg.propagation.propagate` with ``rule="mean"``);
-* configuration inference (issue 21, :mod:`qfg.configurations`): ``cfg_state`` (each seen
-  triplet's likelihood from its state estimate) and ``cfg_metric`` (from a summary of the
+* pooled composition (``pooled``: :func:`qfg.propagation.propagate` with ``method="pooled"``);
+* configuration inference (issue 21, :mod:`qfg.configurations`): ``config-state`` (each seen
+  triplet's likelihood from its state estimate) and ``config-metric`` (from a summary of the
   solver's weighted samples of C), ``config_particles`` particles (``map_methods=false`` skips
   them);
 * the topology score (Algorithm 3, seen triplets at their prior's ISC: ``tsc``; at 1: ``tsc1``).
@@ -54,10 +54,10 @@ from qfg.random_graphs import propagation_graph
 
 #: approximate methods: name -> label
 APPROX = {"alg2": "Algorithm 2 (membership closing)", "alg2c": "Algorithm 2 (close used)",
-          "pooled": "pooled composition (rule='mean')",
+          "pooled": "pooled composition (method='pooled')",
           "bp": "loopy BP", "bpd": "loopy BP, damped",
-          "cfg_state": "configuration inference, state likelihoods",
-          "cfg_metric": "configuration inference, metric evidence"}
+          "config-state": "configuration inference, state likelihoods",
+          "config-metric": "configuration inference, metric evidence"}
 METHODS = ("exact", *APPROX)
 #: methods scored on every triplet (``solver``: seen triplets only)
 SCORED = ("prior", "solver", *METHODS)
@@ -132,7 +132,7 @@ def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
     res, times = {}, {"exact": t_ex}
     res["alg2"], times["alg2"] = _timed(lambda: propagate(g))
     res["alg2c"], times["alg2c"] = _timed(lambda: propagate(g, close_used=True))
-    res["pooled"], times["pooled"] = _timed(lambda: propagate(g, rule="mean"))
+    res["pooled"], times["pooled"] = _timed(lambda: propagate(g, method="pooled"))
     bp_kw = {"max_iters": int(task["bp_max_iters"]), "tol": float(task["bp_tol"])}
     res["bp"], times["bp"] = _timed(lambda: loopy_bp(g, damping=0.0, **bp_kw))
     res["bpd"], times["bpd"] = _timed(lambda: loopy_bp(g, damping=float(task["bp_damping"]),

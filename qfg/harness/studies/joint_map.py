@@ -25,10 +25,11 @@ Methods, each giving every ordered triplet a state distribution, scored against 
   odometry's direction of travel between them (dead-reckoned), solved by
   :func:`qfg.solvers.solve_triplets` (``solver``; ``baseline`` without odometry), the six
   orderings' estimates as priors of the full map (:func:`qfg.graph.full_map`), then
-  ``algorithm2`` (:func:`qfg.propagation.propagate`, rule ``best``), ``pooled`` (rule ``mean``),
+  ``best`` (Algorithm 2, :func:`qfg.propagation.propagate` with ``method="best"``), ``pooled``
+  (``method="pooled"``),
   ``exact`` (exact composition, :func:`qfg.propagation.exact_marginals`; only where the
-  junction tree fits, else empty) and ``configurations`` (configuration inference on the seen
-  estimates, :func:`qfg.configurations.configuration_marginals`, state likelihood);
+  junction tree fits, else empty) and ``config-state`` (configuration inference on the seen
+  estimates, :func:`qfg.configurations.configuration_marginals`, ``method="config-state"``);
 * ``prior``: the world prior's state distribution alone.
 
 Rows: one per (scenario, method, kind) with mean log score (clip 1e-4), Brier, truth under 1 %,
@@ -48,7 +49,7 @@ from qfg import metrics
 from qfg.harness.runner import Study, param_spec, print_table, validate_params, write_table
 
 CASES = ("base", "few_landmarks", "few_views", "noisy_odometry", "no_odometry")
-METHODS = ("joint", "configurations", "exact", "algorithm2", "pooled", "prior")
+METHODS = ("joint", "config-state", "exact", "best", "pooled", "prior")
 KINDS = ("seen", "unseen")
 
 DEFAULTS = {
@@ -174,7 +175,7 @@ def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
         flags["joint"] = ";".join(post.flags) or "-"
     if "prior" in methods:
         P["prior"], times["prior"], flags["prior"] = np.tile(q, (len(keys), 1)), 0.0, "-"
-    graph_methods = [m for m in ("configurations", "exact", "algorithm2", "pooled") if m in methods]
+    graph_methods = [m for m in ("config-state", "exact", "best", "pooled") if m in methods]
     if graph_methods:
         t0 = time.perf_counter()
         ests = qfg.solve_triplets(hs, method=task["solver"] if odo else "baseline",
@@ -190,7 +191,7 @@ def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
                 if not priors:
                     out = np.tile(q, (len(keys), 1))
                     fl = "nothing_seen"
-                elif m == "configurations":
+                elif m == "config-state":
                     from qfg.configurations import configuration_marginals, one_ordering_per_set
 
                     ev = one_ordering_per_set(priors)
@@ -204,7 +205,7 @@ def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
                     if m == "exact":
                         r = qfg.exact_marginals(gr)
                     else:
-                        r = qfg.propagate(gr, rule="best" if m == "algorithm2" else "mean")
+                        r = qfg.propagate(gr, method=m)
                     out = np.array([r[k] for k in keys])
             except (MemoryError, ValueError) as exc:  # exact: junction tree too large
                 out, fl = None, type(exc).__name__

@@ -27,7 +27,7 @@ the exact-vs-approximate study and the inference benchmark draw the same graphs 
 5. The map methods of issue 21, scored on every triplet (seen and unseen) with proper scores
    (:mod:`qfg.harness.studies._map_methods`: ``<method>_ls`` log score clipped at 1e-4,
    ``_brier``, ``_under1``, ``_pit`` randomized PIT, ``_top``/``_tophit``): ``alg2`` (Algorithm
-   2's marginals), ``pooled`` (``propagate(g, rule="mean")``), ``cfg_state`` and ``cfg_metric``
+   2's marginals), ``pooled`` (``propagate(g, method="pooled")``), ``config-state`` and ``config-metric``
    (configuration inference, :mod:`qfg.configurations`), ``prior`` (the prior's state
    distribution alone), ``solver`` (seen triplets: the estimate). ``map_methods=false`` skips the
    configuration methods; ``scores.md`` summarizes.
@@ -131,14 +131,14 @@ def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
     cl = composition_levels(g)
     truth = truth_states(g.triplets, L, task["partition"])
     part = get(task["partition"])
-    M = prop.marginals
+    M = prop.probabilities
     d, r, gm = dmse(M, truth), gt_rating(M, truth), gmd(M, truth, part.centroids)
     graph_cols = {"n_v": g.n_triplets, "n_fc": g.n_factors, "n_seen": n_seen,
                   "connectivity": conn, "kept_candidate": kept}
     from qfg.configurations import prior_states
 
     mats = {"prior": np.tile(prior_states("world", task["partition"]), (g.n_triplets, 1)),
-            "alg2": np.asarray(M), "pooled": np.asarray(propagate(g, rule="mean"))}
+            "alg2": np.asarray(M), "pooled": np.asarray(propagate(g, method="pooled"))}
     if cfg:
         cm, ct, cdiag = mm.config_marginals(drawn, task, cfg_seed)
         mats.update(cm)

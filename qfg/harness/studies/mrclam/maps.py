@@ -182,7 +182,7 @@ def _full_map_propagated(seen: SeenEstimates, rule: str) -> MapResult:
                  tensor=seen.composition_tensor(),
                  priors={tuple(t): p for t, p in zip(seen.triplets.tolist(), seen.probabilities,
                                                      strict=True)})
-    res = propagate(g, rule=rule)
+    res = propagate(g, method=rule)
     return MapResult(triplets=np.array(g.triplets, dtype=np.intp),
                      probabilities=np.asarray(res.probabilities, dtype=float),
                      seen=np.asarray(g.seen, dtype=bool),
@@ -193,7 +193,7 @@ def _full_map_propagated(seen: SeenEstimates, rule: str) -> MapResult:
 def map_pooled(seen: SeenEstimates) -> MapResult:
     """Every ordered triplet; the unseen ones by pooled composition
     (:func:`qfg.propagation.propagate_pooled`)."""
-    return _full_map_propagated(seen, "mean")
+    return _full_map_propagated(seen, "pooled")
 
 
 def map_best(seen: SeenEstimates) -> MapResult:
@@ -290,7 +290,7 @@ def _configuration_map(seen: SeenEstimates, evidence: dict, likelihood: str) -> 
     wanted = all_ordered_triplets(seen.dataset.landmark_ids.size)
     res = configuration_marginals(evidence, prior=seen.prior, triplets=[tuple(t) for t in
                                                                         wanted.tolist()],
-                                  partition=seen.partition.name, likelihood=likelihood,
+                                  partition=seen.partition.name, method=f"config-{likelihood}",
                                   seed=seen.seed, widen=CONFIG_WIDEN, unlinked=CONFIG_UNLINKED,
                                   check=CONFIG_CHECK, **CONFIG_OPTIONS)
     is_seen = np.array([tuple(t) in seen_keys for t in wanted.tolist()], bool)
