@@ -519,7 +519,7 @@ def map_from_triplets(seen: Mapping, unseen: Iterable = (), partition: str = "ed
 
 
 def map_from_histories(histories, unseen: Iterable = (), partition: str = "edc", tensor=None, *,
-                       method: str = "fast", seed=None, **solver_options) -> QualitativeFactorGraph:
+                       method: str = "fast", seed=0, **solver_options) -> QualitativeFactorGraph:
     """The map of the triplets a set of views saw, with solver priors, plus chosen unseen ones.
 
     ``histories``: :class:`~qfg.simulation.TripletHistory` objects (e.g. from

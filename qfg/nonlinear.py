@@ -547,7 +547,7 @@ def gaussian_factor(cov) -> np.ndarray:
     return V * np.sqrt(np.clip(w, 0.0, None))
 
 
-def sample_gaussian(mean, cov, n: int, seed=None, *, df: float = 0.0) -> np.ndarray:
+def sample_gaussian(mean, cov, n: int, seed=0, *, df: float = 0.0) -> np.ndarray:
     """``n`` draws (n, d) of N(mean, cov) (``df`` > 0: multivariate Student t with ``df``
     degrees of freedom and scale ``cov``, a heavier-tailed proposal). Symmetric eigen
     factorisation, negative eigenvalues (round-off) clipped to 0."""

@@ -61,7 +61,7 @@ def _resolve(method, options):
 
 
 def solve_triplet(bearings, headings=None, *, method: str = "full", partition="edc",
-                  sigma_bearing=None, sigma_heading=None, seed=None, distances=None,
+                  sigma_bearing=None, sigma_heading=None, seed=0, distances=None,
                   sigma_distance_ratio=None, **options) -> TripletEstimate:
     """Estimate the qualitative states of C and of the cameras of one triplet AB:C.
 
@@ -78,7 +78,8 @@ def solve_triplet(bearings, headings=None, *, method: str = "full", partition="e
             likelihood widths have floors, see ``bearing_floor``). ``sigma_heading`` may also be
             (n - 1,), one per step (all > 0 or all 0): ``full`` and ``fast`` take it,
             ``baseline`` ignores headings, ``reference`` and ``fast-paper`` raise ValueError.
-        seed: None, int, SeedSequence or Generator. Same seed, same estimate.
+        seed: an int (default 0), SeedSequence or Generator; None draws fresh entropy. Same
+            seed, same estimate.
         distances: (n - 1,) the odometry's travelled distance from view i to view i+1 (any
             unit, finite, >= 0; 0 = unknown), or None; a history's own ``distances`` are used
             when present. Only ``full`` and ``fast`` use them: a scale-free factor
@@ -223,7 +224,7 @@ def solve_sis_batch(model, metas, roots, part, opts, hypotheses=False):
 
 
 def solve_triplets(histories, headings=None, *, method: str = "full", partition="edc",
-                   sigma_bearing=None, sigma_heading=None, seed=None, distances=None,
+                   sigma_bearing=None, sigma_heading=None, seed=0, distances=None,
                    sigma_distance_ratio=None, hypotheses: bool = False,
                    **options) -> list[TripletEstimate]:
     """Solve many triplets in one call; returns one :class:`TripletEstimate` per triplet
@@ -358,7 +359,7 @@ class TripletSolver:
         method: one of :data:`METHODS` (as :func:`solve_triplet`).
         partition: partition name or :class:`qfg.partitions.Partition`.
         sigma_bearing, sigma_heading: noise standard deviations (radians, >= 0).
-        seed: None, int, SeedSequence or Generator.
+        seed: an int (default 0), SeedSequence or Generator; None draws fresh entropy.
         sigma_distance_ratio: noise of the log ratio of consecutive travelled distances
             (required before a ``distance`` is added; :func:`solve_triplet`).
         **options: method options (``qfg.solvers.DEFAULTS[method]``), ``prior`` included.
@@ -378,7 +379,7 @@ class TripletSolver:
     """
 
     def __init__(self, method: str = "full", *, partition="edc", sigma_bearing=0.0,
-                 sigma_heading=0.0, seed=None, sigma_distance_ratio=None, **options):
+                 sigma_heading=0.0, seed=0, sigma_distance_ratio=None, **options):
         if method not in METHODS:
             raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
         part = _input.get_partition(partition)
@@ -390,7 +391,7 @@ class TripletSolver:
 
     @classmethod
     def solve(cls, bearings, headings=None, *, method: str = "full", partition="edc",
-              sigma_bearing=None, sigma_heading=None, seed=None, distances=None,
+              sigma_bearing=None, sigma_heading=None, seed=0, distances=None,
               sigma_distance_ratio=None, **options) -> "TripletSolver":
         """A solver with every view of a history added; the arguments and the model chosen are
         those of :func:`solve_triplet` (``.estimate()`` equals its result). Use it when the

@@ -595,7 +595,7 @@ def _weights(lw):
 
 
 def solve_reference(bearings, headings, sigma_bearing, sigma_heading, partition="edc",
-                    prior="world", seed=None, distances=None, sigma_distance_ratio=None,
+                    prior="world", seed=0, distances=None, sigma_distance_ratio=None,
                     **options) -> dict:
     """Exact posterior of the states of C and of the cameras, up to a reported Monte Carlo error.
 
@@ -607,7 +607,7 @@ def solve_reference(bearings, headings, sigma_bearing, sigma_heading, partition=
             ``max(sigma, floor)`` (``bearing_floor``, ``heading_floor``) so that 0 works.
         partition: partition name or object.
         prior: a :class:`qfg.priors.Prior` or a name for :func:`qfg.priors.get`.
-        seed: an int, a SeedSequence, a numpy Generator, or None.
+        seed: an int (default 0), a SeedSequence, a numpy Generator, or None (fresh entropy).
         distances: (n - 1,) the odometry's travelled distance between consecutive views (any
             unit, >= 0; 0 = unknown), or None: each ratio of consecutive steps is a factor
             ``N(log(s_i / s_(i-1)) - log(d_i / d_(i-1)); sigma_distance_ratio)`` of the target
