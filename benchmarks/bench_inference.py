@@ -298,14 +298,14 @@ def bench_bp_full_maps(T, sizes=(10, 15, 20, 25), max_iters=200):
 def bench_message_step(T, n=15):
     """One factor-to-variable message step, all roles: einsum (before) vs matrix products."""
     from benchmarks import median_time
-    from qfg.inference.loopy import _role_matrices
+    from qfg.inference.loopy import role_matrices
 
     g = full_map(n, tensor=T)
     F, m = g.n_factors, g.m
     rng = np.random.default_rng(0)
     q = rng.random((F, 3, m))
     Tn = g.table / g.table.max()
-    mats = _role_matrices(Tn)
+    mats = role_matrices(Tn)
     eqs = ("abc,fb,fc->fa", "abc,fa,fc->fb", "abc,fa,fb->fc")
 
     def einsum_step():

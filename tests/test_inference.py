@@ -127,7 +127,7 @@ def test_contracted_nodes_equal_brute_force(seed):
     for v in range(n):
         np.add.at(B[v], X[:, v], w / w.sum())
     jt = JunctionTree(model, contract_above=1)
-    assert any(jt._big) and max(len(c) for c in jt.nodes) >= 4
+    assert any(jt.contracted) and max(len(c) for c in jt.nodes) >= 4
     P, lz, dom = jt.calibrate()
     assert dom == "linear"
     np.testing.assert_allclose(P, B, atol=1e-12)

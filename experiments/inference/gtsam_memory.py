@@ -19,7 +19,7 @@ import numpy as np
 
 from qfg.graph import QualitativeFactorGraph
 from qfg.inference import FactorModel
-from qfg.inference.exact import _clique_sizes, exact_marginals
+from qfg.inference.exact import clique_sizes, exact_marginals
 
 
 def main(L: int, w: int, m: int):
@@ -29,7 +29,7 @@ def main(L: int, w: int, m: int):
         if max(t) - min(t) < w:
             g.add_triplet(t, rng.random(m) + 0.1 if rng.random() < 0.5 else None)
     g.discover_compositions()
-    cs = _clique_sizes(FactorModel.from_graph(g))
+    cs = clique_sizes(FactorModel.from_graph(g))
     base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     t = time.time()
     exact_marginals(g, method="gtsam", memory=2 ** 40)

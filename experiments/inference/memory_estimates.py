@@ -54,7 +54,7 @@ def main(argv=None):
         est = jt.memory_estimate("MAR").bytes
         peak = traced(jt.calibrate)
         print(f"{f.stem}: MAR estimate {est:.3g} B, traced {peak:.3g} B, ratio {est / peak:.2f}"
-              f"{' (contracted cliques)' if any(jt._big) else ''}", flush=True)
+              f"{' (contracted cliques)' if any(jt.contracted) else ''}", flush=True)
     for L, w, m in ((7, 4, 4), (8, 5, 5), (10, 5, 7), (12, 5, 8), (10, 5, 12), (30, 4, 20),
                     (10, 5, 14)):
         g = band(L, w, m)

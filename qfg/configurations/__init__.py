@@ -90,7 +90,7 @@ from .posterior import (
 
 def __getattr__(name):
     if name == "LIKELIHOODS":
-        raise AttributeError("qfg.configurations.LIKELIHOODS was removed: use METHODS "
+        raise AttributeError("LIKELIHOODS was removed from qfg.configurations: use METHODS "
                              "(CHANGELOG.md, 0.6.0)")
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 

@@ -32,7 +32,7 @@ from .uai import read_uai, read_uai_graph, write_uai
 
 def __getattr__(name):
     if name == "ENGINES":
-        raise AttributeError("qfg.inference.ENGINES was removed: use EXACT_METHODS "
+        raise AttributeError(f"ENGINES was removed from {__name__}: use EXACT_METHODS "
                              "(CHANGELOG.md, 0.6.0)")
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 

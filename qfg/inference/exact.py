@@ -30,7 +30,8 @@ from .junction import (
 from .memory import check_memory, memory_budget
 from .results import Assignment, GraphTooLargeError, Marginals, ZeroMassError
 
-__all__ = ["exact_marginals", "map_assignment", "k_best", "elimination_estimate", "METHODS"]
+__all__ = ["exact_marginals", "map_assignment", "k_best", "elimination_estimate", "clique_sizes",
+           "METHODS"]
 
 #: The methods of :func:`exact_marginals` (``method=``), default first.
 METHODS = ("junction", "contract", "gtsam")
@@ -38,7 +39,7 @@ METHODS = ("junction", "contract", "gtsam")
 
 def __getattr__(name):
     if name == "ENGINES":
-        raise AttributeError("qfg.inference.exact.ENGINES was removed: use METHODS "
+        raise AttributeError(f"ENGINES was removed from {__name__}: use METHODS "
                              "(CHANGELOG.md, 0.6.0)")
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
@@ -126,14 +127,17 @@ def gtsam_estimate(model, est=None) -> float:
     :data:`GTSAM_BYTES_PER_ENTRY` per entry (GTSAM orders by COLAMD, not min-fill; its cliques
     are no smaller than the min-fill ones on the graphs measured), the largest three at once
     plus every clique's conditional kept in the Bayes tree."""
-    jt_sizes = _clique_sizes(model)
+    jt_sizes = clique_sizes(model)
     if not jt_sizes:
         return 0.0
     top = sorted(jt_sizes, reverse=True)[:3]
     return float(GTSAM_BYTES_PER_ENTRY * (sum(jt_sizes) + sum(top)))
 
 
-def _clique_sizes(model) -> list[float]:
+def clique_sizes(model) -> list[float]:
+    """Entries of each elimination clique of the junction tree's order for ``model`` (a
+    :class:`~qfg.inference.junction.FactorModel`): one float per eliminated variable, the product
+    of its cardinality and its neighbours' at elimination. What the GTSAM memory estimate sums."""
     from .junction import _plan
 
     est, order, nbrs = _plan(model, None)

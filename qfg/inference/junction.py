@@ -587,6 +587,12 @@ class JunctionTree:
             worst = max(worst, 3 * big + sum(inter[1:3]))
         return worst + float(sum(math.prod(sh) for sh in shapes))
 
+    @property
+    def contracted(self) -> tuple[bool, ...]:
+        """Per node: whether its table is too large to build and each message through it is one
+        contraction of its factors and messages instead (``contract_above``)."""
+        return tuple(self._big)
+
     def memory_estimate(self, task: str = "MAR", k: int = 1, log_domain: bool = False):
         """Peak bytes the engine allocates for ``task`` beyond the model itself, from the plan
         alone (no table is built): a :class:`~qfg.inference.memory.MemoryEstimate`.

@@ -15,7 +15,7 @@ import numpy as np
 from .results import Marginals
 
 __all__ = ["loopy_bp", "loopy_bp_memory", "NotConvergedWarning", "DenseMapWarning",
-           "BP_OVERLAP_WARN", "BP_DEGREE_WARN"]
+           "BP_OVERLAP_WARN", "BP_DEGREE_WARN", "role_matrices"]
 
 
 def _normalize_rows(a: np.ndarray) -> np.ndarray:
@@ -25,7 +25,7 @@ def _normalize_rows(a: np.ndarray) -> np.ndarray:
     return np.where(ok, a / np.where(ok, s, 1.0), 1.0 / m)
 
 
-def _role_matrices(T: np.ndarray) -> list[np.ndarray]:
+def role_matrices(T: np.ndarray) -> list[np.ndarray]:
     """Per role r, T with axis r first, flattened to (m, m*m) over the other two (in order):
     the factor-to-variable message of role r is ``(q_x outer q_y) @ M_r.T``, one matrix product
     for all factors."""
@@ -126,7 +126,7 @@ def loopy_bp(g, damping: float = 0.0, max_iters: int = 100, tol: float = 1e-9, *
             f"exact_marginals() where it fits, or propagate()", DenseMapWarning, stacklevel=2)
     T = g.table
     T = T / T.max()
-    mats = _role_matrices(T)
+    mats = role_matrices(T)
     logp = np.log(np.maximum(g.prior_matrix(), 1e-300))
     r = np.full((F, 3, m), 1.0 / m)
     tiny = 1e-300
