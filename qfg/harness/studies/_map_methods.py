@@ -1,5 +1,5 @@
-"""Map methods and proper scores shared by the exact-vs-approximate and the propagation studies
-(issue 21): configuration inference (``config-state``, ``config-metric``) next to the composition
+"""Map methods and proper scores shared by the exact-vs-approximate and the propagation studies:
+configuration inference (``config-state``, ``config-metric``) next to the composition
 methods, and the per-triplet scores both studies report for seen and unseen triplets.
 
 Scores per triplet and method (``qfg.metrics``): ``<m>_ls`` the log score ``log max(p_truth,

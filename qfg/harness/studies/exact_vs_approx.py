@@ -1,4 +1,4 @@
-"""Exact versus approximate inference on the propagation study's graphs (issue 13, item 4).
+"""Exact versus approximate inference on the propagation study's graphs at the paper's scale.
 
 Each scenario is one graph of the propagation study, drawn by :func:`qfg.random_graphs.
 propagation_graph` from the same random stream: ``qfg experiment exact-vs-approx --preset paper
@@ -14,7 +14,7 @@ triplets seen with fast-solver priors). For every graph:
   membership, ``alg2c``: ``close_used=True``);
 * loopy BP without and with damping (``bp``: damping 0, ``bpd``: ``bp_damping``);
 * pooled composition (``pooled``: :func:`qfg.propagation.propagate` with ``method="pooled"``);
-* configuration inference (issue 21, :mod:`qfg.configurations`): ``config-state`` (each seen
+* configuration inference (:mod:`qfg.configurations`): ``config-state`` (each seen
   triplet's likelihood from its state estimate) and ``config-metric`` (from a summary of the
   solver's weighted samples of C), ``config_particles`` particles (``map_methods=false`` skips
   them);
@@ -69,7 +69,7 @@ DEFAULTS = {
     "sigma_heading_deg": 5.0, "solver": "fast", "partition": "edc", "n_bins": 10,
     # the approximate methods
     "bp_damping": 0.5, "bp_max_iters": 200, "bp_tol": 1e-9,
-    # configuration inference (issue 21)
+    # configuration inference
     **mm.PARAMS,
     # Tests only: a seeded random tensor (m = 20) instead of tensors/<partition>.npz.
     "random_tensor": False,

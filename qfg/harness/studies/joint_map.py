@@ -1,4 +1,4 @@
-"""Joint map study (issue 22): the joint metric posterior (:mod:`qfg.joint`) against the paper's
+"""Joint map study: the joint metric posterior (:mod:`qfg.joint`) against the paper's
 pipeline and its map methods, on the same simulated trajectory runs.
 
 Each scenario is one robot driving a trajectory among landmarks

@@ -1,4 +1,4 @@
-"""The factor-graph propagation study (paper sections 5c and 6f, issue 6).
+"""The factor-graph propagation study (paper sections 5c and 6f).
 
 One scenario = one factor graph, drawn by :func:`qfg.random_graphs.propagation_graph` (steps 1-3;
 the exact-vs-approximate study and the inference benchmark draw the same graphs from it):
@@ -24,7 +24,8 @@ the exact-vs-approximate study and the inference benchmark draw the same graphs 
    (``tsc``) and at 1 (``tsc1``, the paper's unbiased comparison with composition levels);
    composition levels (``cl``, normalized ``cl_norm`` = eq. cl3).
 
-5. The map methods of issue 21, scored on every triplet (seen and unseen) with proper scores
+5. The map methods (configuration inference beside composition), scored on every triplet (seen
+   and unseen) with proper scores
    (:mod:`qfg.harness.studies._map_methods`: ``<method>_ls`` log score clipped at 1e-4,
    ``_brier``, ``_under1``, ``_pit`` randomized PIT, ``_top``/``_tophit``): ``alg2`` (Algorithm
    2's marginals), ``pooled`` (``propagate(g, method="pooled")``), ``config-state`` and ``config-metric``
@@ -65,7 +66,7 @@ DEFAULTS = {
     "sigma_heading_deg": 5.0, "solver": "fast", "partition": "edc", "n_bins": 10,
     # Tests only: a seeded random tensor instead of tensors/<partition>.npz (needs m = 20: edc).
     "random_tensor": False,
-    # configuration inference (issue 21)
+    # configuration inference
     **mm.PARAMS,
 }
 
