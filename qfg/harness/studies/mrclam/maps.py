@@ -1,7 +1,7 @@
 """Map methods of the MRCLAM study: from the seen triplets' estimates to a qualitative map.
 
 A *map method* is one named step of ``qfg mrclam`` (``--map NAME``) and of
-:func:`qfg.harness.studies.mrclam.run_dataset` (``map_method=NAME``). It receives the solved and
+:func:`qfg.harness.studies.mrclam.run_dataset` (``MrclamParams(map=NAME)``). It receives the solved and
 combined estimates of the seen ordered triplets (:class:`SeenEstimates`) and returns the rows of
 its map (:class:`MapResult`): the seen triplets, and any other triplets it estimates. The study
 scores every row of a map with the same code (:func:`qfg.harness.studies.mrclam.score_map`),
@@ -11,8 +11,8 @@ Registered here (:data:`MAP_METHODS`):
 
 * ``"pooled"``: the full map (:func:`qfg.graph.full_map`, every ordered triplet), the combined
   estimates as priors, the rest by pooled composition (:func:`qfg.propagation.propagate_pooled`:
-  every unseen triplet the mean of its compositions from the nearest updated triplets). This was
-  ``--propagation mean``, the default.
+  every unseen triplet the mean of its compositions from the nearest updated triplets). This is
+  ``propagation="pooled"``, the study's default (``--propagation pooled``).
 * ``"best"``: the same map propagated by the paper's Algorithm 2
   (:func:`qfg.propagation.propagate`, the proposal with the best information score);
   ``--propagation best``.
