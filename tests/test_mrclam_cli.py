@@ -76,7 +76,8 @@ def _refused(capsys, argv, *words):
     (["--piece-size", "0"], "--piece-size"),
     (["--tensor", "/no/such/tensor.npz"], "--tensor"),
     (["--robots", "2", "--mode", "paper"], "--mode"),
-    (["--propagation", "mean", "--map", "best"], "--propagation"),
+    (["--propagation", "pooled", "--map", "best"], "--propagation"),
+    (["--propagation", "mean"], "'pooled'"),
     (["--map", "nope"], "--map"), (["--method", "slow"], "--method"),
     (["--seed", "-1"], "--seed"), (["--resume", "--overwrite"], "--resume"),
     (["--heading-walk", "-1"], "--heading-walk"), (["--heading-walk", "fast"], "--heading-walk"),
@@ -261,8 +262,8 @@ def test_pieces_give_the_in_memory_run(root, tmp_path):
     d = root / "MRCLAM_Dataset1"
     out = tmp_path / "o"
     assert _run(d, out, "--robots", "2", "--no-progress") == 0
-    rows = study.run_dataset(d, robots=[2], method="fast", max_gap=10.0, spread_views=0, seed=4,
-                             piece=8)
+    rows = study.run_dataset(d, study.MrclamParams(robots=[2], method="fast", max_gap=10.0,
+                                                   spread_views=0, piece=8), seed=4)
     import csv
 
     with open(out / "triplets.csv") as fh:
@@ -328,7 +329,10 @@ def test_map_method_is_pluggable_recorded_and_resume_reuses_the_pieces(root, tmp
     assert len(made) == n + 1 and "as recorded" not in capsys.readouterr().err
     assert not (out / "maps" / "pooled.npz").exists()
     # the former option names the same map
-    assert study.map_name(True, "mean") == "pooled" and study.map_name(False) == "seen"
+    assert study.map_name(True, "pooled") == "pooled" and study.map_name(False) == "seen"
+    assert study.MrclamParams(propagation="best").map_method == "best"
+    with pytest.raises(ValueError, match="'pooled'.*CHANGELOG.md"):
+        study.map_name(True, "mean")
 
 
 # ------------------------------------------------------------------------------ item 4: the table

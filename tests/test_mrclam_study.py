@@ -20,6 +20,7 @@ from qfg.datasets import mrclam
 from qfg.geometry import bearing, wrap_angle
 from qfg.harness.cli import main as qfg_main
 from qfg.harness.studies import mrclam as study
+from qfg.harness.studies.mrclam import MrclamParams as P
 from qfg.partitions import get as get_partition
 from qfg.solvers import solve_triplets
 
@@ -185,7 +186,7 @@ def test_truncate_and_arena(data):
 
 def test_uniform_tensor_propagates_nothing_baseline_and_swap_reported(data):
     # robot 2 alone sees one triplet (landmarks 8, 9, 10): the rest of the map is propagated
-    rows = study.run_dataset(data / "MRCLAM_Dataset2", robots=[2], tensor=UNIFORM_T, seed=0)
+    rows = study.run_dataset(data / "MRCLAM_Dataset2", P(robots=[2]), tensor=UNIFORM_T, seed=0)
     prop = [r for r in rows if r["kind"] == "propagated"]
     assert prop and all(np.isclose(r["log_score"], r["uniform_log_score"]) for r in prop)
     r2 = [r for r in rows if r["kind"] == "seen" and r["robots"] == "2"]
@@ -201,16 +202,19 @@ def test_uniform_tensor_propagates_nothing_baseline_and_swap_reported(data):
 
 def test_bad_arguments_and_product_rule(data):
     with pytest.raises(ValueError, match="method"):
-        study.run_dataset(data / "MRCLAM_Dataset1", method="slow", tensor=UNIFORM_T)
+        study.run_dataset(data / "MRCLAM_Dataset1", P(method="slow"), tensor=UNIFORM_T)
     with pytest.raises(ValueError, match="combine"):
-        study.run_dataset(data / "MRCLAM_Dataset1", combine="max", tensor=UNIFORM_T)
+        study.run_dataset(data / "MRCLAM_Dataset1", P(combine="max"), tensor=UNIFORM_T)
     with pytest.raises(ValueError, match="robot"):
-        study.run_dataset(data / "MRCLAM_Dataset1", robots=[9], tensor=UNIFORM_T)
+        study.run_dataset(data / "MRCLAM_Dataset1", P(robots=[9]), tensor=UNIFORM_T)
+    # the options of the run are the params object's, not keywords of run_dataset
+    with pytest.raises(TypeError, match="MrclamParams"):
+        study.run_dataset(data / "MRCLAM_Dataset1", robots=[1])
     # the rules are about combining: the fast solver's estimates serve as well as the full one's
-    opts = dict(robots=[1], propagate=False, seed=0, max_gap=10.0, spread_views=0, method="fast")
-    a = study.run_dataset(data / "MRCLAM_Dataset1", combine="prior-once", **opts)
-    b = study.run_dataset(data / "MRCLAM_Dataset1", combine="product", **opts)
-    c = study.run_dataset(data / "MRCLAM_Dataset1", combine="geometric", **opts)
+    opts = P(robots=[1], propagate=False, max_gap=10.0, spread_views=0, method="fast")
+    a = study.run_dataset(data / "MRCLAM_Dataset1", opts.replace(combine="prior-once"), seed=0)
+    b = study.run_dataset(data / "MRCLAM_Dataset1", opts.replace(combine="product"), seed=0)
+    c = study.run_dataset(data / "MRCLAM_Dataset1", opts.replace(combine="geometric"), seed=0)
     assert all(r["kind"] in ("seen", "camera") for r in a)
     multi = [(x, y) for x, y in zip(a, b, strict=True)
              if x["kind"] == "seen" and x["n_histories"] > 1]
@@ -238,7 +242,7 @@ def test_runner_tasks_presets_and_environment(data, monkeypatch):
     presets = load_presets("mrclam")
     assert {"quick", "paper"} <= set(presets)
     for p in presets.values():
-        study.checked_params(p)
+        study.experiment_params(p)
         assert "data" not in p   # no machine path in the presets
     monkeypatch.setenv(mrclam.DATA_ENV, str(data))
     assert len(study.tasks({})) == 2
@@ -273,12 +277,12 @@ def _real6():
 
 def test_real_dataset6_camera_states_and_paper_mode_score():
     d = _real6()
-    rows = study.run_dataset(d, robots=[4], propagate=False, max_views=4, seed=0, method="fast")
+    opts = P(robots=[4], propagate=False, max_views=4, method="fast")
+    rows = study.run_dataset(d, opts, seed=0)
     cams = [r for r in rows if r["kind"] == "camera"]
     assert cams and all(0 <= r["truth_state"] < M for r in cams)
     assert all(np.isfinite(r["log_score"]) and r["log_score"] >= np.log(1e-4) for r in cams)
-    paper = study.run_dataset(d, robots=[4], propagate=False, max_views=4, seed=0, mode="paper",
-                              method="fast")
+    paper = study.run_dataset(d, opts.replace(mode="paper"), seed=0)
     assert {r["mode"] for r in paper} == {"paper"} and any(r["kind"] == "seen" for r in paper)
 
 
@@ -305,9 +309,9 @@ def test_noise_model_options_reach_the_histories_and_the_solver(data):
     # loader's); --distance-tail measured: the core sigma on the histories, the tail for the
     # solvers (not for the baseline, which has no distances)
     p = data / "MRCLAM_Dataset1"
-    plain = study.prepare_run(p, robots=[1], spread_views=4)
-    prep = study.prepare_run(p, robots=[1], spread_views=4, heading_walk=2.0,
-                             distance_tail="measured")
+    plain = study.prepare_run(p, P(robots=[1], spread_views=4))
+    prep = study.prepare_run(p, P(robots=[1], spread_views=4, heading_walk=2.0,
+                             distance_tail="measured"))
     sd, tail = study.DISTANCE_TAILS["measured"]
     assert prep.solver_options["distance_tail"] == tail
     for (_, h0), (_, h) in zip(plain.histories, prep.histories, strict=True):
@@ -319,24 +323,24 @@ def test_noise_model_options_reach_the_histories_and_the_solver(data):
     assert len(est) == 4
     assert study.solve_piece(prep, 0, method="baseline", seed=0, piece=2)
     with pytest.raises(ValueError, match="heading_walk: one heading model at a time"):
-        study.prepare_run(p, robots=[1], heading_walk=1.0, heading_drift=True)
+        study.prepare_run(p, P(robots=[1], heading_walk=1.0, heading_drift=True))
     with pytest.raises(ValueError, match="distance_tail: expected one of"):
-        study.prepare_run(p, robots=[1], distance_tail="wide")
+        study.prepare_run(p, P(robots=[1], distance_tail="wide"))
     # --camera-prior joint: to the full/fast solvers (the baseline has no such option), absent
     # at its default so that older runs solve as before
     assert plain.solver_options["camera_prior"] is None
-    joint = study.prepare_run(p, robots=[1], spread_views=4, camera_prior="joint")
+    joint = study.prepare_run(p, P(robots=[1], spread_views=4, camera_prior="joint"))
     assert joint.solver_options["camera_prior"] == "joint"
     a = study.solve_piece(joint, 0, method="fast", seed=0, piece=4)
     b = study.solve_piece(plain, 0, method="fast", seed=0, piece=4)
     assert any(not np.array_equal(x.landmark, y.landmark) for x, y in zip(a, b, strict=True))
     assert study.solve_piece(joint, 0, method="baseline", seed=0, piece=2)
     with pytest.raises(ValueError, match="camera_prior: expected one of"):
-        study.prepare_run(p, robots=[1], camera_prior="pairs")
+        study.prepare_run(p, P(robots=[1], camera_prior="pairs"))
     # --budget F: the full/fast solvers' budget keys at F times their defaults, absent at 1;
     # the solver then gets exactly that budget (the answers differ from the default's)
     assert plain.solver_options["budget"] is None
-    big = study.prepare_run(p, robots=[1], spread_views=4, budget=0.5)
+    big = study.prepare_run(p, P(robots=[1], spread_views=4, budget=0.5))
     assert big.solver_options["budget"] == 0.5
     seen = {}
     import qfg.solvers as solvers
@@ -359,10 +363,10 @@ def test_noise_model_options_reach_the_histories_and_the_solver(data):
     with pytest.raises(ValueError, match="budget: the baseline solver has no budget factor"):
         study.solve_piece(big, 0, method="baseline", seed=0, piece=2)
     with pytest.raises(ValueError, match="budget: expected a factor > 0"):
-        study.prepare_run(p, robots=[1], budget=0.0)
+        study.prepare_run(p, P(robots=[1], budget=0.0))
     # --populations K: the solvers' populations option, absent at 1; the baseline runs none
     assert plain.solver_options["populations"] is None
-    two = study.prepare_run(p, robots=[1], spread_views=4, populations=2)
+    two = study.prepare_run(p, P(robots=[1], spread_views=4, populations=2))
     assert two.solver_options["populations"] == 2
     seen.clear()
     solvers.solve_triplets = spy
@@ -376,7 +380,7 @@ def test_noise_model_options_reach_the_histories_and_the_solver(data):
         solvers.solve_triplets = orig
     for bad in (0, 1.5, True):
         with pytest.raises(ValueError, match="populations: expected a whole number"):
-            study.prepare_run(p, robots=[1], populations=bad)
+            study.prepare_run(p, P(robots=[1], populations=bad))
 
 
 def test_bearing_calibration_reaches_the_histories_and_the_map(data):
@@ -386,8 +390,8 @@ def test_bearing_calibration_reaches_the_histories_and_the_map(data):
     from qfg.geometry import wrap_angle
 
     p = data / "MRCLAM_Dataset1"
-    plain = study.prepare_run(p, robots=[1], spread_views=4)
-    cal = study.prepare_run(p, robots=[1], spread_views=4, bearing_calibration="measured")
+    plain = study.prepare_run(p, P(robots=[1], spread_views=4))
+    cal = study.prepare_run(p, P(robots=[1], spread_views=4, bearing_calibration="measured"))
     b, s = mrclam.DEFAULT_BEARING_CALIBRATION[1]
     assert len(plain.histories) == len(cal.histories) > 0
     for (_, h0), (_, h) in zip(plain.histories, cal.histories, strict=True):
@@ -397,7 +401,7 @@ def test_bearing_calibration_reaches_the_histories_and_the_map(data):
     rd0, rd = plain.dataset.robot(1), cal.dataset.robot(1)
     assert not np.allclose(rd.view_bearings[rd0.visible], rd0.view_bearings[rd0.visible])
     with pytest.raises(ValueError, match="bearing_calibration: expected one of"):
-        study.prepare_run(p, robots=[1], bearing_calibration="fitted")
+        study.prepare_run(p, P(robots=[1], bearing_calibration="fitted"))
 
 
 def test_sigma_options_reach_the_histories_from_the_command_line(data):
@@ -412,12 +416,41 @@ def test_sigma_options_reach_the_histories_from_the_command_line(data):
     cmd.register(ap.add_subparsers())
     args = ap.parse_args(["mrclam", str(p), "--robots", "1", "--bearing-tail", "measured",
                           "--sigma-bearing-deg", "0.5", "--sigma-heading-deg", "2.2"])
-    params = cmd.check_options(args)
-    assert (params["sigma_bearing_deg"], params["sigma_heading_deg"]) == (0.5, 2.2)
-    prep = study.prepare_run(p, robots=[1], bearing_tail="measured",
-                             sigma_bearing_deg=params["sigma_bearing_deg"],
-                             sigma_heading_deg=params["sigma_heading_deg"])
+    params, _ = cmd.check_options(args)
+    assert (params.sigma_bearing_deg, params.sigma_heading_deg) == (0.5, 2.2)
+    assert params.bearing_tail == "measured" and params.robots == (1,)
+    prep = study.prepare_run(p, params)
     assert prep.histories
     for _, h in prep.histories:
         assert np.isclose(h.sigma_bearing, np.deg2rad(0.5))
         assert np.allclose(h.sigma_heading, np.deg2rad(2.2))
+
+
+def test_params_object_checks_each_field_and_derives_the_option_lists():
+    # every option in one frozen object: checked when made, the error one line naming the field
+    p = P(robots=[2, 1], max_gap=10)
+    assert p.robots == (2, 1) and p.max_gap == 10.0 and isinstance(p.max_gap, float)
+    assert p.map_method == "pooled" and P(propagate=False).map_method == "seen"
+    assert P(map="best", propagate=False).map_method == "best"
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        p.method = "fast"
+    for bad, name in [({"max_gap": 0}, "max_gap"), ({"temper": 2}, "temper"),
+                      ({"temper": "auto-2se"}, "temper"), ({"max_views": 1}, "max_views"),
+                      ({"robots": [0]}, "robots"), ({"robots": [1, 1]}, "robots"),
+                      ({"piece": 0}, "piece"), ({"model_check": 0.9}, "model_check"),
+                      ({"map": "nope"}, "map"), ({"mode": "clean"}, "mode"),
+                      ({"propagation": "mean"}, "propagation")]:
+        with pytest.raises(study.ParamError, match=f"^{name}: ") as exc:
+            P(**bad)
+        assert exc.value.field == name and "\n" not in str(exc.value)
+    with pytest.raises(study.ParamError, match="'pooled'.*CHANGELOG.md"):
+        P(propagation="mean")
+    with pytest.raises(study.ParamError, match="colour: unknown option"):
+        P.from_dict({"colour": 1})
+    assert P.from_dict(p.to_dict()) == p
+    # the study's parameters, the solve keys and the later keys come from the fields
+    assert set(study.DEFAULTS) == {"data", "datasets", *study.FIELDS}
+    assert set(study.SOLVE_KEYS) < {"path", *study.FIELDS} and "combine" not in study.SOLVE_KEYS
+    assert set(study.LATER_KEYS) < set(study.SOLVE_KEYS)
+    for f in dataclasses.fields(P):
+        assert f.metadata["doc"] and f.name in P.__doc__

@@ -42,8 +42,6 @@ from qfg.harness.studies import mrclam as study
 from qfg.harness.studies.mrclam import maps
 from qfg.metrics import log_score
 
-PREP_KEYS = tuple(k for k in study.SOLVE_KEYS if k not in ("path", "method", "piece"))
-
 
 def _value(key, text):
     if text == "none":
@@ -58,7 +56,7 @@ def run_estimates(out: Path):
     history's solved estimate (untempered) and the options of its last finish
     (``summary.json``: ``combine``, ``temper_chosen``, ...)."""
     params = json.loads((out / "run.json").read_text())["params"]
-    prep = study.prepare_run(params["path"], **{k: params[k] for k in PREP_KEYS if k in params})
+    prep = study.prepare_run(params["path"], study.params_of(params))
     rows = [r for line in open(out / "records.jsonl") for r in json.loads(line)["rows"]]
     opts = json.loads((out / "summary.json").read_text())["options"]
     return prep, study.estimates_from_rows(prep, rows), opts

@@ -31,9 +31,7 @@ SIGMA_BEARING = np.deg2rad(0.66)
 
 def main(folder: str) -> None:
     run = json.load(open(f"{folder}/run.json"))["params"]
-    kw = {k: run[k] for k in study.SOLVE_KEYS
-          if k in run and k not in ("path", "robots", "method", "piece")}
-    prep = study.prepare_run(run["path"], robots=run["robots"] or None, **kw)
+    prep = study.prepare_run(run["path"], study.params_of(run))
     rows = [r for line in open(f"{folder}/records.jsonl") for r in json.loads(line)["rows"]]
     ests = study.estimates_from_rows(prep, rows)
     out = []

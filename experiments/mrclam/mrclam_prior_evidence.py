@@ -173,7 +173,8 @@ def main(argv=None):
     priors = {n: make_prior(n, box) for n in a.priors}
     rows = []
     for k in a.views:
-        prep = study.prepare_run(path, dataset=ds, robots=a.robots, spread_views=k)
+        prep = study.prepare_run(path, study.MrclamParams(robots=a.robots or (), spread_views=k),
+                                 dataset=ds)
         sel = select(prep, a.limit)
         for v in a.variants:
             rng = np.random.default_rng(np.random.SeedSequence(a.seed, spawn_key=(k, 7)))

@@ -299,8 +299,8 @@ def main(argv=None):
     rows = []
     for k in a.views:
         model = {k: v for k, v in MODEL_PARTS.items() if k in a.model}
-        prep = study.prepare_run(path, dataset=ds, robots=a.robots, spread_views=k,
-                                 prior=a.prior, **model)
+        prep = study.prepare_run(path, study.MrclamParams(robots=a.robots or (), spread_views=k,
+                                                          prior=a.prior, **model), dataset=ds)
         if a.no_distances:
             prep.solver_options.pop("distance_tail", None)
         sel = select(prep, a.limit)

@@ -25,8 +25,9 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     ds, robot, n = (int(argv[0]) if argv else 6), (int(argv[1]) if len(argv) > 1 else 1), \
         (int(argv[2]) if len(argv) > 2 else 300)
-    p = study.prepare_run(mrclam.data_root() / f"MRCLAM_Dataset{ds}", robots=[robot],
-                          bearing_tail="measured", spread_views=3)
+    p = study.prepare_run(mrclam.data_root() / f"MRCLAM_Dataset{ds}",
+                          study.MrclamParams(robots=[robot], bearing_tail="measured",
+                                             spread_views=3))
     hs = [h for _, h in p.histories][:n]
     for name, kw in (("few-views default", {}), ("whole budget", FEW_VIEWS_OFF)):
         res = solve_triplets(hs, method="full", seed=0, prior=p.prior, **p.solver_options, **kw)

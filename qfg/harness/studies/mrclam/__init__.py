@@ -1,7 +1,8 @@
 """MRCLAM study (paper section 6d, Table 2): qualitative mapping on real data, scored so that it
 cannot flatter.
 
-For one MRCLAM dataset directory (:func:`run_dataset`):
+For one MRCLAM dataset directory (:func:`run_dataset`, its options one
+:class:`MrclamParams`):
 
 1. Load it (:func:`qfg.datasets.mrclam.load`); landmark pairs seen at each other's ground-truth
    position (:func:`~qfg.datasets.mrclam.check_landmarks`) are swapped back before scoring
@@ -24,7 +25,7 @@ For one MRCLAM dataset directory (:func:`run_dataset`):
    evidence, :func:`qfg.combine.geometric_pool`); ``"product"`` (the plain product of posteriors,
    the prior counted k times) is kept to measure the difference.
 6. The whole qualitative map (:func:`qfg.graph.full_map`, every ordered triplet), the combined
-   estimates as priors, the rest propagated by pooled composition (:func:`qfg.propagation.propagate_pooled`;
+   estimates as priors, the rest propagated by pooled composition (``qfg.propagate(g, method="pooled")``;
    ``propagation="best"``: the paper's Algorithm 2, :func:`qfg.propagation.propagate`).
 7. Scores (:mod:`qfg.metrics`) against the landmark ground truth (:func:`qfg.graph.truth_states`)
    of seen and propagated triplets: the probability of the truth, log score (clip 1e-4), Brier,
@@ -46,7 +47,8 @@ histories and their noise models), :mod:`~qfg.harness.studies.mrclam.pipeline` (
 piece by piece, temper, combine, map: :func:`run_dataset`), :mod:`~qfg.harness.studies.mrclam.maps`
 (the map methods, by name), :mod:`~qfg.harness.studies.mrclam.scoring` (step 7 and the
 summaries), :mod:`~qfg.harness.studies.mrclam.outputs` (tables, figures, the views curve),
-:mod:`~qfg.harness.studies.mrclam.params` (options and defaults),
+:mod:`~qfg.harness.studies.mrclam.params` (:class:`MrclamParams`: every option, its default
+and its documentation),
 :mod:`~qfg.harness.studies.mrclam.study` (the runner study and ``qfg mrclam``'s pieces) and
 :mod:`~qfg.harness.studies.mrclam.compare` (every map method side by side, ``python -m
 qfg.harness.studies.mrclam.compare``). The names of all but maps and compare are importable
@@ -81,22 +83,25 @@ from qfg.harness.studies.mrclam.outputs import (
 )
 from qfg.harness.studies.mrclam.params import (
     BEARING_CALIBRATIONS,
+    CHUNK,
     COMBINE,
     DEFAULTS,
+    FIELDS,
     KINDS,
     LATER_KEYS,
     METHODS,
     MODES,
     PRIOR_SAMPLES,
     PRIORS,
+    PROPAGATIONS,
     SCORES,
-    checked_params,
+    SOLVE_KEYS,
+    TEMPER_RULES,
+    MrclamParams,
+    ParamError,
 )
 from qfg.harness.studies.mrclam.pipeline import (
     AUTO_TEMPERS,
-    CHUNK,
-    SOLVE_KEYS,
-    TEMPER_RULES,
     LightEstimate,
     Prepared,
     choose_power,
@@ -126,10 +131,13 @@ from qfg.harness.studies.mrclam.scoring import (
 from qfg.harness.studies.mrclam.study import (
     STUDY,
     dataset_dirs,
+    experiment_params,
+    params_of,
     piece_tasks,
     prepared,
     remember,
     run_piece,
+    run_record,
     run_task,
     summarize,
     tasks,
@@ -137,6 +145,13 @@ from qfg.harness.studies.mrclam.study import (
 
 __all__ = [
     "run_dataset",
+    "MrclamParams",
+    "ParamError",
+    "FIELDS",
+    "PROPAGATIONS",
+    "experiment_params",
+    "params_of",
+    "run_record",
     "summary",
     "kind_summary",
     "write_outputs",
@@ -180,7 +195,6 @@ __all__ = [
     "SOLVE_KEYS",
     "TABLE_KEY",
     "TEMPER_RULES",
-    "checked_params",
     "choose_power",
     "choose_temper",
     "cross_pass_agreement",

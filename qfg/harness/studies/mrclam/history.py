@@ -13,9 +13,14 @@ import dataclasses
 import numpy as np
 
 from qfg.datasets import mrclam as _mrclam
-from qfg.harness.studies.mrclam.params import MODES, PRIORS
 from qfg.priors import WorldBoxPrior
 from qfg.priors import get as get_prior
+
+#: ``mode``: measured inputs, or the bearings and headings computed from the motion capture.
+MODES = ("honest", "paper")
+#: ``prior``: the world-box prior on the arena, the same with every pair scale equally likely,
+#: or the simulator's box (:func:`make_prior`).
+PRIORS = ("arena", "world", "arena-logscale")
 
 #: The odometry's direction-of-travel error (``sigma90``, degrees) against motion capture by the
 #: step's duration (centre of the measured bins 3-10 s, 10-30 s, 30-100 s; dataset 6,

@@ -1,7 +1,7 @@
 """Map methods of the MRCLAM study: from the seen triplets' estimates to a qualitative map.
 
 A *map method* is one named step of ``qfg mrclam`` (``--map NAME``) and of
-:func:`qfg.harness.studies.mrclam.run_dataset` (``map_method=NAME``). It receives the solved and
+:func:`qfg.harness.studies.mrclam.run_dataset` (``MrclamParams(map=NAME)``). It receives the solved and
 combined estimates of the seen ordered triplets (:class:`SeenEstimates`) and returns the rows of
 its map (:class:`MapResult`): the seen triplets, and any other triplets it estimates. The study
 scores every row of a map with the same code (:func:`qfg.harness.studies.mrclam.score_map`),
@@ -10,9 +10,9 @@ against the landmark ground truth, which a map method never sees.
 Registered here (:data:`MAP_METHODS`):
 
 * ``"pooled"``: the full map (:func:`qfg.graph.full_map`, every ordered triplet), the combined
-  estimates as priors, the rest by pooled composition (:func:`qfg.propagation.propagate_pooled`:
-  every unseen triplet the mean of its compositions from the nearest updated triplets). This was
-  ``--propagation mean``, the default.
+  estimates as priors, the rest by pooled composition (``qfg.propagate(g, method="pooled")``:
+  every unseen triplet the mean of its compositions from the nearest updated triplets). This is
+  ``propagation="pooled"``, the study's default (``--propagation pooled``).
 * ``"best"``: the same map propagated by the paper's Algorithm 2
   (:func:`qfg.propagation.propagate`, the proposal with the best information score);
   ``--propagation best``.
@@ -192,7 +192,7 @@ def _full_map_propagated(seen: SeenEstimates, rule: str) -> MapResult:
 
 def map_pooled(seen: SeenEstimates) -> MapResult:
     """Every ordered triplet; the unseen ones by pooled composition
-    (:func:`qfg.propagation.propagate_pooled`)."""
+    (``qfg.propagate(g, method="pooled")``)."""
     return _full_map_propagated(seen, "pooled")
 
 

@@ -14,7 +14,7 @@ from qfg.combine import temper
 from qfg.datasets import mrclam as _mrclam
 from qfg.harness.runner import figure_format, save_figure, write_table
 from qfg.harness.studies.mrclam.history import prepare
-from qfg.harness.studies.mrclam.params import KINDS, MODES
+from qfg.harness.studies.mrclam.params import KINDS, MODES, MrclamParams
 from qfg.harness.studies.mrclam.pipeline import _combine, run_dataset
 from qfg.harness.studies.mrclam.scoring import TABLE_KEY, _fmt, decode, summary, table_lines
 
@@ -104,13 +104,16 @@ def _path_figure(outdir, rows, details, robot):
 
 
 # ----------------------------------------------------------------------------- views curve
-def views_curve(path, caps=(3, 5, 8, 13, 0), **options) -> list[dict]:
+def views_curve(path, caps=(3, 5, 8, 13, 0), params=None, *, seed=0) -> list[dict]:
     """Seen-triplet scores against the views kept per pass: for each cap n (0: all), every pass
-    truncated to its first n views, solved, combined and scored (no propagation). Returns one
-    dict per (cap, mode, kind) with the :func:`kind_summary` entries and ``max_views``."""
+    truncated to its first n views, solved, combined and scored (no propagation), with the
+    other options of ``params`` (:class:`MrclamParams`; None: the defaults). Returns one dict
+    per (cap, mode, kind) with the :func:`kind_summary` entries and ``max_views``."""
+    base = MrclamParams() if params is None else params
     out = []
     for n in caps:
-        rows = run_dataset(path, max_views=int(n), propagate=False, **options)
+        rows = run_dataset(path, base.replace(max_views=int(n), propagate=False, map=""),
+                           seed=seed)
         for mode, d in summary(rows).items():
             if mode not in MODES:
                 continue

@@ -36,18 +36,17 @@ from qfg.harness.studies.mrclam.history import (
     walk_sigma_heading,
 )
 from qfg.harness.studies.mrclam.params import (
-    BEARING_CALIBRATIONS,
+    CHUNK,
     COMBINE,
+    FIELDS,
     METHODS,
-    MODES,
     PRIOR_SAMPLES,
+    PROPAGATIONS,
+    TEMPER_RULES,
+    MrclamParams,
 )
 from qfg.harness.studies.mrclam.scoring import _camera_rows, score_map
 from qfg.partitions import get as get_partition
-
-#: Histories solved per call: only the (m,) vectors are kept, chunk by chunk (an estimate may
-#: keep solver state; dataset 5 in one call once exhausted 24 GB).
-CHUNK = 128
 
 
 @dataclass(frozen=True)
@@ -76,13 +75,6 @@ class LightEstimate:
 # solve_piece for each piece of PIECE histories (``qfg mrclam`` records each piece as it
 # finishes), then finish: temper, combine, map (a named method, maps), score.
 
-#: The options that fix the solved estimates (what a piece record depends on).
-SOLVE_KEYS = ("path", "robots", "method", "mode", "prior", "partition", "fix_landmarks",
-              "min_travel", "max_gap", "max_views", "spread_views", "sigma_bearing_deg",
-              "sigma_heading_deg", "distances", "sigma_distance_ratio", "bearing_tail",
-              "model_check", "heading_drift", "distance_tail", "heading_walk", "heading_tail",
-              "camera_prior", "budget", "populations", "bearing_calibration", "piece")
-
 
 @dataclass(frozen=True, eq=False)
 class Prepared:
@@ -107,21 +99,24 @@ class Prepared:
     solver_options: dict = dataclasses.field(default_factory=dict)
 
 
-def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena",
-                partition: str = "edc", fix_landmarks: bool = True, min_travel: float = 0.02,
-                max_gap: float = 120.0, max_views: int = 0, spread_views: int = 3,
-                sigma_bearing_deg: float = 0.0, sigma_heading_deg: float = 0.0,
-                distances: bool = True, sigma_distance_ratio: float = 0.0,
-                bearing_tail: str = "normal", model_check: float = 0.0,
-                heading_drift: bool = False, distance_tail: str = "normal",
-                heading_walk: float = 0.0, heading_tail: str = "normal",
-                camera_prior: str = "point", budget: float = 1.0, populations: int = 1,
-                bearing_calibration: str = "none", dataset=None) -> Prepared:
+def prepare_run(path, params: MrclamParams | None = None, *, dataset=None) -> Prepared:
     """Load (or take ``dataset``, loaded from ``path``), fix the landmark ground truth, make the
     prior and its state distributions, and the histories to solve (module docstring, steps
-    1-4). Every data file is read and checked here, before anything is solved."""
-    if mode not in MODES:
-        raise ValueError(f"mode: expected one of {MODES}, got {mode!r}")
+    1-4), with the solve options of ``params`` (:class:`MrclamParams`, default: its defaults).
+    Every data file is read and checked here, before anything is solved."""
+    p = MrclamParams() if params is None else params
+    if not isinstance(p, MrclamParams):
+        raise TypeError(f"params: expected a MrclamParams, got {type(p).__name__}")
+    robots = list(p.robots) or None
+    mode, prior, partition, fix_landmarks = p.mode, p.prior, p.partition, p.fix_landmarks
+    min_travel, max_gap, max_views, spread_views = (p.min_travel, p.max_gap, p.max_views,
+                                                    p.spread_views)
+    sigma_bearing_deg, sigma_heading_deg = p.sigma_bearing_deg, p.sigma_heading_deg
+    distances, sigma_distance_ratio = p.distances, p.sigma_distance_ratio
+    bearing_tail, model_check, heading_drift = p.bearing_tail, p.model_check, p.heading_drift
+    distance_tail, heading_walk, heading_tail = p.distance_tail, p.heading_walk, p.heading_tail
+    camera_prior, budget, populations = p.camera_prior, p.budget, p.populations
+    bearing_calibration = p.bearing_calibration
     part = get_partition(partition)
     if dataset is None:
         ds, swaps = prepare(path, fix_landmarks=fix_landmarks)
@@ -129,32 +124,14 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
         swaps = tuple(tuple(int(x) for x in s) for s in
                       (_mrclam.check_landmarks(dataset).swaps if fix_landmarks else ()))
         ds = _mrclam.swap_landmarks(dataset, swaps) if swaps else dataset
-    if bearing_calibration not in BEARING_CALIBRATIONS:
-        raise ValueError(f"bearing_calibration: expected one of {BEARING_CALIBRATIONS}, got "
-                         f"{bearing_calibration!r}")
     if bearing_calibration == "measured":
         ds = _mrclam.calibrate_bearings(ds, _mrclam.DEFAULT_BEARING_CALIBRATION)
     pr = make_prior(ds, prior)
     q_c = prior_state_distribution(pr, part, samples=PRIOR_SAMPLES, seed=1)
     q_x = prior_state_distribution(pr, part, point=1, n_cameras=1, samples=PRIOR_SAMPLES, seed=2)
-    if bearing_tail not in BEARING_TAILS:
-        raise ValueError(f"bearing_tail: expected one of {tuple(BEARING_TAILS)}, "
-                         f"got {bearing_tail!r}")
     tail_sb, tail_sh, tail = BEARING_TAILS[bearing_tail]
-    if distance_tail not in DISTANCE_TAILS:
-        raise ValueError(f"distance_tail: expected one of {tuple(DISTANCE_TAILS)}, "
-                         f"got {distance_tail!r}")
     tail_sd, dtail = DISTANCE_TAILS[distance_tail]
-    if heading_tail not in ("normal", "measured"):
-        raise ValueError(f"heading_tail: expected 'normal' or 'measured', got {heading_tail!r}")
     htail = HEADING_WALK_TAIL[1] if heading_tail == "measured" else None
-    from qfg.solvers.common.options import CAMERA_PRIORS, scaled_budget
-
-    if camera_prior not in CAMERA_PRIORS:
-        raise ValueError(f"camera_prior: expected one of {CAMERA_PRIORS}, got {camera_prior!r}")
-    scaled_budget("full", budget)   # checks the factor here, before anything is solved
-    if isinstance(populations, bool) or int(populations) != populations or populations < 1:
-        raise ValueError(f"populations: expected a whole number >= 1, got {populations!r}")
     budget = float(budget)
     sigma_distance_ratio = sigma_distance_ratio or tail_sd
     sig = {}
@@ -168,8 +145,6 @@ def prepare_run(path, *, robots=None, mode: str = "honest", prior: str = "arena"
         sig["sigma_heading"] = np.deg2rad(float(sigma_heading_deg))
     rh = histories(ds, robots, mode=mode, max_views=max_views, spread_views=spread_views,
                    partition=part, min_travel=min_travel, max_gap=max_gap, **sig)
-    if heading_drift and heading_walk:
-        raise ValueError("heading_walk: one heading model at a time (heading_drift is on)")
     if heading_drift:
         rh = [(r, dataclasses.replace(h, sigma_heading=drift_sigma_heading(h, h.sigma_heading))
                if h.has_motion else h) for r, h in rh]
@@ -373,11 +348,6 @@ def cross_pass_agreement(P, groups: dict, q, tau: float) -> tuple[float, int]:
     return float(np.mean(_pair_agreements(P, a, b, q, tau))), int(a.size)
 
 
-#: ``--temper`` rules of the check over histories: ``auto`` the power with the best agreement;
-#: ``auto-1se`` the smallest power whose agreement is within one (cluster-robust) standard error
-#: of the best, the one-standard-error rule: among powers the passes cannot tell apart, the most
-#: cautious (chosen on the development sets, docs/results/mrclam.md).
-TEMPER_RULES = ("auto", "auto-1se")
 
 
 def choose_temper(prep: Prepared, ests: list[LightEstimate], taus=AUTO_TEMPERS,
@@ -474,16 +444,19 @@ def say_map_info(name: str, info, say) -> None:
         say(f"map {name}: {extra}")
 
 
-def map_name(propagate: bool = True, propagation: str = "mean", map_method: str = "") -> str:
+def map_name(propagate: bool = True, propagation: str = "pooled", map_method: str = "") -> str:
     """The map method the older options name: ``propagate=False`` -> ``"seen"``;
-    ``propagation`` ``"mean"`` -> ``"pooled"``, ``"best"`` -> ``"best"``; ``map_method`` wins."""
+    ``propagation`` ``"pooled"`` or ``"best"``; ``map_method`` wins
+    (:attr:`MrclamParams.map_method`)."""
     if map_method:
         return map_method
     if not propagate:
         return "seen"
-    if propagation not in ("mean", "best"):
-        raise ValueError(f"propagation: expected 'mean' or 'best', got {propagation!r}")
-    return {"mean": "pooled", "best": "best"}[propagation]
+    if propagation == "mean":
+        raise ValueError("propagation: 'mean' is now called 'pooled' (CHANGELOG.md)")
+    if propagation not in PROPAGATIONS:
+        raise ValueError(f"propagation: expected one of {PROPAGATIONS}, got {propagation!r}")
+    return propagation
 
 
 def finish(prep: Prepared, ests: list[LightEstimate], *, combine: str = "geometric",
@@ -579,106 +552,46 @@ def load_tensor(partition: str, path: str | None):
     return load(path, partition) if path else tensor(partition)
 
 
-def run_dataset(path, *, robots=None, method: str = "full", mode: str = "honest",
-                prior: str = "arena", combine: str = "geometric", partition: str = "edc",
-                tensor=None, fix_landmarks: bool = True, seed=0, min_travel: float = 0.02,
-                max_gap: float = 120.0, max_views: int = 0, propagate: bool = True,
-                sigma_bearing_deg: float = 0.0, sigma_heading_deg: float = 0.0,
-                temper: float = 1.0, spread_views: int = 3, return_details: bool = False,
-                propagation: str = "mean", distances: bool = True,
-                sigma_distance_ratio: float = 0.0, map_method: str = "",
-                piece: int = CHUNK, bearing_tail: str = "normal", model_check: float = 0.0,
-                heading_drift: bool = False, distance_tail: str = "normal",
-                heading_walk: float = 0.0, heading_tail: str = "normal",
-                camera_prior: str = "point", budget: float = 1.0, populations: int = 1,
-                bearing_calibration: str = "none", **solver_options):
+def run_dataset(path, params: MrclamParams | None = None, *, seed=0, tensor=None,
+                return_details: bool = False, **solver_options):
     """Solve, combine, map, propagate and score one dataset directory, in memory (``qfg
     mrclam`` runs the same phases and records them: :func:`prepare_run`, :func:`solve_piece`
     per piece, :func:`finish`).
 
     Args:
         path: an MRCLAM dataset directory.
-        robots: robot numbers (None: all).
-        method: single-triplet solver (``"fast"``, ``"full"``, ``"baseline"``); robots without
-            odometry always get the baseline (the row's ``method``).
-        mode: ``"honest"`` (measured inputs) or ``"paper"`` (inputs from motion capture).
-        prior: ``"arena"`` or ``"world"`` (:func:`make_prior`).
-        combine: ``"prior-once"``, ``"geometric"`` or ``"product"`` (module docstring, step 5).
-        tensor: composition tensor ((m, m, m) array or CompositionTensor); None: the shipped one.
-        seed: solver seed (piece c of ``piece`` histories gets child c of
+        params: every option of the run (:class:`MrclamParams`; None: its defaults).
+        seed: solver seed (piece c of ``params.piece`` histories gets child c of
             ``SeedSequence(seed)``).
-        min_travel, max_gap, max_views: history options (module docstring, step 2).
-        map_method: the map method by name (:mod:`qfg.harness.studies.mrclam.maps`:
-            ``"pooled"``, ``"best"``, ``"seen"``, ...); empty: named by the two options below.
-        propagate: build the map and propagate (False: seen triplets and cameras only, the map
-            method ``"seen"``).
-        propagation: ``"mean"`` (map method ``"pooled"``: :func:`qfg.propagation.propagate_pooled`,
-            every unseen triplet the mean of its compositions from the nearest updated
-            triplets) or ``"best"`` (the paper's Algorithm 2, :func:`qfg.propagation.propagate`:
-            the sharpest proposal).
-        sigma_bearing_deg, sigma_heading_deg: noise the solver assumes, degrees (0: the loader's
-            measured defaults, ``DEFAULT_SIGMA_BEARING`` / ``DEFAULT_SIGMA_HEADING``).
-        temper: each history's estimate (C and cameras) tempered before anything else,
-            :func:`qfg.combine.temper` with the prior's state distribution: ``p ∝ prior
-            (p / prior)^temper`` (1: as solved). Chosen on a development dataset, never on the
-            one reported (docs/results/mrclam.md).
-        spread_views: keep this many views spread evenly over each pass (0: all).
-        distances: the histories' odometry distances (between the kept views) go to the solver
-            (``full``/``fast``: a factor on ratios of consecutive step lengths; default: the
-            seen triplets of dataset 6 score -1.16 with them, -1.21 without,
-            docs/results/mrclam.md); False solves without them.
-        sigma_distance_ratio: noise of their log ratio the solver assumes (0: the loader's
-            ``DEFAULT_SIGMA_DISTANCE_RATIO``).
-        piece: histories solved per call (and per recorded piece of ``qfg mrclam``).
-        bearing_tail: the solvers' bearing-noise model by name (:data:`BEARING_TAILS`).
-        model_check: level of the solvers' model check (``full``/``fast``: answers whose
-            posterior predictive p is below it are widened toward the prior; 0: report only).
-        heading_drift: each history's heading sigma from its longest step
-            (:func:`drift_sigma_heading`).
-        distance_tail: the step-length ratios' noise model by name (:data:`DISTANCE_TAILS`;
-            ``"measured"`` also sets their core sigma unless ``sigma_distance_ratio`` is given).
-        heading_walk: each step's heading sigma ``heading_walk sqrt(dt)`` degrees
-            (:func:`walk_sigma_heading`; :data:`HEADING_WALK` measured; 0: off).
-        heading_tail: ``"measured"``: the solvers' headings get the two-normal tail of
-            :data:`HEADING_WALK_TAIL` (with ``heading_walk`` its 0.85).
-        camera_prior: the solvers' ``camera_prior`` (``"joint"``: the cameras' joint prior in
-            the intermediate weights; docs/solvers.md).
-        budget: the full/fast solvers' budget times this factor
-            (:func:`qfg.solvers.common.options.scaled_budget`).
-        populations: the full/fast solvers' independent SIS populations (their
-            ``populations`` option; 1: the default; given, the few-views package is off,
-            docs/solvers.md).
-        bearing_calibration: ``"measured"``: each robot's bearings corrected by its bias and
-            scale measured against motion capture on dataset 6
-            (:data:`qfg.datasets.mrclam.DEFAULT_BEARING_CALIBRATION`) before anything else.
+        tensor: the composition tensor ((m, m, m) array or CompositionTensor) instead of the
+            file ``params.tensor`` names; None: that file, or the shipped tensor when it is ''.
+        return_details: also return the details (dataset, histories, estimates, map, ...).
+        **solver_options: further options of the single-triplet solvers
+            (:data:`qfg.solvers.DEFAULTS`), e.g. ``n_samples``.
 
     Returns:
         rows (list of dicts; module docstring). With ``return_details``: ``(rows, details)``.
     """
-    if method not in METHODS:
-        raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
-    if combine not in COMBINE:
-        raise ValueError(f"combine: expected one of {COMBINE}, got {combine!r}")
-    name = map_name(propagate, propagation, map_method)
+    p = MrclamParams() if params is None else params
+    if not isinstance(p, MrclamParams):
+        raise TypeError(f"params: expected a MrclamParams, got {type(p).__name__}")
+    ours = sorted(set(solver_options) & set(FIELDS))
+    if ours:
+        raise TypeError(f"run_dataset: {', '.join(ours)}: options of the run, give them in "
+                        f"MrclamParams ({ours[0]}=...), CHANGELOG.md")
+    name = p.map_method
     from qfg.harness.studies.mrclam import maps as mrclam_maps
 
     mrclam_maps.get(name)
-    prep = prepare_run(path, robots=robots, mode=mode, prior=prior, partition=partition,
-                       fix_landmarks=fix_landmarks, min_travel=min_travel, max_gap=max_gap,
-                       max_views=max_views, spread_views=spread_views,
-                       sigma_bearing_deg=sigma_bearing_deg, sigma_heading_deg=sigma_heading_deg,
-                       distances=distances, sigma_distance_ratio=sigma_distance_ratio,
-                       bearing_tail=bearing_tail, model_check=model_check,
-                       heading_drift=heading_drift, distance_tail=distance_tail,
-                       heading_walk=heading_walk, heading_tail=heading_tail,
-                       camera_prior=camera_prior, budget=budget, populations=populations,
-                       bearing_calibration=bearing_calibration)
+    if tensor is None and p.tensor and name != "seen":
+        tensor = load_tensor(p.partition, p.tensor)
+    prep = prepare_run(path, p)
     t0 = time.perf_counter()
     ests = []
-    for c in range(n_pieces(prep, piece)):
-        ests += solve_piece(prep, c, method=method, seed=seed, piece=piece, **solver_options)
+    for c in range(n_pieces(prep, p.piece)):
+        ests += solve_piece(prep, c, method=p.method, seed=seed, piece=p.piece, **solver_options)
     t_solve = time.perf_counter() - t0
-    rows, details = finish(prep, ests, combine=combine, temper=temper, map_method=name,
+    rows, details = finish(prep, ests, combine=p.combine, temper=p.temper, map_method=name,
                            tensor=tensor, seed=int(seed))
     if rows:
         rows[0]["time_solve_s"] = t_solve

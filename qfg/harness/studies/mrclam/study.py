@@ -4,6 +4,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from pathlib import Path
@@ -13,18 +14,9 @@ import numpy as np
 from qfg.datasets import mrclam as _mrclam
 from qfg.harness.runner import Study, param_spec
 from qfg.harness.studies.mrclam.outputs import write_outputs
-from qfg.harness.studies.mrclam.params import (
-    COMBINE,
-    DEFAULTS,
-    METHODS,
-    MODES,
-    PRIORS,
-    checked_params,
-)
+from qfg.harness.studies.mrclam.params import DEFAULTS, FIELDS, SOLVE_KEYS, MrclamParams
 from qfg.harness.studies.mrclam.pipeline import (
-    SOLVE_KEYS,
     Prepared,
-    load_tensor,
     n_pieces,
     piece_rows,
     prepare_run,
@@ -43,9 +35,28 @@ from qfg.harness.studies.mrclam.scoring import TABLE_KEY, table_lines
 _PREPARED: dict[str, Prepared] = {}
 
 
+def params_of(record: dict) -> MrclamParams:
+    """The :class:`MrclamParams` of a run's record or task (``path``, ``seed``, ``index`` and
+    the options it holds; the others at their defaults)."""
+    return MrclamParams.from_dict({k: v for k, v in record.items() if k in FIELDS})
+
+
+def run_record(path, params: MrclamParams, seed: int) -> dict:
+    """The identity of a ``qfg mrclam`` run (its ``run.json`` params, what fixes the solved
+    estimates): ``path``, the later options (:data:`LATER_KEYS`) that differ from their
+    defaults, the other solve options (:data:`SOLVE_KEYS`), ``seed``."""
+    d = params.to_dict()
+    fields = {f.name: f for f in dataclasses.fields(MrclamParams)}
+    later = {k: d[k] for k in SOLVE_KEYS[1:] if fields[k].metadata["later"]
+             and d[k] != DEFAULTS[k]}
+    rest = {k: d[k] for k in SOLVE_KEYS[1:] if not fields[k].metadata["later"]}
+    return {"path": str(path), **later, **rest, "seed": int(seed)}
+
+
 def _prep_key(params: dict) -> str:
-    return json.dumps({k: params.get(k, DEFAULTS.get(k)) for k in SOLVE_KEYS
-                       if k not in ("method", "piece")},
+    p = params_of(params).to_dict()
+    return json.dumps({"path": params.get("path"),
+                       **{k: p[k] for k in SOLVE_KEYS[1:] if k not in ("method", "piece")}},
                       sort_keys=True, default=str)
 
 
@@ -56,20 +67,18 @@ def remember(params: dict, prep: Prepared) -> None:
 
 
 def prepared(params: dict) -> Prepared:
-    """The prepared dataset of a run's params (:data:`SOLVE_KEYS`), made once per process."""
+    """The prepared dataset of a run's params (:func:`run_record`), made once per process."""
     key = _prep_key(params)
     if key not in _PREPARED:
-        remember(params, prepare_run(
-            params["path"], robots=params["robots"] or None,
-            **{k: params.get(k, DEFAULTS[k]) for k in SOLVE_KEYS
-               if k not in ("path", "robots", "method", "piece")}))
+        remember(params, prepare_run(params["path"], params_of(params)))
     return _PREPARED[key]
 
 
 def piece_tasks(params: dict) -> list[dict]:
-    """One task per piece of ``params["piece"]`` histories (the params of ``qfg mrclam``:
-    :data:`SOLVE_KEYS` and ``seed``)."""
-    return [{"index": c, **params} for c in range(n_pieces(prepared(params), params["piece"]))]
+    """One task per piece of ``piece`` histories (the params of ``qfg mrclam``:
+    :func:`run_record`)."""
+    piece = params_of(params).piece
+    return [{"index": c, **params} for c in range(n_pieces(prepared(params), piece))]
 
 
 def run_piece(task: dict, rng) -> list[dict]:
@@ -77,9 +86,9 @@ def run_piece(task: dict, rng) -> list[dict]:
     piece c gets child c of ``SeedSequence(seed)`` as the in-memory :func:`run_dataset` does)."""
     prep = prepared(task)
     t0 = time.perf_counter()
-    ests = solve_piece(prep, task["index"], method=task["method"], seed=task["seed"],
-                       piece=task["piece"])
-    rows = piece_rows(prep, task["index"], ests, task["piece"])
+    p = params_of(task)
+    ests = solve_piece(prep, task["index"], method=p.method, seed=task["seed"], piece=p.piece)
+    rows = piece_rows(prep, task["index"], ests, p.piece)
     if rows:
         rows[0]["time_solve_s"] = time.perf_counter() - t0
     return rows
@@ -102,26 +111,23 @@ def dataset_dirs(data, numbers=()) -> list[Path]:
     return [found[n] for n in want]
 
 
-_TASK_KEYS = ("method", "mode", "prior", "combine", "partition", "fix_landmarks", "tensor",
-              "min_travel", "max_gap", "max_views", "propagate", "sigma_bearing_deg",
-              "sigma_heading_deg", "temper", "spread_views", "propagation", "distances",
-              "sigma_distance_ratio", "map")
+def experiment_params(params: dict) -> tuple[str, list, MrclamParams]:
+    """The parameters of ``qfg experiment mrclam`` (:data:`DEFAULTS`): (``data``,
+    ``datasets``, the run's :class:`MrclamParams`); ValueError naming the first bad one."""
+    rest = {k: v for k, v in params.items() if k not in ("data", "datasets")}
+    return params.get("data", ""), list(params.get("datasets", [])), MrclamParams.from_dict(rest)
 
 
 def tasks(params: dict) -> list[dict]:
-    """One task per dataset directory."""
-    p = checked_params(params)
-    return [{"index": i, "path": str(d), "robots": list(p["robots"]),
-             **{k: p[k] for k in _TASK_KEYS}}
-            for i, d in enumerate(dataset_dirs(p["data"], p["datasets"]))]
+    """One task per dataset directory: its path and every option (:meth:`MrclamParams.to_dict`)."""
+    data, datasets, p = experiment_params(params)
+    return [{"index": i, "path": str(d), **p.to_dict()}
+            for i, d in enumerate(dataset_dirs(data, datasets))]
 
 
 def run_task(task: dict, rng: np.random.Generator) -> list[dict]:
-    T = load_tensor(task["partition"], task["tensor"] or None) if task["propagate"] and \
-        task.get("map", "") != "seen" else None
-    opts = {k: task[k] for k in _TASK_KEYS if k not in ("tensor", "map")}
-    return run_dataset(task["path"], robots=task["robots"] or None, tensor=T,
-                       map_method=task.get("map", ""), seed=int(rng.integers(2**63)), **opts)
+    p = params_of(task)
+    return run_dataset(task["path"], p, seed=int(rng.integers(2**63)))
 
 
 def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
@@ -132,6 +138,4 @@ def summarize(outdir: Path, rows: list[dict], params: dict) -> None:
 STUDY = Study(name="mrclam", tasks=tasks, run_task=run_task, summarize=summarize,
               description="MRCLAM datasets: triplet estimates, full map, propagation (paper 6d), "
                           "scored with log score, Brier and both baselines",
-              params=param_spec(DEFAULTS, method={"choices": METHODS},
-                                combine={"choices": COMBINE}, mode={"choices": MODES},
-                                prior={"choices": PRIORS}, partition={"choices": ("edc",)}))
+              params=param_spec(DEFAULTS, partition={"choices": ("edc",)}))
