@@ -8,6 +8,7 @@ module.
 """
 
 import ast
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -70,3 +71,22 @@ def test_pytest_collects_nothing_from_experiments_or_benchmarks():
     paths = [x.split("::")[0].split(": ")[0] for x in out.splitlines() if ".py" in x]
     assert "tests/test_scripts.py" in paths, "the collection was not read: the check would pass empty"
     assert not [x for x in paths if x.startswith(("experiments/", "benchmarks/", "qfg/_presets"))]
+
+
+SCRIPT_PATH = re.compile(r"(?<![\w/.])((?:experiments|benchmarks)/[\w/]+\.(?:py|toml))")
+
+
+def test_every_script_path_the_repository_names_exists():
+    out = subprocess.run(["git", "ls-files"], cwd=REPO, capture_output=True, text=True)
+    if out.returncode:
+        pytest.skip("not a git checkout")
+    bad = []
+    for name in out.stdout.split():
+        if not name.endswith((".py", ".md", ".toml", ".cff")) and name != "Makefile":
+            continue
+        path = REPO / name
+        if not path.is_file():
+            continue
+        for i, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+            bad += [f"{name}:{i}: {m}" for m in SCRIPT_PATH.findall(line) if not (REPO / m).exists()]
+    assert not bad, "paths of scripts that do not exist:\n" + "\n".join(bad)

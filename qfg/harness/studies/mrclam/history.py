@@ -34,7 +34,7 @@ HEADING_SIGMA_BY_STEP = ((6.5, 1.59), (20.0, 5.04), (65.0, 9.76))
 #: 120-s passes, 2, 3, 5 and 8 views spread over each, steps of 2 cm or more) against motion
 #: capture; per step it scores 0.2-0.4 nats above one sigma per history from the longest step,
 #: and the loader's 1.57 deg 7-51 nats below (docs/mrclam.md, "The odometry's heading over a
-#: step"; ``experiments/mrclam_heading_steps.py``).
+#: step"; ``experiments/mrclam/mrclam_heading_steps.py``).
 HEADING_WALK = 1.21
 #: The same walk with the solvers' two-normal tail (``heading_tail``), fitted the same way:
 #: (b in deg / sqrt(s), (share, scale)); ``--heading-walk measured-tail``.
@@ -93,7 +93,7 @@ BEARING_TAILS = {
 #: normals) to 1,791 ratios of dataset 6's histories (robots 1-5, 120-s passes, 3, 5 and 8 views
 #: spread over each, steps of 2 cm or more) against motion capture, where the loader's normal
 #: scores 3.1 nats per ratio below the mixture (docs/mrclam.md, "The odometry's step-length
-#: ratios"; ``experiments/mrclam_distance_ratios.py``).
+#: ratios"; ``experiments/mrclam/mrclam_distance_ratios.py``).
 DISTANCE_TAILS = {
     "normal": (None, None),
     "measured": (0.092, (0.088, 7.2)),

@@ -211,28 +211,23 @@ def all_ordered_triplets(n: int) -> np.ndarray:
 
 
 #: The configuration map's sampler options (beyond qfg.configurations.DEFAULTS): 4000 particles
-#: and 8 sweeps per stage, where 2000 and 2 left the populations in different places (median
-#: Monte Carlo error 0.08-0.19 on dataset 2, 0.01-0.03 now; with every seen set at its true state
-#: the unseen triplets of dataset 2 went from -2.38 to -0.64, the prior alone -2.73).
+#: and 8 sweeps per stage, because fewer left the sampler's populations in different places on a
+#: whole MRCLAM map (the measurement: docs/configurations.md, "On MRCLAM").
 CONFIG_OPTIONS = {"n_particles": 4000, "n_sweeps": 8}
 
 #: ``widen`` of the configuration map (:meth:`qfg.configurations.ConfigurationPosterior.
 #: marginals`) and its answer for triplets across groups of landmarks no seen triplet links
-#: (``unlinked``): chosen with the likelihood's temper and floor (the library defaults, 0.6 and
-#: 0.01, won) on datasets 6 and 2 (development, fast-solver estimates) by the mean log score over
-#: their seen and unseen triplets: -2.52 (the prior alone -2.75; grid tau 0.6/0.3/0.15/0.05 x floor
-#: 0.01/0.1 x widen none/0.05/0.1, /work/notes/cfg21b/grid2.log). ``unlinked="prior"``: dataset
-#: 6's seen sets form two groups (8 and 7 landmarks) no seen triplet links, and the world prior
-#: placed them confidently wrong (unseen -5.0 without it, even with every seen set at its true
-#: state -5.6).
+#: (``unlinked``), chosen with the likelihood's temper and floor on development datasets by the
+#: mean log score over seen and unseen triplets (docs/configurations.md, "On MRCLAM").
+#: ``unlinked="prior"`` because nothing measured ties such groups together: the world prior alone
+#: would place them, and can place them confidently wrong.
 CONFIG_WIDEN = 0.05
 CONFIG_UNLINKED = "prior"
 
 #: The leave-one-out check of the configuration map (:meth:`qfg.configurations.
 #: ConfigurationPosterior.loo_check`): every row widened toward the prior when the seen triplets
-#: predict each other worse than the prior alone. On the fast solver's estimates of datasets 1-4
-#: (``--temper auto``) it chooses 0 (mean log predictive ordinate 0.39-0.40): a safeguard here,
-#: not a change of these maps.
+#: predict each other worse than the prior alone: a safeguard against evidence that contradicts
+#: itself.
 CONFIG_CHECK = True
 
 
@@ -365,13 +360,10 @@ def map_seen_prior(seen: SeenEstimates) -> MapResult:
                      info={"seen_rows": "solvers", "unseen_rows": "prior"})
 
 
-#: The map method that answers for the joint map when no robot of the run has odometry. Chosen
-#: on dataset 6, robot 1, solved by the baseline model as if without odometry (development), by
-#: the default's rule (the mean log score over seen and unseen triplets): pooled seen -2.08 /
-#: unseen -2.86, config-state -2.47 / -2.74, seen-config -2.08 / -2.74, this one -2.08 / -2.72
-#: (its unseen rows are the prior alone's). Configuration inference there put the unseen
-#: triplets below the prior alone, and on dataset 5 (held out) 13 % of them under 1 %
-#: (docs/configurations.md), so without odometry the map answers only what was seen.
+#: The map method that answers for the joint map when no robot of the run has odometry: the
+#: seen triplets from the solvers and the prior alone for the rest. Without odometry nothing ties
+#: the passes' estimates into one frame, and configuration inference there put unseen triplets
+#: below the prior alone (docs/configurations.md), so the map answers only what was seen.
 JOINT_FALLBACK = "seen-prior"
 
 
