@@ -1,4 +1,5 @@
-"""qfg.harness.mrclam_runs.merged_estimates and ``qfg mrclam-runs merge``: runs of different robots merged as one run of all of them.
+"""qfg.harness.mrclam_runs.merged_estimates and ``qfg mrclam-runs merge``: runs of
+different robots merged as one run of all of them.
 Checked against the runs themselves: every history of the merged robots gets its own run's
 recorded estimate, and a triplet seen by one robot only is combined exactly as that robot's run
 combined it (no temper: the same histories, the same rule)."""

@@ -1,4 +1,5 @@
-"""qfg.harness.mrclam_runs.dataset_row and ``qfg mrclam-runs table``: the row it makes for a dataset agrees with what
+"""qfg.harness.mrclam_runs.dataset_row and ``qfg mrclam-runs table``: the row
+it makes for a dataset agrees with what
 ``qfg mrclam`` itself summarised (``summary.json``, computed by the study from the same rows), and
 pairs of runs that are not one run's solving are refused by name."""
 
