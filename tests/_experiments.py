@@ -11,7 +11,7 @@ EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 
 def load_experiment(path: str):
     """The module of ``experiments/<path>.py``, ``path`` naming its topic folder and script, e.g.
-    ``"mrclam/mrclam_merge_runs"``."""
+    ``"mrclam/mrclam_heading_steps"``."""
     file = EXPERIMENTS / f"{path}.py"
     spec = importlib.util.spec_from_file_location(file.stem, file)
     mod = importlib.util.module_from_spec(spec)

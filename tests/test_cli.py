@@ -223,3 +223,12 @@ def test_an_unknown_preset_names_a_file_that_exists(tmp_path, capsys, monkeypatc
     line = _one_error_line(capsys, "--preset", "'nope'", "quick")
     named = line.split("(", 1)[1].split(" has ")[0]
     assert Path(named).is_absolute() and Path(named).is_file(), line
+
+
+@pytest.mark.parametrize("argv", [["demo", "--bogus"], ["partitions", "--bogus=1"],
+                                  ["mrclam-runs", "table", "x", "y", "--bogus"], ["--bogus"]])
+def test_unknown_arguments_are_one_line_naming_them_exit_2(argv, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    assert e.value.code == 2
+    _one_error_line(capsys, argv[-1], "unrecognized arguments")

@@ -1,4 +1,5 @@
-"""experiments/mrclam/mrclam_merge_runs.py: runs of different robots merged as one run of all of them.
+"""qfg.harness.mrclam_runs.merged_estimates and ``qfg mrclam-runs merge``: runs of
+different robots merged as one run of all of them.
 Checked against the runs themselves: every history of the merged robots gets its own run's
 recorded estimate, and a triplet seen by one robot only is combined exactly as that robot's run
 combined it (no temper: the same histories, the same rule)."""
@@ -10,7 +11,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from _experiments import load_experiment
 from test_mrclam import write_dataset
 
 from qfg.harness.cli import main
@@ -21,7 +21,9 @@ FAST = ["--method", "fast", "--no-figures", "--no-progress", "--max-gap", "10", 
 
 
 def _merge_module():
-    return load_experiment("mrclam/mrclam_merge_runs")
+    from qfg.harness import mrclam_runs
+
+    return mrclam_runs
 
 
 @pytest.fixture(scope="module")
@@ -73,3 +75,24 @@ def test_merge_refuses_runs_with_other_options_or_the_same_robot(runs, tmp_path)
                  *FAST, "--max-views", "3"]) == 0
     with pytest.raises(ValueError, match="max_views"):
         mod.merged_estimates([runs[1], other])
+
+
+def test_merge_command_prints_and_writes_and_refuses_bad_input(runs, tmp_path, capsys):
+    out = tmp_path / "merged"
+    assert main(["mrclam-runs", "merge", str(runs[1]), str(runs[2]), "--temper", "1",
+                 "--output", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert printed.startswith("temper 1 (power 1)")
+    assert (out / "merge.txt").read_text().splitlines()[0] == printed.splitlines()[0]
+    assert (out / "triplets_1.csv").is_file()
+    for bad, word in ((["--temper", "2"], "--temper"), (["--map", "nope"], "--map")):
+        assert main(["mrclam-runs", "merge", str(runs[1]), str(runs[2]), *bad]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and word in err[0], err
+    assert main(["mrclam-runs", "merge", str(runs[1])]) == 2
+    assert "two or more" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as e:
+        main(["mrclam-runs", "merge", str(runs[1]), str(runs[2]), "--bogus"])
+    assert e.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--bogus" in err[0] and "qfg mrclam-runs merge" in err[0], err

@@ -1,4 +1,5 @@
-"""experiments/mrclam/mrclam_whole_datasets.py: the row it prints for a dataset agrees with what
+"""qfg.harness.mrclam_runs.dataset_row and ``qfg mrclam-runs table``: the row
+it makes for a dataset agrees with what
 ``qfg mrclam`` itself summarised (``summary.json``, computed by the study from the same rows), and
 pairs of runs that are not one run's solving are refused by name."""
 
@@ -8,7 +9,6 @@ import json
 import shutil
 
 import pytest
-from _experiments import load_experiment
 from test_mrclam import write_dataset
 
 from qfg.harness.cli import main
@@ -18,7 +18,9 @@ FAST = ["--method", "fast", "--no-figures", "--no-progress", "--max-gap", "10", 
 
 
 def _module():
-    return load_experiment("mrclam/mrclam_whole_datasets")
+    from qfg.harness import mrclam_runs
+
+    return mrclam_runs
 
 
 @pytest.fixture(scope="module")
@@ -45,7 +47,7 @@ def _cells(row: str) -> list[str]:
 def test_row_agrees_with_the_runs_own_summaries(runs):
     seen, mapped, _ = runs
     cells = _cells(_module().dataset_row(seen, mapped))
-    header = _cells(_module().HEADER.splitlines()[0])
+    header = _cells(_module().TABLE_HEADER.splitlines()[0])
     got = dict(zip(header, cells, strict=True))
     s = json.loads((seen / "summary.json").read_text())["honest"]
     m = json.loads((mapped / "summary.json").read_text())["honest"]
@@ -71,7 +73,21 @@ def test_row_agrees_with_the_runs_own_summaries(runs):
 def test_runs_of_other_solving_are_refused(runs, tmp_path):
     seen, mapped, other = runs
     mod = _module()
-    with pytest.raises(SystemExit, match="not the same seen triplets"):
+    with pytest.raises(ValueError, match="not the same seen triplets"):
         mod.dataset_row(other, mapped)
-    with pytest.raises(SystemExit, match="no summary.json"):
+    with pytest.raises(ValueError, match="no summary.json"):
         mod.dataset_row(seen, tmp_path)
+
+
+def test_table_command_prints_writes_and_refuses_bad_input(runs, tmp_path, capsys):
+    seen, mapped, _ = runs
+    out = tmp_path / "t"
+    assert main(["mrclam-runs", "table", str(seen), str(mapped), "--output", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert printed.startswith(_module().TABLE_HEADER)
+    assert (out / "whole_datasets.md").read_text().startswith(_module().TABLE_HEADER)
+    assert main(["mrclam-runs", "table", str(seen)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "pairs" in err[0], err
+    assert main(["mrclam-runs", "table", str(seen), str(tmp_path)]) == 2
+    assert "no summary.json" in capsys.readouterr().err

@@ -31,6 +31,17 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _command_parser(parser: argparse.ArgumentParser, args) -> argparse.ArgumentParser:
+    """The (sub)parser that parsed ``args``: the deepest subcommand named in them."""
+    while True:
+        chosen = [a.choices[getattr(args, a.dest)] for a in parser._actions
+                  if isinstance(a, argparse._SubParsersAction)
+                  and getattr(args, a.dest, None) in a.choices]
+        if not chosen:
+            return parser
+        parser = chosen[0]
+
+
 def main(argv=None) -> int:
     # Figures are written to files: a non-interactive backend unless the user chose one. Set
     # here, at the entry point, so that importing qfg in a notebook changes nothing.
@@ -38,7 +49,12 @@ def main(argv=None) -> int:
     from qfg.harness.runner import RunAborted, RunInterrupted, ScenariosFailed
 
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:
+        # the command's own error, as one line naming the arguments (argparse's top-level
+        # parser would print its usage line and its name instead)
+        commands.one_line_error(_command_parser(parser, args))(
+            f"unrecognized arguments: {' '.join(unknown)}")
     if not getattr(args, "func", None):
         parser.print_help()
         return 0

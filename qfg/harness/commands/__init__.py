@@ -31,6 +31,17 @@ def seed_int(text: str) -> int:
     return _int_at_least(text, 0)
 
 
+def one_line_error(parser):
+    """An ``error`` for ``parser`` that prints argparse's error as one line (``qfg CMD: error:
+    MESSAGE (qfg CMD --help)``, exit 2), not usage + message: ``parser.error =
+    one_line_error(parser)``."""
+
+    def error(message):
+        parser.exit(2, f"{parser.prog}: error: {message} ({parser.prog} --help)\n")
+
+    return error
+
+
 def add_format(p) -> None:
     p.add_argument("--format", default="png", choices=FORMATS,
                    help="figure file format (default png)")
