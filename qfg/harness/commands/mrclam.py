@@ -28,7 +28,7 @@ import sys
 import time
 from pathlib import Path
 
-from qfg.harness.commands import add_format, seed_int
+from qfg.harness.commands import add_format, one_line_error, seed_int
 
 
 def _int_list(text: str, option: str = "--robots") -> list[int]:
@@ -36,15 +36,6 @@ def _int_list(text: str, option: str = "--robots") -> list[int]:
         return [int(x) for x in text.split(",") if x.strip()]
     except ValueError:
         raise ValueError(f"{option}: expected comma-separated integers, got {text!r}") from None
-
-
-def _one_line_error(parser):
-    """argparse's error as one line (``qfg mrclam: error: ...``, exit 2), not usage + message."""
-
-    def error(message):
-        parser.exit(2, f"qfg mrclam: error: {message} (qfg mrclam --help)\n")
-
-    return error
 
 
 def register(sub):
@@ -60,7 +51,7 @@ def register(sub):
                                    "triplet first. Options and data are checked before anything "
                                    "runs; the solving is recorded in pieces (Ctrl-C, then "
                                    "--resume, continues).")
-    p.error = _one_line_error(p)
+    p.error = one_line_error(p)
     p.add_argument("path", help="an MRCLAM_DatasetN directory")
     _add_options(p)
     p.add_argument("--curve", default="",

@@ -9,16 +9,8 @@ result as it was.
 
 import os
 
+from qfg.harness.commands import one_line_error
 from qfg.inference.tasks import TASKS
-
-
-def _one_line_error(parser):
-    """argparse's error as one line (``qfg uai: error: ...``, exit 2), not usage + message."""
-
-    def error(message):
-        parser.exit(2, f"{parser.prog}: error: {message} ({parser.prog} --help)\n")
-
-    return error
 
 
 def register(sub):
@@ -27,7 +19,7 @@ def register(sub):
         description="Solve one task of the UAI inference competitions exactly (junction tree, "
                     "evidence clamped first) and write the competition's result file: the task "
                     "on the first line, the solution on the second.")
-    p.error = _one_line_error(p)
+    p.error = one_line_error(p)
     p.add_argument("model", help="the model, a .uai file (MARKOV or BAYES)")
     p.add_argument("--evid", default=None,
                    help="evidence file (.evid: 'n v x ...' or the older '1 n v x ...' layout); "
