@@ -186,6 +186,7 @@ class QualitativeFactorGraph:
         self._fl_parts: list[np.ndarray] = []
         self._fv_parts: list[np.ndarray] = []
         self._pending: list[tuple] = []          # (key, ids, vars) added one at a time
+        self._composed = False                   # discover_compositions or add_composition ran
         self._single: dict[int, int] = {}
         self._bulk_keys = np.zeros(0, dtype=np.int64)
         self._bulk_idx = np.zeros(0, dtype=np.int64)
@@ -237,6 +238,7 @@ class QualitativeFactorGraph:
         except (TypeError, ValueError):
             raise ValueError(f"ijks: expected four landmark ids (i, j, k, s), got {ijks!r}") from None
         key = (i, j, k, s)
+        self._composed = True
         vs = []
         for t in ((i, j, k), (j, k, s), (i, j, s)):
             if t not in self._index:
@@ -294,6 +296,7 @@ class QualitativeFactorGraph:
         triplets sharing their last pair), not a scan of all triples of triplets. New factors
         are added in lexicographic ``(i, j, k, s)`` order. Returns the number of factors added.
         """
+        self._composed = True
         n = len(self._triplets)
         if n == 0:
             return 0
@@ -366,6 +369,12 @@ class QualitativeFactorGraph:
     @property
     def n_triplets(self) -> int:
         return len(self._triplets)
+
+    @property
+    def compositions_asked(self) -> bool:
+        """Whether :meth:`discover_compositions` or :meth:`add_composition` ran on this map:
+        propagation refuses a map with unseen triplets that never asked for a composition."""
+        return self._composed
 
     @property
     def n_factors(self) -> int:

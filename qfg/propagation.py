@@ -452,6 +452,10 @@ def propagate(g, close_used: bool = False, method: str = "best", *, _reference: 
     evidence is counted twice (0.99), where the exact marginal is 0.9 -- an approximation.
     """
     check_method(method, PROPAGATION_METHODS, {"mean": "pooled"})
+    if not g.compositions_asked and not g.seen.all():
+        # the order-of-call mistake: without factors every unseen row would come back uniform
+        raise ValueError("g: the map has unseen triplets but no composition was asked for: call "
+                         "g.discover_compositions() (or add_composition) before propagating")
     if method == "pooled":
         if close_used:
             raise ValueError("close_used: applies to method='best' only (method='pooled' pools "
@@ -615,6 +619,8 @@ def compare_unseen(g, truth=None, method: str = "junction", max_table: int | Non
     >>> g = QualitativeFactorGraph("lr", tensor=T)
     >>> for t, p in [((0, 1, 2), [0.9, 0.1]), ((1, 2, 3), None)]:
     ...     _ = g.add_triplet(t, p)
+    >>> g.discover_compositions()                   # none: the two triplets share no factor
+    0
     >>> [(r["triplet"], r["exact"].tolist(), r["truth"]) for r in compare_unseen(g, truth=[0, 1])]
     [((1, 2, 3), [0.5, 0.5], 1)]
     """

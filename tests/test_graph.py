@@ -266,3 +266,39 @@ def test_graph_module_does_not_import_inference():
     mods = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.module}
     mods |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
     assert not any("propagation" in m or "inference" in m for m in mods), mods
+
+
+# ------------------------------------------------------------------ order-of-call mistakes
+def test_propagate_before_any_composition_is_refused_and_after_discovery_answers():
+    from qfg.propagation import propagate
+
+    T = np.zeros((2, 2, 2))
+    T[0, 0, 0] = T[1, 1, 1] = 1
+    g = QualitativeFactorGraph("lr", tensor=T)
+    for t, p in [((0, 1, 2), [0.9, 0.1]), ((1, 2, 3), [0.9, 0.1]), ((0, 1, 3), None)]:
+        g.add_triplet(t, p)
+    for method in ("best", "pooled"):
+        with pytest.raises(ValueError, match=r"^g: .*discover_compositions"):
+            propagate(g, method=method)
+    assert not g.compositions_asked
+    assert g.discover_compositions() == 1 and g.compositions_asked
+    # the unseen triplet is composed from the two seen ones (all three equal under T)
+    assert propagate(g)[(0, 1, 3)].argmax() == 0
+
+
+def test_a_map_with_nothing_to_compose_answers_once_discovery_ran():
+    from qfg.propagation import propagate
+
+    g = QualitativeFactorGraph("lr", tensor=np.ones((2, 2, 2)))
+    g.add_triplet((0, 1, 2), [0.9, 0.1])
+    g.add_triplet((3, 4, 5))                            # shares no pair: no factor can exist
+    assert g.discover_compositions() == 0
+    assert propagate(g)[(3, 4, 5)].tolist() == [0.5, 0.5]
+
+
+def test_a_map_of_seen_triplets_only_needs_no_composition():
+    from qfg.propagation import propagate
+
+    g = QualitativeFactorGraph("lr", tensor=np.ones((2, 2, 2)))
+    g.add_triplet((0, 1, 2), [0.9, 0.1])
+    np.testing.assert_allclose(propagate(g)[(0, 1, 2)], [0.9, 0.1])
