@@ -209,17 +209,23 @@ class QualitativeFactorGraph:
         return int(self.table.shape[0])
 
     # -------------------------------------------------------------- building
-    def add_triplet(self, triplet, prior=None) -> int:
+    def add_triplet(self, triplet, prior=None, *, replace: bool = False) -> int:
         """Add triplet ``(i, j, k)`` (ordered, distinct landmark ids); returns its variable index.
 
         ``prior``: (m,) non-negative vector (normalized here), an object with a ``.landmark`` (m,)
-        attribute (:class:`~qfg.solvers.TripletEstimate`), or None for an unseen triplet. Adding an
-        existing triplet replaces its prior.
+        attribute (:class:`~qfg.solvers.TripletEstimate`), or None for an unseen triplet. A
+        triplet already in the map that has no prior gets this one (``full_map`` then priors is
+        the usual way to build a map); one that has a prior is refused, since a second estimate
+        would silently drop the first (combine the estimates first, :mod:`qfg.combine`), unless
+        ``replace=True``, which replaces it.
         """
         t = _as_triplet(triplet)
         p = None if prior is None else _as_prior(prior, self.m)
         v = self._index.get(t)
         if v is not None:
+            if self._priors[v] is not None and not replace:
+                raise ValueError(f"triplet: {t} already has a prior (variable {v}); combine its "
+                                 f"estimates first (qfg.combine), or pass replace=True")
             self._priors[v] = p
             return v
         v = len(self._triplets)

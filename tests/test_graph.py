@@ -115,7 +115,7 @@ def test_prior_accepts_estimate_like_object_and_normalizes():
     g = QualitativeFactorGraph("lr", tensor=np.ones((2, 2, 2)))
     v = g.add_triplet((0, 1, 2), Est())
     np.testing.assert_allclose(g.priors[v], [0.25, 0.75])
-    assert g.add_triplet((0, 1, 2), None) == v and g.priors[v] is None
+    assert g.add_triplet((0, 1, 2), None, replace=True) == v and g.priors[v] is None
 
 
 def test_map_from_triplets_seen_plus_unseen():

@@ -325,7 +325,7 @@ def test_map_and_k_best_equal_brute_force(seed):
 
 def test_k_best_returns_every_positive_assignment_when_k_is_large():
     g = two_contradicting_priors()
-    g.add_triplet((1, 2, 3), [0.3, 0.7])
+    g.add_triplet((1, 2, 3), [0.3, 0.7], replace=True)
     _, X, lw, logz = brute(g)
     kb = k_best(g, 50)
     assert len(kb) == int(np.isfinite(lw).sum())

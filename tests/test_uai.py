@@ -30,7 +30,7 @@ def small_graph(seed=0, partition=None, m=3):
     g = QualitativeFactorGraph(partition, tensor=T)
     for t in [(0, 1, 2), (1, 2, 3), (0, 1, 3), (2, 3, 4), (1, 2, 4), (7, 8, 9)]:
         g.add_triplet(t, rng.random(m) if rng.random() < 0.5 else None)
-    g.add_triplet((0, 1, 2), rng.random(m))
+    g.add_triplet((0, 1, 2), rng.random(m), replace=True)      # seen, whatever the loop drew
     g.discover_compositions()
     return g
 
