@@ -173,12 +173,16 @@ def format_bytes(b) -> str:
     return f"{b:.0f} B"
 
 
-def check_memory(estimate: float, budget: int, task: str, detail: str = "") -> None:
-    """Raise :class:`MemoryBudgetError` when ``estimate`` bytes exceed ``budget`` (bytes).
-    ``task`` names what is refused, ``detail`` where the bytes go."""
+def check_memory(estimate: float, budget: int, task: str, detail: str = "", *, name: str = "",
+                 hint: str = "", error=None, **attributes) -> None:
+    """Raise ``error`` (:class:`MemoryBudgetError` by default) when ``estimate`` bytes exceed
+    ``budget`` (bytes). ``task`` names what is refused, ``detail`` where the bytes go, ``name``
+    the argument the message starts with, ``hint`` what to do instead; ``attributes`` go to the
+    error with ``estimate``, ``budget`` and ``task``."""
     if estimate > budget:
-        raise MemoryBudgetError(
-            f"{task} refused before any work: it would allocate about {format_bytes(estimate)} "
-            f"({estimate:.3g} bytes{'; ' + detail if detail else ''}) > the memory budget "
-            f"{format_bytes(budget)} (memory=, or ${ENV})", estimate=estimate, budget=budget,
-            task=task)
+        raise (error or MemoryBudgetError)(
+            f"{name + ': ' if name else ''}{task} refused before any work: it would allocate about "
+            f"{format_bytes(estimate)} ({estimate:.3g} bytes{'; ' + detail if detail else ''}) > "
+            f"the memory budget {format_bytes(budget)} (memory=, or ${ENV})"
+            f"{'; ' + hint if hint else ''}", estimate=estimate, budget=budget, task=task,
+            **attributes)

@@ -28,7 +28,6 @@ from dataclasses import dataclass, field
 
 from .. import budget as _budget
 from ..budget import DEFAULT_FRACTION, memory_budget, parse_bytes
-from ..budget import format_bytes as _fmt
 from .results import GraphTooLargeError
 
 __all__ = ["MemoryBudgetError", "MemoryEstimate", "memory_budget", "parse_bytes",
@@ -57,14 +56,11 @@ class MemoryBudgetError(GraphTooLargeError, _budget.MemoryBudgetError):
 
 def check_memory(estimate: float, budget: int, task: str, detail: str = "", *,
                  entries: float = float("nan"), width: int = 0) -> None:
-    """Raise :class:`MemoryBudgetError` when ``estimate`` bytes exceed ``budget`` (bytes)."""
-    if estimate > budget:
-        raise MemoryBudgetError(
-            f"g: {task} refused before any work: it would allocate about {_fmt(estimate)} "
-            f"({estimate:.3g} bytes{'; ' + detail if detail else ''}) > the memory budget "
-            f"{_fmt(budget)} (memory=, or $QFG_MEMORY_BUDGET); use propagate() or loopy_bp(), "
-            f"evidence, or a smaller model", estimate=estimate, budget=budget, task=task,
-            entries=entries, width=width)
+    """Raise :class:`MemoryBudgetError` when ``estimate`` bytes exceed ``budget`` (bytes):
+    :func:`qfg.budget.check_memory` with the exact engines' error and advice."""
+    _budget.check_memory(estimate, budget, task, detail, name="g",
+                         hint="use propagate() or loopy_bp(), evidence, or a smaller model",
+                         error=MemoryBudgetError, entries=entries, width=width)
 
 
 @dataclass(frozen=True)
